@@ -1,0 +1,465 @@
+//! The scene model: world-space triangles with per-triangle albedo, the scene's lights, and an
+//! obvhs compressed-wide BVH for closest-hit and shadow rays.
+
+use glam::{Vec3, Vec3A};
+use obvhs::{
+    cwbvh::{builder::build_cwbvh_from_tris, CwBvh},
+    ray::{Ray, RayHit},
+    triangle::Triangle,
+    BvhBuildParams,
+};
+use std::time::Duration;
+
+use crate::error::{check_finite, Result, VplaceError};
+
+/// The emitting shape of a [`Light`]. Radiometry follows Blender (see DESIGN, Coordinates and units).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum LightKind {
+    /// Blender POINT, radius 0: intensity `P / (4 pi)` in every direction.
+    Point,
+    /// Blender SPOT with blend 0: the point light cut to a cone of half angle `half_angle`
+    /// (radians, in `(0, pi]`). Emitted power is `P (1 - cos half_angle) / 2`.
+    Spot {
+        /// Half of Blender's `spot_size`, radians.
+        half_angle: f32,
+    },
+    /// Blender AREA light (normalize on): a one-sided cosine emitter of total power `P`, intensity
+    /// `(P / pi) cos(theta)` about `direction`. `size_x`, `size_y` along `tangent` and
+    /// `direction x tangent`; a disk uses `size_x` as its diameter.
+    Area {
+        /// Disk (true) or rectangle (false).
+        disk: bool,
+        /// Extent along `tangent`, metres (the diameter of a disk).
+        size_x: f32,
+        /// Extent along `direction x tangent`, metres (ignored for a disk).
+        size_y: f32,
+    },
+    /// Blender SUN: parallel light travelling along `direction` with irradiance `power` (W/m^2)
+    /// on a plane perpendicular to it.
+    Sun,
+}
+
+/// A light of the scene.
+///
+/// Invariants (checked by [`Light::validate`]): finite fields, non-negative `power`, unit
+/// `direction` and `tangent`, perpendicular to each other.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Light {
+    /// The emitter shape.
+    pub kind: LightKind,
+    /// World position (centre of an area light); unused for a sun.
+    pub position: Vec3,
+    /// Unit emission axis: the direction light leaves an area light or a spot, or travels for a sun.
+    pub direction: Vec3,
+    /// Unit tangent orienting an area light's `size_x` axis; perpendicular to `direction`.
+    pub tangent: Vec3,
+    /// Colour times power, W per channel (W/m^2 for a sun).
+    pub power: Vec3,
+}
+
+impl Light {
+    /// A POINT light of `power` (RGB watts).
+    #[must_use]
+    pub fn point(position: Vec3, power: Vec3) -> Self {
+        Self {
+            kind: LightKind::Point,
+            position,
+            direction: Vec3::NEG_Z,
+            tangent: Vec3::X,
+            power,
+        }
+    }
+
+    /// A SPOT light with cone half angle `half_angle` (radians) about `direction`.
+    #[must_use]
+    pub fn spot(position: Vec3, direction: Vec3, half_angle: f32, power: Vec3) -> Self {
+        let direction = direction.normalize_or_zero();
+        Self {
+            kind: LightKind::Spot { half_angle },
+            position,
+            direction,
+            tangent: direction.any_orthonormal_vector(),
+            power,
+        }
+    }
+
+    /// An AREA light emitting along `direction`, `size_x` along `tangent`.
+    #[must_use]
+    pub fn area(
+        position: Vec3,
+        direction: Vec3,
+        tangent: Vec3,
+        disk: bool,
+        size_x: f32,
+        size_y: f32,
+        power: Vec3,
+    ) -> Self {
+        Self {
+            kind: LightKind::Area {
+                disk,
+                size_x,
+                size_y,
+            },
+            position,
+            direction: direction.normalize_or_zero(),
+            tangent: tangent.normalize_or_zero(),
+            power,
+        }
+    }
+
+    /// A SUN travelling along `direction` with `irradiance` (RGB W/m^2).
+    #[must_use]
+    pub fn sun(direction: Vec3, irradiance: Vec3) -> Self {
+        let direction = direction.normalize_or_zero();
+        Self {
+            kind: LightKind::Sun,
+            position: Vec3::ZERO,
+            direction,
+            tangent: direction.any_orthonormal_vector(),
+            power: irradiance,
+        }
+    }
+
+    /// Checks the invariants; `index` names the light in the error.
+    pub fn validate(&self, index: usize) -> Result<()> {
+        let what = format!("lights[{index}]");
+        let v = self;
+        let flat = [
+            v.position.to_array(),
+            v.direction.to_array(),
+            v.tangent.to_array(),
+            v.power.to_array(),
+        ]
+        .concat();
+        check_finite(&what, &flat)?;
+        if v.power.min_element() < 0.0 {
+            return Err(VplaceError::OutOfRange {
+                what: format!("{what}.power"),
+                value: format!("{:?}", v.power.to_array()),
+                expected: "every channel >= 0".into(),
+            });
+        }
+        if (v.direction.length() - 1.0).abs() > 1e-3 || (v.tangent.length() - 1.0).abs() > 1e-3 {
+            return Err(VplaceError::Invalid {
+                what: what.clone(),
+                reason: "direction and tangent must be non-zero vectors".into(),
+            });
+        }
+        match v.kind {
+            LightKind::Spot { half_angle }
+                if !(half_angle > 0.0 && half_angle <= std::f32::consts::PI) =>
+            {
+                Err(VplaceError::OutOfRange {
+                    what: format!("{what}.half_angle"),
+                    value: half_angle.to_string(),
+                    expected: "(0, pi]".into(),
+                })
+            }
+            LightKind::Area { size_x, size_y, disk }
+                if !(size_x > 0.0 && (disk || size_y > 0.0)) =>
+            {
+                Err(VplaceError::OutOfRange {
+                    what: format!("{what}.size"),
+                    value: format!("({size_x}, {size_y})"),
+                    expected: "> 0".into(),
+                })
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+/// A surface hit: distance along the ray and the original triangle index.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    /// Distance along the (unit) ray direction.
+    pub t: f32,
+    /// Index into the triangles passed to [`Scene::build`].
+    pub triangle: u32,
+}
+
+/// Triangles, materials and lights with a BVH over the triangles.
+///
+/// Invariants: at least one triangle; every material id indexes `albedo`; every value finite;
+/// albedo channels in `[0, 1]`.
+pub struct Scene {
+    /// Triangles in BVH leaf order (`bvh.primitive_indices` order), for cache-friendly traversal.
+    bvh_triangles: Vec<Triangle>,
+    /// Original triangle index of each entry of `bvh_triangles`.
+    bvh_ids: Vec<u32>,
+    bvh: CwBvh,
+    /// Unit geometric normal per original triangle (zero for degenerate triangles).
+    normals: Vec<Vec3>,
+    /// Albedo per original triangle.
+    triangle_albedo: Vec<Vec3>,
+    /// The scene's lights.
+    pub lights: Vec<Light>,
+    bounds_min: Vec3,
+    bounds_max: Vec3,
+    /// Number of zero-area triangles (kept, never hit).
+    pub degenerate_triangles: usize,
+}
+
+impl std::fmt::Debug for Scene {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Scene")
+            .field("triangles", &self.normals.len())
+            .field("lights", &self.lights.len())
+            .field("bounds_min", &self.bounds_min)
+            .field("bounds_max", &self.bounds_max)
+            .finish()
+    }
+}
+
+impl Scene {
+    /// Builds a scene from indexed triangles. `material_ids[t]` indexes `albedo` for triangle `t`.
+    pub fn build(
+        vertices: &[Vec3],
+        triangles: &[[u32; 3]],
+        material_ids: &[u32],
+        albedo: &[Vec3],
+        lights: Vec<Light>,
+    ) -> Result<Self> {
+        if triangles.is_empty() {
+            return Err(VplaceError::Empty {
+                what: "scene triangles".into(),
+                hint: "the scene needs at least one mesh triangle".into(),
+            });
+        }
+        if material_ids.len() != triangles.len() {
+            return Err(VplaceError::Shape {
+                what: "material_ids".into(),
+                expected: format!("({},) (one per triangle)", triangles.len()),
+                got: format!("({},)", material_ids.len()),
+            });
+        }
+        if albedo.is_empty() {
+            return Err(VplaceError::Empty {
+                what: "albedo".into(),
+                hint: "pass at least one material".into(),
+            });
+        }
+        let flat: Vec<f32> = vertices.iter().flat_map(|v| v.to_array()).collect();
+        check_finite("vertices", &flat)?;
+        let flat: Vec<f32> = albedo.iter().flat_map(|v| v.to_array()).collect();
+        check_finite("albedo", &flat)?;
+        if let Some(i) = flat.iter().position(|a| !(0.0..=1.0).contains(a)) {
+            return Err(VplaceError::OutOfRange {
+                what: format!("albedo[{}]", i / 3),
+                value: flat[i].to_string(),
+                expected: "[0, 1] in every channel".into(),
+            });
+        }
+        for (i, l) in lights.iter().enumerate() {
+            l.validate(i)?;
+        }
+        let nv = vertices.len();
+        let mut tris = Vec::with_capacity(triangles.len());
+        let mut normals = Vec::with_capacity(triangles.len());
+        let mut triangle_albedo = Vec::with_capacity(triangles.len());
+        let mut degenerate = 0;
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for (t, (idx, &m)) in triangles.iter().zip(material_ids).enumerate() {
+            for &i in idx {
+                if i as usize >= nv {
+                    return Err(VplaceError::IndexOutOfBounds {
+                        what: format!("triangles[{t}]"),
+                        index: i as usize,
+                        len: nv,
+                    });
+                }
+            }
+            if m as usize >= albedo.len() {
+                return Err(VplaceError::IndexOutOfBounds {
+                    what: format!("material_ids[{t}]"),
+                    index: m as usize,
+                    len: albedo.len(),
+                });
+            }
+            let [a, b, c] = idx.map(|i| vertices[i as usize]);
+            let n = (b - a).cross(c - a);
+            if n.length_squared() == 0.0 {
+                degenerate += 1;
+            }
+            for p in [a, b, c] {
+                lo = lo.min(p);
+                hi = hi.max(p);
+            }
+            normals.push(n.normalize_or_zero());
+            triangle_albedo.push(albedo[m as usize]);
+            tris.push(Triangle {
+                v0: a.into(),
+                v1: b.into(),
+                v2: c.into(),
+            });
+        }
+        if degenerate == tris.len() {
+            return Err(VplaceError::Invalid {
+                what: "scene triangles".into(),
+                reason: "every triangle has zero area".into(),
+            });
+        }
+        let bvh = build_cwbvh_from_tris(
+            &tris,
+            BvhBuildParams::medium_build(),
+            &mut Duration::default(),
+        );
+        let bvh_ids = bvh.primitive_indices.clone();
+        let bvh_triangles = bvh_ids.iter().map(|&i| tris[i as usize]).collect();
+        Ok(Self {
+            bvh_triangles,
+            bvh_ids,
+            bvh,
+            normals,
+            triangle_albedo,
+            lights,
+            bounds_min: lo,
+            bounds_max: hi,
+            degenerate_triangles: degenerate,
+        })
+    }
+
+    /// Number of triangles.
+    #[must_use]
+    pub fn triangle_count(&self) -> usize {
+        self.normals.len()
+    }
+
+    /// Axis-aligned bounds of the geometry, `(min, max)`.
+    #[must_use]
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        (self.bounds_min, self.bounds_max)
+    }
+
+    /// Length of the bounds' diagonal: the scene's scale for ray offsets.
+    #[must_use]
+    pub fn diagonal(&self) -> f32 {
+        (self.bounds_max - self.bounds_min).length().max(1e-6)
+    }
+
+    /// Ray offset used to leave a surface without hitting it again.
+    #[must_use]
+    pub fn ray_epsilon(&self) -> f32 {
+        1e-4 * self.diagonal()
+    }
+
+    /// Unit geometric normal of triangle `t` (zero if degenerate).
+    #[must_use]
+    pub fn normal(&self, t: u32) -> Vec3 {
+        self.normals[t as usize]
+    }
+
+    /// Albedo of triangle `t`.
+    #[must_use]
+    pub fn albedo(&self, t: u32) -> Vec3 {
+        self.triangle_albedo[t as usize]
+    }
+
+    /// Closest hit along `origin + t * dir` for `t` in `(tmin, tmax)`; `dir` must be unit length.
+    #[must_use]
+    pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
+        let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), tmin, tmax);
+        let mut hit = RayHit::none();
+        if self
+            .bvh
+            .ray_traverse(ray, &mut hit, |r, id| self.bvh_triangles[id].intersect(r))
+        {
+            Some(Hit {
+                t: hit.t,
+                triangle: self.bvh_ids[hit.primitive_id as usize],
+            })
+        } else {
+            None
+        }
+    }
+
+    /// True when any triangle lies on the open segment from `from` to `to` (an any-hit shadow ray).
+    /// The caller offsets both ends off their surfaces.
+    #[must_use]
+    pub fn occluded(&self, from: Vec3, to: Vec3) -> bool {
+        let d = to - from;
+        let len = d.length();
+        if len <= 0.0 {
+            return false;
+        }
+        let ray = Ray::new(Vec3A::from(from), Vec3A::from(d / len), 0.0, len);
+        !self
+            .bvh
+            .ray_traverse_miss(ray, |r, id| self.bvh_triangles[id].intersect(r))
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod test_util {
+    //! Procedural scenes shared by tests.
+    use super::*;
+
+    /// An open box `[-1, 1]^2 x [0, 2]` (floor, four walls, ceiling) with inward-facing
+    /// triangles, albedo 0.5, and `lights`.
+    pub fn closed_box(lights: Vec<Light>) -> Scene {
+        let mut v = Vec::new();
+        let mut t = Vec::new();
+        let mut quad = |a: Vec3, b: Vec3, c: Vec3, d: Vec3| {
+            let base = v.len() as u32;
+            v.extend([a, b, c, d]);
+            t.push([base, base + 1, base + 2]);
+            t.push([base, base + 2, base + 3]);
+        };
+        let p = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+        quad(p(-1., -1., 0.), p(1., -1., 0.), p(1., 1., 0.), p(-1., 1., 0.)); // floor
+        quad(p(-1., -1., 2.), p(-1., 1., 2.), p(1., 1., 2.), p(1., -1., 2.)); // ceiling
+        quad(p(-1., -1., 0.), p(-1., 1., 0.), p(-1., 1., 2.), p(-1., -1., 2.)); // x = -1
+        quad(p(1., -1., 0.), p(1., -1., 2.), p(1., 1., 2.), p(1., 1., 0.)); // x = +1
+        quad(p(-1., 1., 0.), p(1., 1., 0.), p(1., 1., 2.), p(-1., 1., 2.)); // y = +1
+        quad(p(-1., -1., 0.), p(-1., -1., 2.), p(1., -1., 2.), p(1., -1., 0.)); // y = -1
+        let ids = vec![0; t.len()];
+        Scene::build(&v, &t, &ids, &[Vec3::splat(0.5)], lights).unwrap()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::test_util::closed_box;
+    use super::*;
+
+    #[test]
+    fn closest_hit_and_occlusion() {
+        let s = closed_box(vec![]);
+        let h = s.closest_hit(Vec3::new(0., 0., 1.), Vec3::NEG_Z, 0.0, f32::INFINITY).unwrap();
+        assert!((h.t - 1.0).abs() < 1e-5);
+        assert!(s.normal(h.triangle).z.abs() > 0.999);
+        assert!(!s.occluded(Vec3::new(0., 0., 0.5), Vec3::new(0., 0., 1.5)));
+        assert!(s.occluded(Vec3::new(0., 0., 0.5), Vec3::new(0., 0., -0.5)));
+        assert!((s.diagonal() - (4.0f32 + 4.0 + 4.0).sqrt()).abs() < 1e-5);
+    }
+
+    #[test]
+    fn bad_input_is_an_error() {
+        let v = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let a = [Vec3::splat(0.5)];
+        assert!(matches!(
+            Scene::build(&v, &[], &[], &a, vec![]),
+            Err(VplaceError::Empty { .. })
+        ));
+        assert!(matches!(
+            Scene::build(&v, &[[0, 1, 3]], &[0], &a, vec![]),
+            Err(VplaceError::IndexOutOfBounds { .. })
+        ));
+        assert!(matches!(
+            Scene::build(&v, &[[0, 1, 2]], &[1], &a, vec![]),
+            Err(VplaceError::IndexOutOfBounds { .. })
+        ));
+        let nan = [Vec3::ZERO, Vec3::new(f32::NAN, 0., 0.), Vec3::Y];
+        assert!(matches!(
+            Scene::build(&nan, &[[0, 1, 2]], &[0], &a, vec![]),
+            Err(VplaceError::NonFinite { index: 3, .. })
+        ));
+        assert!(matches!(
+            Scene::build(&v, &[[0, 0, 0]], &[0], &a, vec![]),
+            Err(VplaceError::Invalid { .. })
+        ));
+        let bad = Light::point(Vec3::ZERO, Vec3::new(-1., 0., 0.));
+        assert!(Scene::build(&v, &[[0, 1, 2]], &[0], &a, vec![bad]).is_err());
+        assert!(Scene::build(&v, &[[0, 1, 2]], &[0], &[Vec3::splat(1.5)], vec![]).is_err());
+    }
+}

@@ -1,0 +1,292 @@
+//! Virtual point lights and the uniform (instant radiosity) layout of Keller 1997.
+//!
+//! A VPL stands for light reflected once by a diffuse surface. It carries the flux `Phi` (RGB
+//! watts) that its patch reflects. How it radiates is its [`Profile`].
+
+use glam::Vec3;
+use std::f32::consts::PI;
+
+use crate::error::{Result, VplaceError};
+use crate::rng::Rng;
+use crate::scene::{Light, LightKind, Scene};
+
+/// How a VPL radiates its flux `Phi`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Profile {
+    /// Lambertian: intensity `Phi / pi * max(0, cos)` about the surface normal. Exactly a Blender
+    /// AREA light of power `Phi` facing along the normal. The physically right choice.
+    #[default]
+    Cosine,
+    /// Uniform over the sphere with power `2 Phi` (a Blender POINT light), so the hemisphere in
+    /// front of the surface receives `Phi`, like the cosine profile; half is lost into the surface.
+    Omni,
+}
+
+impl Profile {
+    /// Radiant intensity (W/sr per unit flux) toward a direction making cosine `cos_e` with the
+    /// VPL normal.
+    #[inline]
+    #[must_use]
+    pub fn intensity_per_flux(self, cos_e: f32) -> f32 {
+        match self {
+            Profile::Cosine => cos_e.max(0.0) / PI,
+            Profile::Omni => 2.0 / (4.0 * PI),
+        }
+    }
+
+    /// The power a Blender light needs to reproduce this profile for a VPL of flux `flux`.
+    #[must_use]
+    pub fn blender_power(self, flux: Vec3) -> Vec3 {
+        match self {
+            Profile::Cosine => flux,
+            Profile::Omni => 2.0 * flux,
+        }
+    }
+}
+
+/// A virtual point light.
+///
+/// Invariants: `normal` is unit length; `position` lies a small offset
+/// ([`Vpl::SURFACE_OFFSET`] times the scene diagonal) off its surface along `normal`, so shadow
+/// rays and Blender lights placed there never start inside the surface.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Vpl {
+    /// World position, already offset off the surface.
+    pub position: Vec3,
+    /// Unit surface normal, facing the side the light arrived from.
+    pub normal: Vec3,
+    /// Reflected flux, RGB watts.
+    pub flux: Vec3,
+}
+
+impl Vpl {
+    /// Offset of a VPL off its surface, as a fraction of the scene diagonal.
+    pub const SURFACE_OFFSET: f32 = 1e-3;
+}
+
+/// Luminance weights (Rec. 709), as everywhere in vplace.
+pub const LUMINANCE: Vec3 = Vec3::new(0.2126, 0.7152, 0.0722);
+
+/// Total power a light emits into the scene (RGB watts).
+#[must_use]
+pub fn emitted_power(light: &Light, scene: &Scene) -> Vec3 {
+    match light.kind {
+        LightKind::Point | LightKind::Area { .. } => light.power,
+        LightKind::Spot { half_angle } => light.power * (1.0 - half_angle.cos()) / 2.0,
+        LightKind::Sun => {
+            let r = 0.5 * scene.diagonal();
+            light.power * PI * r * r
+        }
+    }
+}
+
+/// An orthonormal basis `(t, b)` around unit `n`.
+fn basis(n: Vec3) -> (Vec3, Vec3) {
+    let t = n.any_orthonormal_vector();
+    (t, n.cross(t))
+}
+
+/// Samples an emission ray `(origin, unit direction)` of `light` from two random numbers pairs.
+fn sample_emission(light: &Light, scene: &Scene, rng: &mut Rng) -> (Vec3, Vec3) {
+    let (u1, u2) = (rng.next_f32(), rng.next_f32());
+    match light.kind {
+        LightKind::Point => (light.position, uniform_sphere(u1, u2)),
+        LightKind::Spot { half_angle } => {
+            // Uniform over the spherical cap: cos theta uniform in [cos half_angle, 1].
+            let cos_t = 1.0 - u1 * (1.0 - half_angle.cos());
+            let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+            let phi = 2.0 * PI * u2;
+            let (t, b) = basis(light.direction);
+            let d = light.direction * cos_t + (t * phi.cos() + b * phi.sin()) * sin_t;
+            (light.position, d)
+        }
+        LightKind::Area {
+            disk,
+            size_x,
+            size_y,
+        } => {
+            let (v1, v2) = (rng.next_f32(), rng.next_f32());
+            let bitangent = light.direction.cross(light.tangent);
+            let offset = if disk {
+                let r = 0.5 * size_x * v1.sqrt();
+                let a = 2.0 * PI * v2;
+                light.tangent * (r * a.cos()) + bitangent * (r * a.sin())
+            } else {
+                light.tangent * ((v1 - 0.5) * size_x) + bitangent * ((v2 - 0.5) * size_y)
+            };
+            // Cosine-weighted direction about the emission axis.
+            let r = u1.sqrt();
+            let phi = 2.0 * PI * u2;
+            let (t, b) = basis(light.direction);
+            let d = light.direction * (1.0 - u1).max(0.0).sqrt()
+                + (t * phi.cos() + b * phi.sin()) * r;
+            (light.position + offset, d.normalize())
+        }
+        LightKind::Sun => {
+            // Parallel rays from a disk of radius R (half the scene diagonal) perpendicular to
+            // the direction, placed outside the scene bounds.
+            let (lo, hi) = scene.bounds();
+            let centre = 0.5 * (lo + hi);
+            let radius = 0.5 * scene.diagonal();
+            let (t, b) = basis(light.direction);
+            let r = radius * u1.sqrt();
+            let a = 2.0 * PI * u2;
+            let origin =
+                centre - light.direction * (2.0 * radius) + (t * a.cos() + b * a.sin()) * r;
+            (origin, light.direction)
+        }
+    }
+}
+
+fn uniform_sphere(u1: f32, u2: f32) -> Vec3 {
+    let z = 1.0 - 2.0 * u1;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * PI * u2;
+    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// At most this many emission rays per requested VPL before giving up (rays that leave the
+/// scene make no VPL).
+pub const MAX_RAYS_PER_VPL: usize = 1000;
+
+/// Keller's instant radiosity: traces emission rays from the lights (chosen with probability
+/// proportional to their emitted luminance) until `n` rays have hit the geometry. Each hit becomes
+/// a VPL with flux `P_total / rays * albedo`, where `rays` counts every ray traced, including
+/// those that escaped: an unbiased estimate of the once-reflected flux. Deterministic for `seed`.
+pub fn uniform_vpls(scene: &Scene, n: usize, seed: u64) -> Result<Vec<Vpl>> {
+    if n == 0 {
+        return Err(VplaceError::OutOfRange {
+            what: "n".into(),
+            value: "0".into(),
+            expected: ">= 1".into(),
+        });
+    }
+    if scene.lights.is_empty() {
+        return Err(VplaceError::Empty {
+            what: "scene lights".into(),
+            hint: "add a light (point, spot, area or sun) to the scene".into(),
+        });
+    }
+    let powers: Vec<Vec3> = scene
+        .lights
+        .iter()
+        .map(|l| emitted_power(l, scene))
+        .collect();
+    let weights: Vec<f32> = powers.iter().map(|p| p.dot(LUMINANCE)).collect();
+    let total: f32 = weights.iter().sum();
+    if !(total > 0.0) {
+        return Err(VplaceError::Invalid {
+            what: "scene lights".into(),
+            reason: "every light has zero power".into(),
+        });
+    }
+    let mut cdf = Vec::with_capacity(weights.len());
+    let mut acc = 0.0;
+    for w in &weights {
+        acc += w / total;
+        cdf.push(acc);
+    }
+    let eps = scene.ray_epsilon();
+    let offset = Vpl::SURFACE_OFFSET * scene.diagonal();
+    let mut rng = Rng::new(seed, 0x5eed);
+    // (position, normal, flux of the ray that made it / its light pick probability, albedo)
+    let mut hits: Vec<(Vec3, Vec3, Vec3)> = Vec::with_capacity(n);
+    let mut rays = 0usize;
+    while hits.len() < n {
+        if rays >= n * MAX_RAYS_PER_VPL {
+            return Err(VplaceError::Invalid {
+                what: "uniform VPLs".into(),
+                reason: format!(
+                    "only {} of {rays} light rays hit the geometry: are the lights outside the scene or facing away from it?",
+                    hits.len()
+                ),
+            });
+        }
+        rays += 1;
+        let u = rng.next_f32();
+        let li = cdf.partition_point(|&c| c <= u).min(cdf.len() - 1);
+        let light = &scene.lights[li];
+        let (origin, dir) = sample_emission(light, scene, &mut rng);
+        if let Some(h) = scene.closest_hit(origin, dir, eps, f32::INFINITY) {
+            let mut normal = scene.normal(h.triangle);
+            if normal.dot(dir) > 0.0 {
+                normal = -normal;
+            }
+            let p = origin + dir * h.t + normal * offset;
+            let carried = powers[li] / (weights[li] / total);
+            hits.push((p, normal, carried * scene.albedo(h.triangle)));
+        }
+    }
+    let inv_rays = 1.0 / rays as f32;
+    Ok(hits
+        .into_iter()
+        .map(|(position, normal, f)| Vpl {
+            position,
+            normal,
+            flux: f * inv_rays,
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::test_util::closed_box;
+
+    #[test]
+    fn deterministic_and_on_surfaces() {
+        let s = closed_box(vec![Light::point(Vec3::new(0., 0., 1.), Vec3::splat(10.))]);
+        let a = uniform_vpls(&s, 200, 3).unwrap();
+        let b = uniform_vpls(&s, 200, 3).unwrap();
+        let c = uniform_vpls(&s, 200, 4).unwrap();
+        assert_eq!(a, b);
+        assert_ne!(a, c);
+        for v in &a {
+            let p = v.position;
+            let inside = p.x.abs() < 1.0 && p.y.abs() < 1.0 && p.z > 0.0 && p.z < 2.0;
+            assert!(inside, "{p:?}");
+            assert!((v.normal.length() - 1.0).abs() < 1e-4);
+            // The normal points into the box, where the light came from.
+            assert!(v.normal.dot(Vec3::new(0., 0., 1.) - p) > 0.0);
+        }
+    }
+
+    #[test]
+    fn closed_box_reflects_albedo_times_power() {
+        // Every ray hits a closed box: total VPL flux = albedo * P exactly.
+        for light in [
+            Light::point(Vec3::new(0.2, -0.1, 1.2), Vec3::new(10., 5., 1.)),
+            Light::area(Vec3::new(0., 0., 1.99), Vec3::NEG_Z, Vec3::X, true, 0.3, 0.0, Vec3::splat(4.)),
+            Light::spot(Vec3::new(0., 0., 1.9), Vec3::NEG_Z, 0.5, Vec3::splat(8.)),
+        ] {
+            let s = closed_box(vec![light]);
+            let v = uniform_vpls(&s, 500, 1).unwrap();
+            let total: Vec3 = v.iter().map(|v| v.flux).sum();
+            let expect = emitted_power(&light, &s) * 0.5;
+            assert!((total - expect).abs().max_element() < 1e-3 * expect.max_element(), "{total} {expect}");
+        }
+    }
+
+    #[test]
+    fn area_light_rays_leave_the_front_side() {
+        let s = closed_box(vec![Light::area(
+            Vec3::new(0., 0., 1.99), Vec3::NEG_Z, Vec3::X, false, 0.4, 0.2, Vec3::splat(4.),
+        )]);
+        let v = uniform_vpls(&s, 300, 9).unwrap();
+        // A downward cosine emitter never reaches the ceiling.
+        assert!(v.iter().all(|v| v.position.z < 1.98));
+    }
+
+    #[test]
+    fn errors() {
+        let s = closed_box(vec![]);
+        assert!(matches!(uniform_vpls(&s, 10, 0), Err(VplaceError::Empty { .. })));
+        let s = closed_box(vec![Light::point(Vec3::new(0., 0., 1.), Vec3::ZERO)]);
+        assert!(matches!(uniform_vpls(&s, 10, 0), Err(VplaceError::Invalid { .. })));
+        let s = closed_box(vec![Light::point(Vec3::new(0., 0., 1.), Vec3::ONE)]);
+        assert!(uniform_vpls(&s, 0, 0).is_err());
+        // A light outside, pointing away: no ray hits; a clear error, not a hang.
+        let s = closed_box(vec![Light::spot(Vec3::new(0., 0., 50.), Vec3::Z, 0.1, Vec3::ONE)]);
+        assert!(matches!(uniform_vpls(&s, 2, 0), Err(VplaceError::Invalid { .. })));
+    }
+}

@@ -1,0 +1,35 @@
+"""vplace: regression-guided virtual point light layout, at the numpy level.
+
+Usable without Blender. The native classes and functions come from ``vplace._native`` (Rust);
+this package re-exports them and adds the Python-level API.
+"""
+
+from vplace._native import (
+    CancelledError,
+    InputError,
+    InternalError,
+    Light,
+    Progress,
+    Scene,
+    VplaceError,
+    __version__,
+    evaluate,
+    relative_mse,
+    rmse,
+    uniform_vpls,
+)
+
+__all__ = [
+    "CancelledError",
+    "InputError",
+    "InternalError",
+    "Light",
+    "Progress",
+    "Scene",
+    "VplaceError",
+    "__version__",
+    "evaluate",
+    "relative_mse",
+    "rmse",
+    "uniform_vpls",
+]

@@ -1,0 +1,23 @@
+//! `vplace._native`: the pyo3 binding of `vplace-core`.
+//!
+//! Thin on purpose: numpy <-> core conversion with exact messages, the GIL released around
+//! long calls, panics caught and turned into `vplace.InternalError`, core errors mapped
+//! exhaustively (see `errors.rs`). No algorithms live here.
+
+use pyo3::prelude::*;
+
+mod arrays;
+mod errors;
+mod fit;
+mod par2d;
+mod scene;
+
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    errors::register(m)?;
+    scene::register(m)?;
+    fit::register(m)?;
+    par2d::register(m)?;
+    Ok(())
+}
