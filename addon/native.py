@@ -2,9 +2,48 @@
 
 When the add-on is installed as an extension, Blender installs the bundled ``vplace`` wheel
 (``wheels/`` in the manifest); in development the package comes from the virtual environment.
-Every other module reaches the native library through ``from .native import vplace``.
+Every other module reaches the native library through this one.
 """
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
 
 import vplace
 
-__all__ = ["vplace"]
+if TYPE_CHECKING:
+    from .export import ExportedScene, LightInfo
+
+__all__ = ["build_scene", "native_light", "vplace"]
+
+
+def native_light(info: LightInfo) -> vplace.Light:
+    """The core light for an exported Blender light."""
+    if info.type == "POINT":
+        return vplace.Light.point(info.position, info.power)
+    if info.type == "SPOT":
+        return vplace.Light.spot(info.position, info.direction, info.spot_half_angle, info.power)
+    if info.type == "AREA":
+        return vplace.Light.area(
+            info.position,
+            info.direction,
+            info.tangent,
+            info.area_disk,
+            info.size_x,
+            info.size_y,
+            info.power,
+        )
+    if info.type == "SUN":
+        return vplace.Light.sun(info.direction, info.power)
+    raise vplace.InputError(f"light {info.name!r} has an unsupported type {info.type!r}")
+
+
+def build_scene(exported: ExportedScene) -> vplace.Scene:
+    """A ``vplace.Scene`` (with its BVH) from an exported Blender scene."""
+    return vplace.Scene(
+        exported.vertices,
+        exported.triangles,
+        exported.material_ids,
+        exported.albedo,
+        [native_light(light) for light in exported.lights],
+    )

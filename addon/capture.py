@@ -1,0 +1,288 @@
+"""Capture: one Cycles render per view gives the G-buffer and the lighting passes (DESIGN: Capture).
+
+Render settings are changed through :func:`settings.override` and restored however the render
+ends. Results are cached on disk as ``.npz`` keyed by the scene's content, the camera, the
+resolution, the samples and the seed.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+import bpy
+import numpy as np
+import OpenEXR
+
+from .export import export_scene
+from .settings import SettingsGuard, override
+
+#: Bump when the capture's content or layout changes, to invalidate caches.
+CAPTURE_VERSION = 1
+#: Planar depth of pixels that see no geometry (Cycles writes 1e10).
+BACKGROUND_DEPTH = 1e9
+
+#: EXR pass name -> view-layer flag that enables it.
+PASS_FLAGS = {
+    "Combined": "use_pass_combined",
+    "Depth": "use_pass_z",
+    "Normal": "use_pass_normal",
+    "Position": "use_pass_position",
+    "Diffuse Direct": "use_pass_diffuse_direct",
+    "Diffuse Indirect": "use_pass_diffuse_indirect",
+    "Diffuse Color": "use_pass_diffuse_color",
+    "Glossy Direct": "use_pass_glossy_direct",
+    "Glossy Indirect": "use_pass_glossy_indirect",
+    "Glossy Color": "use_pass_glossy_color",
+    "Emission": "use_pass_emit",
+    "Environment": "use_pass_environment",
+}
+
+
+#: Image settings in the order they must be restored (each may reset the ones after it).
+IMAGE_SETTINGS = ("media_type", "file_format", "color_mode", "color_depth", "exr_codec")
+
+
+class CaptureError(RuntimeError):
+    """The capture could not be made; the message says why and what to do."""
+
+
+@dataclass
+class Capture:
+    """The passes of one view, H x W (x 3) float32, row 0 at the top, scene-linear."""
+
+    combined: np.ndarray
+    depth: np.ndarray
+    normal: np.ndarray
+    position: np.ndarray
+    diffuse_direct: np.ndarray
+    diffuse_indirect: np.ndarray
+    diffuse_color: np.ndarray
+    glossy_direct: np.ndarray
+    glossy_indirect: np.ndarray
+    glossy_color: np.ndarray
+    emission: np.ndarray
+    environment: np.ndarray
+    samples: int
+    render_seconds: float
+    key: str
+
+    @property
+    def height(self) -> int:
+        return int(self.depth.shape[0])
+
+    @property
+    def width(self) -> int:
+        return int(self.depth.shape[1])
+
+    @property
+    def covered(self) -> np.ndarray:
+        """True where the pixel sees geometry."""
+        return self.depth < BACKGROUND_DEPTH
+
+    @property
+    def albedo(self) -> np.ndarray:
+        """Diffuse albedo (the DiffCol pass)."""
+        return self.diffuse_color
+
+    @property
+    def direct(self) -> np.ndarray:
+        """``D = DiffDir*DiffCol + GlossDir*GlossCol + Emit + Env``."""
+        return (
+            self.diffuse_direct * self.diffuse_color
+            + self.glossy_direct * self.glossy_color
+            + self.emission
+            + self.environment
+        ).astype(np.float32)
+
+    @property
+    def gi(self) -> np.ndarray:
+        """``G = Combined`` (RGB)."""
+        return self.combined
+
+    @property
+    def indirect(self) -> np.ndarray:
+        """``I = G - D``."""
+        return (self.gi - self.direct).astype(np.float32)
+
+    def save(self, path: Path) -> None:
+        """Writes the capture as an uncompressed ``.npz``."""
+        arrays = {f.name: getattr(self, f.name) for f in fields(self)}
+        tmp = path.with_suffix(".tmp.npz")
+        np.savez(tmp, **arrays)
+        os.replace(tmp, path)
+
+    @classmethod
+    def load(cls, path: Path) -> Capture:
+        """Reads a capture written by :meth:`save`."""
+        with np.load(path) as data:
+            kw = {f.name: data[f.name] for f in fields(cls)}
+        kw["samples"] = int(kw["samples"])
+        kw["render_seconds"] = float(kw["render_seconds"])
+        kw["key"] = str(kw["key"])
+        return cls(**kw)
+
+
+def _render(scene: bpy.types.Scene, view_layer: bpy.types.ViewLayer) -> None:
+    """Renders one still (a seam that tests replace to inject failures)."""
+    result = bpy.ops.render.render(write_still=False, scene=scene.name, layer=view_layer.name)
+    if "FINISHED" not in result:
+        raise CaptureError(f"Cycles did not finish the render ({result})")
+
+
+def _configure(
+    g: SettingsGuard,
+    scene: bpy.types.Scene,
+    view_layer: bpy.types.ViewLayer,
+    resolution: tuple[int, int],
+    samples: int,
+    seed: int,
+) -> None:
+    r, c = scene.render, scene.cycles
+    g.set(r, "engine", "CYCLES")
+    g.set(c, "device", "CPU")
+    g.set(c, "samples", samples)
+    g.set(c, "use_adaptive_sampling", False)
+    g.set(c, "use_denoising", False)
+    g.set(c, "seed", seed)
+    g.set(c, "use_animated_seed", False)
+    g.set(c, "pixel_filter_type", "BOX")
+    g.set(c, "filter_width", 1.0)
+    g.set(r, "resolution_x", resolution[0])
+    g.set(r, "resolution_y", resolution[1])
+    g.set(r, "resolution_percentage", 100)
+    g.set(r, "use_border", False)
+    g.set(r, "use_single_layer", True)
+    g.set(r, "use_compositing", False)
+    g.set(r, "use_sequencer", False)
+    g.set(scene.view_settings, "view_transform", "Standard")
+    g.set(scene.view_settings, "look", "None")
+    g.set(scene.view_settings, "exposure", 0.0)
+    g.set(scene.view_settings, "gamma", 1.0)
+    for flag in PASS_FLAGS.values():
+        g.set(view_layer, flag, True)
+    ims = r.image_settings
+    g.remember(ims, IMAGE_SETTINGS)
+    g.set(ims, "media_type", "MULTI_LAYER_IMAGE")
+    g.set(ims, "color_depth", "32")
+    g.set(ims, "exr_codec", "NONE")
+
+
+def _read_exr(path: Path, layer: str) -> dict[str, np.ndarray]:
+    """Passes of a multilayer EXR as arrays, keyed by pass name."""
+    out: dict[str, np.ndarray] = {}
+    xyz: dict[str, dict[str, np.ndarray]] = {}
+    with OpenEXR.File(str(path)) as f:
+        for part in f.parts:
+            for name, ch in part.channels.items():
+                key = name.removeprefix(layer + ".")
+                pixels = np.asarray(ch.pixels, dtype=np.float32)
+                base, _, comp = key.rpartition(".")
+                if base in PASS_FLAGS and comp in {"X", "Y", "Z"}:
+                    xyz.setdefault(base, {})[comp] = pixels
+                else:
+                    out[key] = pixels
+    for base, comps in xyz.items():
+        if base == "Depth":
+            out[base] = comps["Z"]
+        else:
+            out[base] = np.stack([comps["X"], comps["Y"], comps["Z"]], axis=-1)
+    return out
+
+
+def capture_key(
+    scene: bpy.types.Scene, resolution: tuple[int, int], samples: int, seed: int
+) -> str:
+    """The cache key: scene content, camera, resolution, samples, seed."""
+    h = hashlib.sha256()
+    h.update(export_scene(scene).fingerprint().encode())
+    cam = scene.camera
+    h.update(repr([list(row) for row in cam.matrix_world]).encode())
+    h.update(repr((cam.data.lens, cam.data.sensor_width, cam.data.sensor_fit)).encode())
+    h.update(repr((cam.data.shift_x, cam.data.shift_y, cam.data.type)).encode())
+    h.update(repr((resolution, samples, seed, CAPTURE_VERSION)).encode())
+    return h.hexdigest()[:24]
+
+
+def capture(
+    scene: bpy.types.Scene,
+    *,
+    resolution: tuple[int, int] | None = None,
+    samples: int = 64,
+    seed: int = 0,
+    cache_dir: Path | None = None,
+    on_progress: Callable[[str], None] | None = None,
+) -> Capture:
+    """Renders ``scene`` from its camera with Cycles CPU and returns every pass as numpy.
+
+    ``resolution`` defaults to the scene's output size. With ``cache_dir``, an identical earlier
+    capture is loaded instead of rendering. ``on_progress`` receives Cycles' status lines.
+    """
+    if scene.camera is None:
+        raise CaptureError("the scene has no camera: add one and make it the scene camera")
+    if samples < 1:
+        raise CaptureError(f"samples must be at least 1, got {samples}")
+    if resolution is None:
+        pct = scene.render.resolution_percentage / 100.0
+        resolution = (
+            max(1, int(scene.render.resolution_x * pct)),
+            max(1, int(scene.render.resolution_y * pct)),
+        )
+    if min(resolution) < 1:
+        raise CaptureError(f"resolution must be at least 1 x 1, got {resolution}")
+    key = capture_key(scene, resolution, samples, seed)
+    cached = Path(cache_dir) / f"capture-{key}.npz" if cache_dir is not None else None
+    if cached is not None and cached.exists():
+        return Capture.load(cached)
+
+    view_layer = scene.view_layers[0]
+    if bpy.context.scene == scene:
+        view_layer = bpy.context.view_layer
+
+    def handler(stats: str, *_: object) -> None:
+        if on_progress is not None:
+            on_progress(str(stats))
+
+    with tempfile.TemporaryDirectory(prefix="vplace-capture-") as tmp:
+        exr = Path(tmp) / "passes.exr"
+        bpy.app.handlers.render_stats.append(handler)
+        try:
+            with override() as g:
+                _configure(g, scene, view_layer, resolution, samples, seed)
+                start = time.perf_counter()
+                _render(scene, view_layer)
+                seconds = time.perf_counter() - start
+                bpy.data.images["Render Result"].save_render(filepath=str(exr), scene=scene)
+        finally:
+            bpy.app.handlers.render_stats.remove(handler)
+        passes = _read_exr(exr, view_layer.name)
+    missing = [p for p in PASS_FLAGS if p not in passes]
+    if missing:
+        raise CaptureError(f"the render is missing the passes {missing}")
+    rgb = {k: v[..., :3].astype(np.float32) for k, v in passes.items() if v.ndim == 3}
+    result = Capture(
+        combined=rgb["Combined"],
+        depth=passes["Depth"].astype(np.float32),
+        normal=rgb["Normal"],
+        position=rgb["Position"],
+        diffuse_direct=rgb["Diffuse Direct"],
+        diffuse_indirect=rgb["Diffuse Indirect"],
+        diffuse_color=rgb["Diffuse Color"],
+        glossy_direct=rgb["Glossy Direct"],
+        glossy_indirect=rgb["Glossy Indirect"],
+        glossy_color=rgb["Glossy Color"],
+        emission=rgb["Emission"],
+        environment=rgb["Environment"],
+        samples=samples,
+        render_seconds=seconds,
+        key=key,
+    )
+    if cached is not None:
+        cached.parent.mkdir(parents=True, exist_ok=True)
+        result.save(cached)
+    return result

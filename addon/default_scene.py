@@ -1,0 +1,146 @@
+"""The built-in default scene: the Cornell box (Williams College OBJ, public domain).
+
+Geometry and materials come from ``CornellBox-Original.obj`` / ``.mtl`` (OBJ Y-up is turned into
+Blender Z-up: ``(x, y, z) -> (x, -z, y)``; the OBJ unit is taken as the metre). The emissive
+ceiling quad becomes an AREA light of the same rectangle and of power ``pi * A * Ke`` (a
+Lambertian emitter of radiance ``Ke`` over area ``A``). The camera is the published Cornell
+camera (position (278, 273, -800) mm, 35 mm lens, 25 mm film) mapped into the OBJ's frame.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import bpy
+import numpy as np
+
+#: The published Cornell camera in the OBJ's frame, converted to Blender axes.
+CORNELL_CAMERA_LOCATION = (0.0, -3.894, 0.99)
+CORNELL_LENS_MM = 35.0
+CORNELL_SENSOR_MM = 25.0
+
+
+def parse_mtl(path: Path) -> dict[str, dict[str, tuple[float, ...]]]:
+    """Material name -> {"Kd": (r, g, b), "Ke": ..., "Ks": ...} from a .mtl file."""
+    mats: dict[str, dict[str, tuple[float, ...]]] = {}
+    current: dict[str, tuple[float, ...]] | None = None
+    for line in path.read_text().splitlines():
+        parts = line.split("#", 1)[0].split()
+        if not parts:
+            continue
+        if parts[0] == "newmtl":
+            current = mats.setdefault(parts[1], {})
+        elif current is not None and parts[0] in {"Kd", "Ke", "Ks"}:
+            current[parts[0]] = tuple(float(v) for v in parts[1:4])
+    return mats
+
+
+def parse_obj(path: Path) -> list[tuple[str, str, np.ndarray, list[list[int]]]]:
+    """Groups of an OBJ as (group name, material, vertices (n, 3) in OBJ axes, faces)."""
+    verts: list[tuple[float, float, float]] = []
+    groups: list[tuple[str, str, list[list[int]]]] = []
+    material = ""
+    for line in path.read_text().splitlines():
+        parts = line.split("#", 1)[0].split()
+        if not parts:
+            continue
+        if parts[0] == "v":
+            verts.append((float(parts[1]), float(parts[2]), float(parts[3])))
+        elif parts[0] == "usemtl":
+            material = parts[1]
+        elif parts[0] == "g":
+            groups.append((parts[1], material, []))
+        elif parts[0] == "f":
+            n = len(verts)
+            face = [int(p.split("/")[0]) for p in parts[1:]]
+            groups[-1][2].append([i - 1 if i > 0 else n + i for i in face])
+    all_v = np.array(verts, dtype=np.float64)
+    out = []
+    for name, mat, faces in groups:
+        used = sorted({i for f in faces for i in f})
+        remap = {old: new for new, old in enumerate(used)}
+        out.append((name, mat, all_v[used], [[remap[i] for i in f] for f in faces]))
+    return out
+
+
+def obj_to_blender(v: np.ndarray) -> np.ndarray:
+    """OBJ Y-up to Blender Z-up: ``(x, y, z) -> (x, -z, y)``."""
+    return np.stack([v[:, 0], -v[:, 2], v[:, 1]], axis=1)
+
+
+def _diffuse_material(name: str, color: tuple[float, ...]) -> bpy.types.Material:
+    mat = bpy.data.materials.new(name)
+    bsdf = mat.node_tree.nodes.get("Principled BSDF")
+    bsdf.inputs["Base Color"].default_value = (*color[:3], 1.0)
+    bsdf.inputs["Roughness"].default_value = 1.0
+    bsdf.inputs["Specular IOR Level"].default_value = 0.0
+    mat.diffuse_color = (*color[:3], 1.0)
+    return mat
+
+
+def build_cornell_box(obj_path: Path, scene: bpy.types.Scene | None = None) -> bpy.types.Scene:
+    """Adds the Cornell box (meshes, AREA light, camera, black world) to ``scene``."""
+    scene = scene or bpy.context.scene
+    mtl = parse_mtl(obj_path.with_suffix(".mtl"))
+    materials: dict[str, bpy.types.Material] = {}
+    for name, mat_name, v_obj, faces in parse_obj(obj_path):
+        v = obj_to_blender(v_obj)
+        if mtl.get(mat_name, {}).get("Ke", (0.0,))[0] > 0.0:
+            ke = mtl[mat_name]["Ke"]
+            lo, hi = v.min(axis=0), v.max(axis=0)
+            sx, sy = float(hi[0] - lo[0]), float(hi[1] - lo[1])
+            power = [math.pi * sx * sy * k for k in ke]
+            light = bpy.data.lights.new(name, "AREA")
+            light.shape = "RECTANGLE"
+            light.size, light.size_y = sx, sy
+            light.energy = max(power)
+            light.color = [p / max(power) for p in power]
+            obj = bpy.data.objects.new(name, light)
+            # Centre of the quad, a hair below the ceiling; AREA lights emit along local -Z.
+            obj.location = (*(0.5 * (lo + hi))[:2], float(lo[2]) - 1e-3)
+            scene.collection.objects.link(obj)
+            continue
+        if mat_name not in materials:
+            materials[mat_name] = _diffuse_material(mat_name, mtl[mat_name]["Kd"])
+        mesh = bpy.data.meshes.new(name)
+        mesh.from_pydata([tuple(p) for p in v], [], faces)
+        mesh.update()
+        mesh.materials.append(materials[mat_name])
+        obj = bpy.data.objects.new(name, mesh)
+        scene.collection.objects.link(obj)
+
+    cam_data = bpy.data.cameras.new("Cornell camera")
+    cam_data.lens = CORNELL_LENS_MM
+    cam_data.sensor_width = CORNELL_SENSOR_MM
+    cam_data.sensor_fit = "AUTO"
+    cam = bpy.data.objects.new("Cornell camera", cam_data)
+    cam.location = CORNELL_CAMERA_LOCATION
+    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+
+    world = bpy.data.worlds.new("Black")
+    bg = world.node_tree.nodes.get("Background")
+    bg.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    bg.inputs["Strength"].default_value = 0.0
+    world.color = (0.0, 0.0, 0.0)
+    scene.world = world
+
+    r = scene.render
+    r.engine = "CYCLES"
+    r.resolution_x = r.resolution_y = 160
+    r.resolution_percentage = 100
+    scene.cycles.samples = 64
+    scene.cycles.device = "CPU"
+    scene.eevee.taa_render_samples = 16
+    return scene
+
+
+def write_cornell_blend(obj_path: Path, blend_path: Path) -> Path:
+    """Builds the Cornell box in a fresh file and saves it to ``blend_path``."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    build_cornell_box(obj_path)
+    blend_path.parent.mkdir(parents=True, exist_ok=True)
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend_path), compress=True)
+    return blend_path

@@ -1,0 +1,59 @@
+"""Temporary changes to Blender settings, always restored.
+
+``override()`` records each attribute it changes and restores them all on exit, also when the
+body raises. Restoring runs in the order the changes were made, so dependent settings (an
+image's ``media_type`` before its ``file_format`` before its ``color_depth``) come back right.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
+from typing import Any
+
+
+class SettingsGuard:
+    """Records attribute changes on Blender structs and undoes them."""
+
+    def __init__(self) -> None:
+        self._saved: list[tuple[Any, str, Any]] = []
+
+    def set(self, owner: Any, attr: str, value: Any) -> None:
+        """Sets ``owner.attr = value``, remembering the old value the first time."""
+        old = getattr(owner, attr)
+        if not any(o is owner and a == attr for o, a, _ in self._saved):
+            if hasattr(old, "__len__") and not isinstance(old, str):
+                old = tuple(old)
+            self._saved.append((owner, attr, old))
+        setattr(owner, attr, value)
+
+    def remember(self, owner: Any, attrs: tuple[str, ...]) -> None:
+        """Records the current values of ``attrs`` without changing them, in this order.
+
+        Use it before changing a setting that silently changes others (an image's
+        ``media_type`` resets its ``file_format`` and ``color_depth``).
+        """
+        for attr in attrs:
+            self.set(owner, attr, getattr(owner, attr))
+
+    def restore(self) -> None:
+        """Puts every recorded attribute back, in the order they were first changed."""
+        errors = []
+        for owner, attr, old in self._saved:
+            try:
+                setattr(owner, attr, old)
+            except (AttributeError, TypeError, ValueError) as exc:  # pragma: no cover
+                errors.append(f"{attr}: {exc}")
+        self._saved.clear()
+        if errors:  # pragma: no cover
+            raise RuntimeError("could not restore settings: " + "; ".join(errors))
+
+
+@contextlib.contextmanager
+def override() -> Iterator[SettingsGuard]:
+    """A ``SettingsGuard`` whose changes are undone when the block ends, however it ends."""
+    guard = SettingsGuard()
+    try:
+        yield guard
+    finally:
+        guard.restore()
