@@ -200,7 +200,7 @@ def capture_key(
 ) -> str:
     """The cache key: scene content, camera, resolution, samples, seed."""
     h = hashlib.sha256()
-    h.update(export_scene(scene).fingerprint().encode())
+    h.update(export_scene(scene, include_vpls=True).fingerprint().encode())
     cam = scene.camera
     h.update(repr([list(row) for row in cam.matrix_world]).encode())
     h.update(repr((cam.data.lens, cam.data.sensor_width, cam.data.sensor_fit)).encode())

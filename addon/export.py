@@ -239,9 +239,16 @@ GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES"}
 
 
 def export_scene(
-    scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph | None = None
+    scene: bpy.types.Scene,
+    depsgraph: bpy.types.Depsgraph | None = None,
+    *,
+    include_vpls: bool = False,
 ) -> ExportedScene:
-    """Exports the render-visible geometry, materials, lights and camera of ``scene``."""
+    """Exports the render-visible geometry, materials, lights and camera of ``scene``.
+
+    The lights vplace wrote are left out unless ``include_vpls`` (a capture's cache key needs
+    them: they change the render).
+    """
     if depsgraph is None:
         depsgraph = bpy.context.evaluated_depsgraph_get()
     verts: list[np.ndarray] = []
@@ -263,7 +270,7 @@ def export_scene(
     for inst in depsgraph.object_instances:
         obj = inst.object
         original = obj.original if obj.original is not None else obj
-        if original.hide_render or _is_vpl(obj):
+        if original.hide_render or (_is_vpl(obj) and not include_vpls):
             continue
         if obj.type == "LIGHT":
             lights.append(light_info(original.name, obj.data, inst.matrix_world))

@@ -1,0 +1,89 @@
+"""Write-back: one VPL collection, replaced on re-run; nothing else touched."""
+
+import bpy
+import numpy as np
+import pytest
+from blender_util import cornell, data_snapshot, diff
+
+from addon import apply
+from addon.export import VPL_MARKER, export_scene
+
+
+def some_vpls(n, seed=0):
+    rng = np.random.default_rng(seed)
+    normal = rng.normal(size=(n, 3))
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    return apply.VplSet(
+        rng.uniform(-0.9, 0.9, size=(n, 3)).astype(np.float32),
+        normal.astype(np.float32),
+        rng.uniform(0.0, 0.1, size=(n, 3)).astype(np.float32),
+    )
+
+
+@pytest.mark.parametrize("profile", ["cosine", "omni"])
+def test_rerun_replaces_only_the_vpl_collection(profile):
+    scene = cornell()
+    before = data_snapshot()
+    n_lights = len(bpy.data.lights)
+    apply.write_vpls(scene, some_vpls(10), profile=profile, scene_diagonal=3.4)
+    apply.write_vpls(scene, some_vpls(7, seed=1), profile=profile, scene_diagonal=3.4)
+    colls = [c for c in bpy.data.collections if c.get(VPL_MARKER)]
+    assert [c.name for c in colls] == [apply.COLLECTION_NAME]
+    assert len(colls[0].objects) == 7
+    assert len(bpy.data.lights) == n_lights + 7  # no orphaned light data left behind
+    assert diff(before, data_snapshot()) == []
+    light = colls[0].objects[0]
+    want = "AREA" if profile == "cosine" else "POINT"
+    assert light.data.type == want and light.data.use_custom_distance
+    # The light's emission axis (local -Z) is the VPL normal.
+    axis = -np.array(light.matrix_basis.to_3x3().col[2])
+    np.testing.assert_allclose(axis, some_vpls(7, seed=1).normal[0], atol=1e-5)
+    power = np.array(light.data.color) * light.data.energy
+    scale = 1.0 if profile == "cosine" else 2.0
+    np.testing.assert_allclose(power, scale * some_vpls(7, seed=1).flux[0], rtol=1e-5)
+    assert apply.clear_vpls() == 7
+    assert not any(c.get(VPL_MARKER) for c in bpy.data.collections)
+    assert len(bpy.data.lights) == n_lights
+    assert diff(before, data_snapshot()) == []
+
+
+def test_vpls_are_not_exported_as_scene_lights():
+    scene = cornell()
+    apply.write_vpls(scene, some_vpls(5), scene_diagonal=3.4)
+    exported = export_scene(scene)
+    assert [light.name for light in exported.lights] == ["light"]
+
+
+def test_user_collection_with_our_name_is_not_touched():
+    scene = cornell()
+    user = bpy.data.collections.new(apply.COLLECTION_NAME)
+    scene.collection.children.link(user)
+    with pytest.raises(apply.WriteBackError, match="was not made by vplace"):
+        apply.write_vpls(scene, some_vpls(3), scene_diagonal=3.4)
+    assert bpy.data.collections.get(apply.COLLECTION_NAME) is user
+
+
+def test_bad_vpl_sets_are_refused():
+    scene = cornell()
+    v = some_vpls(3)
+    v.flux[1, 1] = np.nan
+    with pytest.raises(apply.WriteBackError, match="flux"):
+        apply.write_vpls(scene, v)
+    too_many = apply.VplSet(*(np.zeros((apply.MAX_VPLS + 1, 3), np.float32),) * 3)
+    with pytest.raises(apply.WriteBackError, match="more than EEVEE can render"):
+        apply.write_vpls(scene, too_many)
+    assert bpy.data.collections.get(apply.COLLECTION_NAME) is None
+
+
+def test_clear_operator_is_undoable_and_reports():
+    from addon import operators
+
+    operators.register()
+    try:
+        scene = cornell()
+        apply.write_vpls(scene, some_vpls(4), scene_diagonal=3.4)
+        assert "UNDO" in operators.VPLACE_OT_clear_vpls.bl_options
+        assert bpy.ops.vplace.clear_vpls() == {"FINISHED"}
+        assert bpy.data.collections.get(apply.COLLECTION_NAME) is None
+    finally:
+        operators.unregister()

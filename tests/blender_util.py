@@ -1,0 +1,117 @@
+"""Helpers for tests that drive Blender (the bpy module): scenes and RNA snapshots."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import bpy
+
+from addon.default_scene import build_cornell_box
+from addon.export import VPL_MARKER
+
+ROOT_OBJ = __import__("pathlib").Path(__file__).resolve().parent.parent / "blend_scenes"
+CORNELL_OBJ = ROOT_OBJ / "cornell_box" / "CornellBox-Original.obj"
+
+#: Properties that change without the user changing anything.
+VOLATILE = {"is_dirty", "is_evaluated", "session_uid", "users", "tag", "original", "rna_type",
+            "is_runtime_data", "preview", "name_full", "use_extra_user", "depsgraph"}
+
+
+def empty_file() -> None:
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+
+
+def cornell() -> bpy.types.Scene:
+    """A fresh file holding only the Cornell box."""
+    empty_file()
+    return build_cornell_box(CORNELL_OBJ)
+
+
+def _written_by_vplace(item: Any) -> bool:
+    if isinstance(item, bpy.types.ID):
+        return is_vplace(item)
+    if isinstance(item, bpy.types.LayerCollection):
+        return bool(item.collection.get(VPL_MARKER, False))
+    return False
+
+
+def rna_snapshot(struct: Any, depth: int = 3) -> Any:
+    """Every plain property of an RNA struct, recursing into non-ID pointers and collections."""
+    if struct is None:
+        return None
+    if isinstance(struct, bpy.types.ID) and depth < 3:
+        return ("ID", struct.name_full)
+    out: dict[str, Any] = {}
+    for prop in struct.bl_rna.properties:
+        key = prop.identifier
+        if key in VOLATILE:
+            continue
+        try:
+            value = getattr(struct, key)
+        except (AttributeError, RuntimeError):
+            continue
+        if prop.type in {"BOOLEAN", "INT", "FLOAT", "STRING", "ENUM"}:
+            if hasattr(value, "__len__") and not isinstance(value, str | set):
+                value = tuple(value)
+                if value and hasattr(value[0], "__len__"):
+                    value = tuple(tuple(v) for v in value)
+            if isinstance(value, float) and math.isnan(value):
+                value = "nan"
+            out[key] = value
+        elif prop.type == "POINTER" and depth > 0:
+            out[key] = rna_snapshot(value, depth - 1)
+        elif prop.type == "COLLECTION" and depth > 0:
+            items = [i for i in list(value)[:64] if not _written_by_vplace(i)]
+            out[key] = [rna_snapshot(item, depth - 1) for item in items]
+    return out
+
+
+DATA_COLLECTIONS = ("objects", "meshes", "materials", "lights", "cameras", "worlds",
+                    "collections", "scenes", "images", "node_groups", "textures")
+
+
+def is_vplace(idblock: Any) -> bool:
+    if idblock.get(VPL_MARKER, False):
+        return True
+    if isinstance(idblock, bpy.types.Light):
+        return any(o.get(VPL_MARKER, False) for o in bpy.data.objects if o.data == idblock)
+    return False
+
+
+def data_snapshot() -> dict[str, Any]:
+    """A snapshot of every datablock except the ones vplace writes, and of each scene's
+    collection tree without the VPL collection."""
+    snap: dict[str, Any] = {}
+    for coll_name in DATA_COLLECTIONS:
+        for block in getattr(bpy.data, coll_name):
+            if is_vplace(block):
+                continue
+            s = rna_snapshot(block, depth=3)
+            if isinstance(block, bpy.types.Scene):
+                s.pop("collection", None)
+                s["children"] = sorted(
+                    c.name for c in block.collection.children if not c.get(VPL_MARKER, False)
+                )
+                s["objects"] = sorted(o.name for o in block.collection.objects)
+            if isinstance(block, bpy.types.Object):
+                s["matrix_world"] = tuple(tuple(r) for r in block.matrix_world)
+            snap[f"{coll_name}/{block.name_full}"] = s
+    return snap
+
+
+def diff(a: dict[str, Any], b: dict[str, Any], path: str = "") -> list[str]:
+    """Paths where two snapshots differ."""
+    out = []
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in sorted(set(a) | set(b)):
+            if k not in a or k not in b:
+                out.append(f"{path}/{k}: only in {'after' if k in b else 'before'}")
+            else:
+                out.extend(diff(a[k], b[k], f"{path}/{k}"))
+    elif isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            out.extend(diff(x, y, f"{path}[{i}]"))
+    elif a != b:
+        out.append(f"{path}: {a!r} -> {b!r}")
+    return out
