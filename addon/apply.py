@@ -106,7 +106,9 @@ def write_vpls(
     for i in range(n):
         p = power[i]
         energy = float(p.max())
-        light = bpy.data.lights.new(f"vplace VPL {i:04d}", "AREA" if profile == "cosine" else "POINT")
+        light = bpy.data.lights.new(
+            f"vplace VPL {i:04d}", "AREA" if profile == "cosine" else "POINT"
+        )
         light.energy = energy
         light.color = tuple(float(c) / energy for c in p) if energy > 0 else (1.0, 1.0, 1.0)
         light.use_custom_distance = True

@@ -115,9 +115,7 @@ def _mean_image_color(image: bpy.types.Image) -> tuple[float, float, float] | No
     return (float(mean[0]), float(mean[1]), float(mean[2]))
 
 
-def _input_color(
-    node: bpy.types.Node, name: str
-) -> tuple[tuple[float, float, float], bool]:
+def _input_color(node: bpy.types.Node, name: str) -> tuple[tuple[float, float, float], bool]:
     """The colour of a node input: its default value, or the mean colour of a linked image."""
     sock = node.inputs.get(name)
     if sock is None:
@@ -149,9 +147,7 @@ def material_info(mat: bpy.types.Material | None) -> MaterialInfo:
     tree = mat.node_tree
     if tree is None:
         return info
-    out = next(
-        (n for n in tree.nodes if n.type == "OUTPUT_MATERIAL" and n.is_active_output), None
-    )
+    out = next((n for n in tree.nodes if n.type == "OUTPUT_MATERIAL" and n.is_active_output), None)
     if out is None or not out.inputs["Surface"].is_linked:
         return info
     shader = out.inputs["Surface"].links[0].from_node
@@ -174,7 +170,9 @@ def material_info(mat: bpy.types.Material | None) -> MaterialInfo:
     elif shader.type == "EMISSION":
         emit, _ = _input_color(shader, "Color")
         s = _input_float(shader, "Strength", 1.0)
-        info = MaterialInfo(mat.name, (0.0, 0.0, 0.0), emission=(emit[0] * s, emit[1] * s, emit[2] * s))
+        info = MaterialInfo(
+            mat.name, (0.0, 0.0, 0.0), emission=(emit[0] * s, emit[1] * s, emit[2] * s)
+        )
     a = np.clip(np.array(info.albedo, dtype=np.float64), 0.0, 1.0)
     info.albedo = (float(a[0]), float(a[1]), float(a[2]))
     return info

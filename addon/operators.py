@@ -13,7 +13,7 @@ class VPLACE_OT_clear_vpls(bpy.types.Operator):
 
     bl_idname = "vplace.clear_vpls"
     bl_label = "Clear VPLs"
-    bl_options = {"REGISTER", "UNDO"}
+    bl_options = {"REGISTER", "UNDO"}  # noqa: RUF012 (Blender reads a plain set)
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         try:

@@ -71,7 +71,9 @@ def evaluate_capture(
     )
 
 
-def render_eevee_preview(bl_scene: bpy.types.Scene, path: Path, resolution: tuple[int, int]) -> float:
+def render_eevee_preview(
+    bl_scene: bpy.types.Scene, path: Path, resolution: tuple[int, int]
+) -> float:
     """Renders ``bl_scene`` with EEVEE to a PNG; every changed setting is restored."""
     with override() as g:
         r = bl_scene.render
@@ -147,9 +149,7 @@ def run_main_job(
         "rmse_indirect": vplace.rmse(indirect, cap.indirect),
     }
     with timer.stage("write back"):
-        apply.write_vpls(
-            bl_scene, vpls, profile=profile, scene_diagonal=scene.diagonal
-        )
+        apply.write_vpls(bl_scene, vpls, profile=profile, scene_diagonal=scene.diagonal)
         blend_path = out_dir / "scene.blend"
         bpy.ops.wm.save_as_mainfile(filepath=str(blend_path), copy=True)
     images.save_png(out_dir / "cycles_gi.png", gi)

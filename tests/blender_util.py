@@ -14,8 +14,20 @@ ROOT_OBJ = __import__("pathlib").Path(__file__).resolve().parent.parent / "blend
 CORNELL_OBJ = ROOT_OBJ / "cornell_box" / "CornellBox-Original.obj"
 
 #: Properties that change without the user changing anything.
-VOLATILE = {"is_dirty", "is_evaluated", "session_uid", "users", "tag", "original", "rna_type",
-            "is_runtime_data", "preview", "name_full", "use_extra_user", "depsgraph"}
+VOLATILE = {
+    "is_dirty",
+    "is_evaluated",
+    "session_uid",
+    "users",
+    "tag",
+    "original",
+    "rna_type",
+    "is_runtime_data",
+    "preview",
+    "name_full",
+    "use_extra_user",
+    "depsgraph",
+}
 
 
 def empty_file() -> None:
@@ -67,8 +79,19 @@ def rna_snapshot(struct: Any, depth: int = 3) -> Any:
     return out
 
 
-DATA_COLLECTIONS = ("objects", "meshes", "materials", "lights", "cameras", "worlds",
-                    "collections", "scenes", "images", "node_groups", "textures")
+DATA_COLLECTIONS = (
+    "objects",
+    "meshes",
+    "materials",
+    "lights",
+    "cameras",
+    "worlds",
+    "collections",
+    "scenes",
+    "images",
+    "node_groups",
+    "textures",
+)
 
 
 def is_vplace(idblock: Any) -> bool:

@@ -29,9 +29,12 @@ def test_capture_restores_settings_and_gives_consistent_passes(tmp_path):
     length = np.linalg.norm(cap.normal[cov], axis=-1)
     assert (length <= 1.0 + 1e-3).all() and np.mean(np.abs(length - 1.0) < 1e-3) > 0.6
     # Combined = (DiffDir + DiffInd) * DiffCol + gloss + emission (BLENDER_FACTS).
-    recon = (cap.diffuse_direct + cap.diffuse_indirect) * cap.diffuse_color + (
-        cap.glossy_direct + cap.glossy_indirect
-    ) * cap.glossy_color + cap.emission + cap.environment
+    recon = (
+        (cap.diffuse_direct + cap.diffuse_indirect) * cap.diffuse_color
+        + (cap.glossy_direct + cap.glossy_indirect) * cap.glossy_color
+        + cap.emission
+        + cap.environment
+    )
     np.testing.assert_allclose(recon, cap.combined, atol=1e-4)
     # The indirect image is positive on average: the box bounces light.
     assert cap.indirect.mean() > 0.01

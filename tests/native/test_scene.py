@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-
 import vplace
 
 
@@ -115,7 +114,7 @@ def test_evaluate_bad_input():
         vplace.evaluate(scene, pos, nor, alb, cov.astype(np.uint8), vp, vn, vf)
     bad = pos.copy()
     bad[2, 3, 1] = np.inf
-    with pytest.raises(vplace.InputError, match="position .covered pixel. holds a non-finite"):
+    with pytest.raises(vplace.InputError, match=r"position \(covered pixel\) holds a non-finite"):
         vplace.evaluate(scene, bad, nor, alb, cov, vp, vn, vf)
     cov2 = cov.copy()
     cov2[2, 3] = False  # the same NaN outside the covered pixels is ignored

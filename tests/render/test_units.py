@@ -5,7 +5,6 @@ import math
 
 import bpy
 import numpy as np
-import pytest
 from blender_util import empty_file
 
 from addon import capture

@@ -144,7 +144,12 @@ impl EvalStats {
 /// Checks a VPL list: finite, unit normals, non-negative flux.
 pub fn validate_vpls(vpls: &[Vpl]) -> Result<()> {
     for (i, v) in vpls.iter().enumerate() {
-        let flat = [v.position.to_array(), v.normal.to_array(), v.flux.to_array()].concat();
+        let flat = [
+            v.position.to_array(),
+            v.normal.to_array(),
+            v.flux.to_array(),
+        ]
+        .concat();
         check_finite(&format!("vpls[{i}]"), &flat)?;
         if (v.normal.length() - 1.0).abs() > 1e-3 {
             return Err(VplaceError::Invalid {
@@ -297,10 +302,25 @@ mod tests {
     fn single_vpl_matches_the_formula() {
         let scene = closed_box(vec![]);
         let (pos, normal, albedo, covered) = floor_gbuffer(8);
-        let g = GBuffer { width: 8, height: 8, position: &pos, normal: &normal, albedo: &albedo, covered: &covered };
-        let vpl = Vpl { position: Vec3::new(0.0, 0.0, 1.5), normal: Vec3::NEG_Z, flux: Vec3::new(1.0, 2.0, 3.0) };
+        let g = GBuffer {
+            width: 8,
+            height: 8,
+            position: &pos,
+            normal: &normal,
+            albedo: &albedo,
+            covered: &covered,
+        };
+        let vpl = Vpl {
+            position: Vec3::new(0.0, 0.0, 1.5),
+            normal: Vec3::NEG_Z,
+            flux: Vec3::new(1.0, 2.0, 3.0),
+        };
         for profile in [Profile::Cosine, Profile::Omni] {
-            let params = EvalParams { profile, r_min: 0.0, tile: 3 };
+            let params = EvalParams {
+                profile,
+                r_min: 0.0,
+                tile: 3,
+            };
             let (img, stats) = evaluate(&scene, &g, &[vpl], &params, None).unwrap();
             assert_eq!(stats.shadow_rays, 64);
             for p in 0..64 {
@@ -308,10 +328,16 @@ mod tests {
                 let d = vpl.position - x;
                 let r2 = d.length_squared();
                 let cos = d.z / r2.sqrt();
-                let i = match profile { Profile::Cosine => cos / PI, Profile::Omni => 0.5 / PI };
+                let i = match profile {
+                    Profile::Cosine => cos / PI,
+                    Profile::Omni => 0.5 / PI,
+                };
                 let expect = 0.5 / PI * vpl.flux * i * cos / r2;
                 let got = Vec3::from_slice(&img[3 * p..3 * p + 3]);
-                assert!((got - expect).abs().max_element() < 1e-6 * expect.max_element().max(1.0), "{got} {expect}");
+                assert!(
+                    (got - expect).abs().max_element() < 1e-6 * expect.max_element().max(1.0),
+                    "{got} {expect}"
+                );
             }
         }
     }
@@ -320,19 +346,42 @@ mod tests {
     fn shadows_back_faces_clamp_and_cancel() {
         let scene = closed_box(vec![]);
         let (pos, normal, albedo, covered) = floor_gbuffer(4);
-        let g = GBuffer { width: 4, height: 4, position: &pos, normal: &normal, albedo: &albedo, covered: &covered };
+        let g = GBuffer {
+            width: 4,
+            height: 4,
+            position: &pos,
+            normal: &normal,
+            albedo: &albedo,
+            covered: &covered,
+        };
         // Above the ceiling: occluded everywhere.
-        let above = Vpl { position: Vec3::new(0.0, 0.0, 2.5), normal: Vec3::NEG_Z, flux: Vec3::ONE };
+        let above = Vpl {
+            position: Vec3::new(0.0, 0.0, 2.5),
+            normal: Vec3::NEG_Z,
+            flux: Vec3::ONE,
+        };
         let (img, _) = evaluate(&scene, &g, &[above], &EvalParams::PREVIEW, None).unwrap();
         assert!(img.iter().all(|&v| v == 0.0));
         // Facing up (away from the floor): the cosine profile gives nothing, no ray traced.
-        let up = Vpl { position: Vec3::new(0.0, 0.0, 1.0), normal: Vec3::Z, flux: Vec3::ONE };
+        let up = Vpl {
+            position: Vec3::new(0.0, 0.0, 1.0),
+            normal: Vec3::Z,
+            flux: Vec3::ONE,
+        };
         let (img, stats) = evaluate(&scene, &g, &[up], &EvalParams::PREVIEW, None).unwrap();
         assert!(img.iter().all(|&v| v == 0.0));
         assert_eq!(stats.shadow_rays, 0);
         // The clamp bounds a VPL sitting on a receiver.
-        let near = Vpl { position: Vec3::new(pos[0], pos[1], 1e-4), normal: Vec3::NEG_Z, flux: Vec3::ONE };
-        let params = EvalParams { profile: Profile::Omni, r_min: 0.1, tile: 16 };
+        let near = Vpl {
+            position: Vec3::new(pos[0], pos[1], 1e-4),
+            normal: Vec3::NEG_Z,
+            flux: Vec3::ONE,
+        };
+        let params = EvalParams {
+            profile: Profile::Omni,
+            r_min: 0.1,
+            tile: 16,
+        };
         let (img, _) = evaluate(&scene, &g, &[near], &params, None).unwrap();
         assert!(img[0] <= 0.5 / PI * (0.5 / PI) / 0.01 + 1e-6);
         let progress = Progress::default();
@@ -347,16 +396,40 @@ mod tests {
     fn bad_input() {
         let scene = closed_box(vec![]);
         let (mut pos, normal, albedo, covered) = floor_gbuffer(4);
-        let g = GBuffer { width: 4, height: 4, position: &pos, normal: &normal, albedo: &albedo[..9], covered: &covered };
-        assert!(matches!(evaluate(&scene, &g, &[], &EvalParams::PREVIEW, None), Err(VplaceError::Shape { .. })));
+        let g = GBuffer {
+            width: 4,
+            height: 4,
+            position: &pos,
+            normal: &normal,
+            albedo: &albedo[..9],
+            covered: &covered,
+        };
+        assert!(matches!(
+            evaluate(&scene, &g, &[], &EvalParams::PREVIEW, None),
+            Err(VplaceError::Shape { .. })
+        ));
         pos[4] = f32::NAN;
-        let g = GBuffer { width: 4, height: 4, position: &pos, normal: &normal, albedo: &albedo, covered: &covered };
-        assert!(matches!(evaluate(&scene, &g, &[], &EvalParams::PREVIEW, None), Err(VplaceError::NonFinite { index: 3, .. })));
+        let g = GBuffer {
+            width: 4,
+            height: 4,
+            position: &pos,
+            normal: &normal,
+            albedo: &albedo,
+            covered: &covered,
+        };
+        assert!(matches!(
+            evaluate(&scene, &g, &[], &EvalParams::PREVIEW, None),
+            Err(VplaceError::NonFinite { index: 3, .. })
+        ));
         let mut cov = covered.clone();
         cov[1] = false;
         let g = GBuffer { covered: &cov, ..g };
         assert!(evaluate(&scene, &g, &[], &EvalParams::PREVIEW, None).is_ok());
-        let bad = Vpl { position: Vec3::ZERO, normal: Vec3::ZERO, flux: Vec3::ONE };
+        let bad = Vpl {
+            position: Vec3::ZERO,
+            normal: Vec3::ZERO,
+            flux: Vec3::ONE,
+        };
         assert!(evaluate(&scene, &g, &[bad], &EvalParams::PREVIEW, None).is_err());
     }
 }

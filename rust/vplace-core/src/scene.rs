@@ -155,15 +155,15 @@ impl Light {
                     expected: "(0, pi]".into(),
                 })
             }
-            LightKind::Area { size_x, size_y, disk }
-                if !(size_x > 0.0 && (disk || size_y > 0.0)) =>
-            {
-                Err(VplaceError::OutOfRange {
-                    what: format!("{what}.size"),
-                    value: format!("({size_x}, {size_y})"),
-                    expected: "> 0".into(),
-                })
-            }
+            LightKind::Area {
+                size_x,
+                size_y,
+                disk,
+            } if !(size_x > 0.0 && (disk || size_y > 0.0)) => Err(VplaceError::OutOfRange {
+                what: format!("{what}.size"),
+                value: format!("({size_x}, {size_y})"),
+                expected: "> 0".into(),
+            }),
             _ => Ok(()),
         }
     }
@@ -406,12 +406,32 @@ pub(crate) mod test_util {
             t.push([base, base + 2, base + 3]);
         };
         let p = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
-        quad(p(-1., -1., 0.), p(1., -1., 0.), p(1., 1., 0.), p(-1., 1., 0.)); // floor
-        quad(p(-1., -1., 2.), p(-1., 1., 2.), p(1., 1., 2.), p(1., -1., 2.)); // ceiling
-        quad(p(-1., -1., 0.), p(-1., 1., 0.), p(-1., 1., 2.), p(-1., -1., 2.)); // x = -1
+        quad(
+            p(-1., -1., 0.),
+            p(1., -1., 0.),
+            p(1., 1., 0.),
+            p(-1., 1., 0.),
+        ); // floor
+        quad(
+            p(-1., -1., 2.),
+            p(-1., 1., 2.),
+            p(1., 1., 2.),
+            p(1., -1., 2.),
+        ); // ceiling
+        quad(
+            p(-1., -1., 0.),
+            p(-1., 1., 0.),
+            p(-1., 1., 2.),
+            p(-1., -1., 2.),
+        ); // x = -1
         quad(p(1., -1., 0.), p(1., -1., 2.), p(1., 1., 2.), p(1., 1., 0.)); // x = +1
         quad(p(-1., 1., 0.), p(1., 1., 0.), p(1., 1., 2.), p(-1., 1., 2.)); // y = +1
-        quad(p(-1., -1., 0.), p(-1., -1., 2.), p(1., -1., 2.), p(1., -1., 0.)); // y = -1
+        quad(
+            p(-1., -1., 0.),
+            p(-1., -1., 2.),
+            p(1., -1., 2.),
+            p(1., -1., 0.),
+        ); // y = -1
         let ids = vec![0; t.len()];
         Scene::build(&v, &t, &ids, &[Vec3::splat(0.5)], lights).unwrap()
     }
@@ -425,7 +445,9 @@ mod tests {
     #[test]
     fn closest_hit_and_occlusion() {
         let s = closed_box(vec![]);
-        let h = s.closest_hit(Vec3::new(0., 0., 1.), Vec3::NEG_Z, 0.0, f32::INFINITY).unwrap();
+        let h = s
+            .closest_hit(Vec3::new(0., 0., 1.), Vec3::NEG_Z, 0.0, f32::INFINITY)
+            .unwrap();
         assert!((h.t - 1.0).abs() < 1e-5);
         assert!(s.normal(h.triangle).z.abs() > 0.999);
         assert!(!s.occluded(Vec3::new(0., 0., 0.5), Vec3::new(0., 0., 1.5)));

@@ -118,8 +118,8 @@ fn sample_emission(light: &Light, scene: &Scene, rng: &mut Rng) -> (Vec3, Vec3) 
             let r = u1.sqrt();
             let phi = 2.0 * PI * u2;
             let (t, b) = basis(light.direction);
-            let d = light.direction * (1.0 - u1).max(0.0).sqrt()
-                + (t * phi.cos() + b * phi.sin()) * r;
+            let d =
+                light.direction * (1.0 - u1).max(0.0).sqrt() + (t * phi.cos() + b * phi.sin()) * r;
             (light.position + offset, d.normalize())
         }
         LightKind::Sun => {
@@ -174,7 +174,7 @@ pub fn uniform_vpls(scene: &Scene, n: usize, seed: u64) -> Result<Vec<Vpl>> {
         .collect();
     let weights: Vec<f32> = powers.iter().map(|p| p.dot(LUMINANCE)).collect();
     let total: f32 = weights.iter().sum();
-    if !(total > 0.0) {
+    if total.is_nan() || total <= 0.0 {
         return Err(VplaceError::Invalid {
             what: "scene lights".into(),
             reason: "every light has zero power".into(),
@@ -256,21 +256,38 @@ mod tests {
         // Every ray hits a closed box: total VPL flux = albedo * P exactly.
         for light in [
             Light::point(Vec3::new(0.2, -0.1, 1.2), Vec3::new(10., 5., 1.)),
-            Light::area(Vec3::new(0., 0., 1.99), Vec3::NEG_Z, Vec3::X, true, 0.3, 0.0, Vec3::splat(4.)),
+            Light::area(
+                Vec3::new(0., 0., 1.99),
+                Vec3::NEG_Z,
+                Vec3::X,
+                true,
+                0.3,
+                0.0,
+                Vec3::splat(4.),
+            ),
             Light::spot(Vec3::new(0., 0., 1.9), Vec3::NEG_Z, 0.5, Vec3::splat(8.)),
         ] {
             let s = closed_box(vec![light]);
             let v = uniform_vpls(&s, 500, 1).unwrap();
             let total: Vec3 = v.iter().map(|v| v.flux).sum();
             let expect = emitted_power(&light, &s) * 0.5;
-            assert!((total - expect).abs().max_element() < 1e-3 * expect.max_element(), "{total} {expect}");
+            assert!(
+                (total - expect).abs().max_element() < 1e-3 * expect.max_element(),
+                "{total} {expect}"
+            );
         }
     }
 
     #[test]
     fn area_light_rays_leave_the_front_side() {
         let s = closed_box(vec![Light::area(
-            Vec3::new(0., 0., 1.99), Vec3::NEG_Z, Vec3::X, false, 0.4, 0.2, Vec3::splat(4.),
+            Vec3::new(0., 0., 1.99),
+            Vec3::NEG_Z,
+            Vec3::X,
+            false,
+            0.4,
+            0.2,
+            Vec3::splat(4.),
         )]);
         let v = uniform_vpls(&s, 300, 9).unwrap();
         // A downward cosine emitter never reaches the ceiling.
@@ -280,13 +297,27 @@ mod tests {
     #[test]
     fn errors() {
         let s = closed_box(vec![]);
-        assert!(matches!(uniform_vpls(&s, 10, 0), Err(VplaceError::Empty { .. })));
+        assert!(matches!(
+            uniform_vpls(&s, 10, 0),
+            Err(VplaceError::Empty { .. })
+        ));
         let s = closed_box(vec![Light::point(Vec3::new(0., 0., 1.), Vec3::ZERO)]);
-        assert!(matches!(uniform_vpls(&s, 10, 0), Err(VplaceError::Invalid { .. })));
+        assert!(matches!(
+            uniform_vpls(&s, 10, 0),
+            Err(VplaceError::Invalid { .. })
+        ));
         let s = closed_box(vec![Light::point(Vec3::new(0., 0., 1.), Vec3::ONE)]);
         assert!(uniform_vpls(&s, 0, 0).is_err());
         // A light outside, pointing away: no ray hits; a clear error, not a hang.
-        let s = closed_box(vec![Light::spot(Vec3::new(0., 0., 50.), Vec3::Z, 0.1, Vec3::ONE)]);
-        assert!(matches!(uniform_vpls(&s, 2, 0), Err(VplaceError::Invalid { .. })));
+        let s = closed_box(vec![Light::spot(
+            Vec3::new(0., 0., 50.),
+            Vec3::Z,
+            0.1,
+            Vec3::ONE,
+        )]);
+        assert!(matches!(
+            uniform_vpls(&s, 2, 0),
+            Err(VplaceError::Invalid { .. })
+        ));
     }
 }

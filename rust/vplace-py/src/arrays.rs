@@ -1,8 +1,8 @@
 //! Checked numpy input: dtype, shape and contiguity, with messages that name the argument.
 
 use numpy::{
-    Element, PyArrayDescrMethods, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn,
-    PyUntypedArray, PyUntypedArrayMethods,
+    Element, PyArrayDescrMethods, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray,
+    PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
 
@@ -43,7 +43,10 @@ pub fn array<'py, T: Element>(
         input_error(format!(
             "{name} must be a numpy array of {dtype_name} with shape {}, got {}",
             shape_text(dims),
-            obj.get_type().name().map(|n| n.to_string()).unwrap_or_default()
+            obj.get_type()
+                .name()
+                .map(|n| n.to_string())
+                .unwrap_or_default()
         ))
     })?;
     let want = numpy::dtype::<T>(obj.py());

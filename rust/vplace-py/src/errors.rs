@@ -47,7 +47,10 @@ pub fn to_py(err: CoreError) -> PyErr {
 
 /// Runs `f` with the GIL released and any panic caught and turned into [`InternalError`].
 /// Never call Python from inside `f`.
-pub fn run<T: Send, F: FnOnce() -> Result<T, CoreError> + Send>(py: Python<'_>, f: F) -> PyResult<T> {
+pub fn run<T: Send, F: FnOnce() -> Result<T, CoreError> + Send>(
+    py: Python<'_>,
+    f: F,
+) -> PyResult<T> {
     py.detach(|| match catch_unwind(AssertUnwindSafe(f)) {
         Ok(Ok(v)) => Ok(v),
         Ok(Err(e)) => Err(to_py(e)),
@@ -57,7 +60,9 @@ pub fn run<T: Send, F: FnOnce() -> Result<T, CoreError> + Send>(py: Python<'_>, 
                 .map(|s| (*s).to_owned())
                 .or_else(|| payload.downcast_ref::<String>().cloned())
                 .unwrap_or_else(|| "unknown panic".to_owned());
-            Err(InternalError::new_err(format!("internal error (a bug in vplace): {what}")))
+            Err(InternalError::new_err(format!(
+                "internal error (a bug in vplace): {what}"
+            )))
         }
     })
 }

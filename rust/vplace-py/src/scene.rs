@@ -36,13 +36,17 @@ impl PyLight {
     /// A POINT light (radius 0) of RGB power `power` watts.
     #[staticmethod]
     fn point(position: [f32; 3], power: [f32; 3]) -> Self {
-        Self { inner: Light::point(vec3(position), vec3(power)) }
+        Self {
+            inner: Light::point(vec3(position), vec3(power)),
+        }
     }
 
     /// A SPOT light (blend 0) with cone half angle `half_angle` radians about `direction`.
     #[staticmethod]
     fn spot(position: [f32; 3], direction: [f32; 3], half_angle: f32, power: [f32; 3]) -> Self {
-        Self { inner: Light::spot(vec3(position), vec3(direction), half_angle, vec3(power)) }
+        Self {
+            inner: Light::spot(vec3(position), vec3(direction), half_angle, vec3(power)),
+        }
     }
 
     /// An AREA light emitting along `direction`; `size_x` along `tangent` (diameter of a disk).
@@ -73,7 +77,9 @@ impl PyLight {
     /// A SUN travelling along `direction` with RGB irradiance `irradiance` W/m^2.
     #[staticmethod]
     fn sun(direction: [f32; 3], irradiance: [f32; 3]) -> Self {
-        Self { inner: Light::sun(vec3(direction), vec3(irradiance)) }
+        Self {
+            inner: Light::sun(vec3(direction), vec3(irradiance)),
+        }
     }
 
     /// `"point"`, `"spot"`, `"area"` or `"sun"`.
@@ -94,7 +100,11 @@ impl PyLight {
     }
 
     fn __repr__(&self) -> String {
-        format!("Light.{}(power={:?})", self.kind(), self.inner.power.to_array())
+        format!(
+            "Light.{}(power={:?})",
+            self.kind(),
+            self.inner.power.to_array()
+        )
     }
 }
 
@@ -131,7 +141,9 @@ impl PyScene {
         let alb = vec3s(slice(&a, "albedo")?);
         let lights: Vec<Light> = lights.iter().map(|l| l.get().inner).collect();
         let scene = run(py, move || Scene::build(&verts, &tris, &mats, &alb, lights))?;
-        Ok(Self { inner: Arc::new(scene) })
+        Ok(Self {
+            inner: Arc::new(scene),
+        })
     }
 
     /// Number of triangles.
@@ -225,11 +237,21 @@ pub fn parse_profile(profile: &str) -> PyResult<Profile> {
 
 fn vpls_to_dict<'py>(py: Python<'py>, vpls: &[Vpl]) -> PyResult<Bound<'py, PyDict>> {
     let n = vpls.len();
-    let flat = |f: fn(&Vpl) -> Vec3| -> Vec<f32> { vpls.iter().flat_map(|v| f(v).to_array()).collect() };
+    let flat =
+        |f: fn(&Vpl) -> Vec3| -> Vec<f32> { vpls.iter().flat_map(|v| f(v).to_array()).collect() };
     let d = PyDict::new(py);
-    d.set_item("position", PyArray1::from_vec(py, flat(|v| v.position)).reshape([n, 3])?)?;
-    d.set_item("normal", PyArray1::from_vec(py, flat(|v| v.normal)).reshape([n, 3])?)?;
-    d.set_item("flux", PyArray1::from_vec(py, flat(|v| v.flux)).reshape([n, 3])?)?;
+    d.set_item(
+        "position",
+        PyArray1::from_vec(py, flat(|v| v.position)).reshape([n, 3])?,
+    )?;
+    d.set_item(
+        "normal",
+        PyArray1::from_vec(py, flat(|v| v.normal)).reshape([n, 3])?,
+    )?;
+    d.set_item(
+        "flux",
+        PyArray1::from_vec(py, flat(|v| v.flux)).reshape([n, 3])?,
+    )?;
     Ok(d)
 }
 
@@ -237,7 +259,12 @@ fn vpls_to_dict<'py>(py: Python<'py>, vpls: &[Vpl]) -> PyResult<Bound<'py, PyDic
 /// Returns a dict of float32 arrays `position`, `normal`, `flux`, each (n, 3).
 #[pyfunction]
 #[pyo3(signature = (scene, n, seed = 0))]
-fn uniform_vpls<'py>(py: Python<'py>, scene: &PyScene, n: usize, seed: u64) -> PyResult<Bound<'py, PyDict>> {
+fn uniform_vpls<'py>(
+    py: Python<'py>,
+    scene: &PyScene,
+    n: usize,
+    seed: u64,
+) -> PyResult<Bound<'py, PyDict>> {
     let s = Arc::clone(&scene.inner);
     let vpls = run(py, move || vpl::uniform_vpls(&s, n, seed))?;
     vpls_to_dict(py, &vpls)
@@ -253,7 +280,11 @@ pub fn read_vpls(
     let n = p.shape()[0];
     let nn = array::<f32>(normal, "vpl_normal", &[Dim::Is(n), Dim::Is(3)], "float32")?;
     let f = array::<f32>(flux, "vpl_flux", &[Dim::Is(n), Dim::Is(3)], "float32")?;
-    let (p, nn, f) = (slice(&p, "vpl_position")?, slice(&nn, "vpl_normal")?, slice(&f, "vpl_flux")?);
+    let (p, nn, f) = (
+        slice(&p, "vpl_position")?,
+        slice(&nn, "vpl_normal")?,
+        slice(&f, "vpl_flux")?,
+    );
     Ok((0..n)
         .map(|i| Vpl {
             position: Vec3::from_slice(&p[3 * i..]),
@@ -285,7 +316,12 @@ fn evaluate<'py>(
     progress: Option<&PyProgress>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyDict>)> {
     let profile = parse_profile(profile)?;
-    let pos = array::<f32>(position, "position", &[Dim::Any, Dim::Any, Dim::Is(3)], "float32")?;
+    let pos = array::<f32>(
+        position,
+        "position",
+        &[Dim::Any, Dim::Any, Dim::Is(3)],
+        "float32",
+    )?;
     let (h, w) = (pos.shape()[0], pos.shape()[1]);
     let img3 = [Dim::Is(h), Dim::Is(w), Dim::Is(3)];
     let nor = array::<f32>(normal, "normal", &img3, "float32")?;
@@ -300,10 +336,16 @@ fn evaluate<'py>(
         albedo: slice(&alb, "albedo")?,
         covered: slice(&cov, "covered")?,
     };
-    let params = EvalParams { profile, r_min, tile };
+    let params = EvalParams {
+        profile,
+        r_min,
+        tile,
+    };
     let s = Arc::clone(&scene.inner);
     let prog = progress.map(|p| Arc::clone(&p.inner));
-    let (image, stats) = run(py, move || evaluator::evaluate(&s, &g, &vpls, &params, prog.as_deref()))?;
+    let (image, stats) = run(py, move || {
+        evaluator::evaluate(&s, &g, &vpls, &params, prog.as_deref())
+    })?;
     let out = PyArray1::from_vec(py, image).reshape([h, w, 3])?.into_any();
     let d = PyDict::new(py);
     d.set_item("shadow_rays", stats.shadow_rays)?;
@@ -313,11 +355,22 @@ fn evaluate<'py>(
     Ok((out, d))
 }
 
-fn pair<'py>(image: &Bound<'py, PyAny>, reference: &Bound<'py, PyAny>) -> PyResult<(Vec<f32>, Vec<f32>)> {
-    let r = array::<f32>(reference, "reference", &[Dim::Any, Dim::Any, Dim::Is(3)], "float32")?;
+fn pair<'py>(
+    image: &Bound<'py, PyAny>,
+    reference: &Bound<'py, PyAny>,
+) -> PyResult<(Vec<f32>, Vec<f32>)> {
+    let r = array::<f32>(
+        reference,
+        "reference",
+        &[Dim::Any, Dim::Any, Dim::Is(3)],
+        "float32",
+    )?;
     let dims: Vec<Dim> = r.shape().iter().map(|&s| Dim::Is(s)).collect();
     let i = array::<f32>(image, "image", &dims, "float32")?;
-    Ok((slice(&i, "image")?.to_vec(), slice(&r, "reference")?.to_vec()))
+    Ok((
+        slice(&i, "image")?.to_vec(),
+        slice(&r, "reference")?.to_vec(),
+    ))
 }
 
 /// Root mean squared error of `image` against `reference`, both float32 (H, W, 3), linear HDR.
@@ -329,7 +382,11 @@ fn rmse(py: Python<'_>, image: &Bound<'_, PyAny>, reference: &Bound<'_, PyAny>) 
 
 /// Relative MSE `mean((a - b)^2 / (b^2 + 0.01))` of `image` against `reference`, (H, W, 3).
 #[pyfunction]
-fn relative_mse(py: Python<'_>, image: &Bound<'_, PyAny>, reference: &Bound<'_, PyAny>) -> PyResult<f64> {
+fn relative_mse(
+    py: Python<'_>,
+    image: &Bound<'_, PyAny>,
+    reference: &Bound<'_, PyAny>,
+) -> PyResult<f64> {
     let (a, b) = pair(image, reference)?;
     run(py, move || metrics::relative_mse(&a, &b))
 }
