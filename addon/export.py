@@ -233,6 +233,22 @@ def _is_vpl(obj: bpy.types.Object) -> bool:
     return bool(original.get(VPL_MARKER, False))
 
 
+def _world_color(world: bpy.types.World | None) -> tuple[float, float, float]:
+    """The world's uniform background radiance (colour x strength); black without a world.
+
+    Only a plain Background node is read; a textured world gives its node's default colour.
+    """
+    if world is None:
+        return (0.0, 0.0, 0.0)
+    tree = world.node_tree
+    bg = next((n for n in tree.nodes if n.type == "BACKGROUND"), None) if tree else None
+    if bg is None:
+        return (float(world.color[0]), float(world.color[1]), float(world.color[2]))
+    c = bg.inputs["Color"].default_value
+    s = float(bg.inputs["Strength"].default_value)
+    return (c[0] * s, c[1] * s, c[2] * s)
+
+
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES"}
 
 
@@ -316,9 +332,7 @@ def export_scene(
             cam.data.sensor_width,
             (int(r.resolution_x * scale), int(r.resolution_y * scale)),
         )
-    world_color = (0.0, 0.0, 0.0)
-    if scene.world is not None:
-        world_color = tuple(scene.world.color[:3])  # type: ignore[assignment]
+    world_color = _world_color(scene.world)
     return ExportedScene(
         np.concatenate(verts).astype(np.float32),
         np.concatenate(tris).astype(np.uint32),

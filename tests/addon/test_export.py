@@ -1,0 +1,75 @@
+"""Scene export: triangles, materials, lights and camera of the evaluated depsgraph."""
+
+import math
+
+import bpy
+import numpy as np
+import pytest
+from blender_util import CORNELL_OBJ, cornell, empty_file
+
+from addon import export
+from addon.default_scene import parse_mtl, parse_obj
+from addon.native import build_scene
+
+
+def test_cornell_export_matches_the_obj():
+    scene = cornell()
+    ex = export.export_scene(scene)
+    groups = [g for g in parse_obj(CORNELL_OBJ) if g[0] != "light"]
+    n_tris = sum(len(f) - 2 for g in groups for f in g[3])
+    assert ex.triangles.shape == (n_tris, 3) and ex.material_ids.shape == (n_tris,)
+    assert ex.vertices.dtype == np.float32 and ex.triangles.dtype == np.uint32
+    mtl = parse_mtl(CORNELL_OBJ.with_suffix(".mtl"))
+    albedo = {m.name: m.albedo for m in ex.materials}
+    for name in ("leftWall", "rightWall", "floor"):
+        np.testing.assert_allclose(albedo[name], mtl[name]["Kd"], rtol=1e-6)
+    (light,) = ex.lights
+    assert light.type == "AREA" and not light.area_disk
+    np.testing.assert_allclose(light.direction, (0, 0, -1), atol=1e-6)
+    area = light.size_x * light.size_y
+    np.testing.assert_allclose(area, 0.47 * 0.38, rtol=1e-3)
+    np.testing.assert_allclose(light.power, np.pi * area * np.array(mtl["light"]["Ke"]), rtol=1e-3)
+    assert ex.camera is not None and ex.camera.lens == 35.0
+    # The box spans about 2 m; the native scene builds with the same numbers.
+    native = build_scene(ex)
+    assert native.triangle_count == n_tris and native.light_count == 1
+    assert 3.0 < native.diagonal < 3.6
+
+
+def test_hidden_objects_and_fingerprint():
+    scene = cornell()
+    a = export.export_scene(scene)
+    bpy.data.objects["tallBox"].hide_render = True
+    b = export.export_scene(scene)
+    assert b.triangles.shape[0] < a.triangles.shape[0]
+    assert a.fingerprint() != b.fingerprint()
+    bpy.data.objects["tallBox"].hide_render = False
+    assert export.export_scene(scene).fingerprint() == a.fingerprint()
+    bpy.data.lights["light"].energy *= 2
+    assert export.export_scene(scene).fingerprint() != a.fingerprint()
+
+
+def test_light_power_includes_exposure_and_normalize():
+    empty_file()
+    scene = bpy.context.scene
+    light = bpy.data.lights.new("a", "AREA")
+    light.energy, light.exposure, light.size = 10.0, 1.0, 0.5
+    light.normalize = False
+    obj = bpy.data.objects.new("a", light)
+    scene.collection.objects.link(obj)
+    mesh = bpy.data.meshes.new("m")
+    mesh.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
+    scene.collection.objects.link(bpy.data.objects.new("m", mesh))
+    (info,) = export.export_scene(scene).lights
+    np.testing.assert_allclose(info.power, [10 * 2 * 0.25] * 3, rtol=1e-6)
+
+
+def test_bad_scenes_give_clear_errors():
+    empty_file()
+    with pytest.raises(export.ExportError, match="no visible mesh geometry"):
+        export.export_scene(bpy.context.scene)
+    mesh = bpy.data.meshes.new("broken")
+    mesh.from_pydata([(0, 0, 0), (1, 0, 0), (0, math.nan, 0)], [], [(0, 1, 2)])
+    bpy.context.scene.collection.objects.link(bpy.data.objects.new("broken", mesh))
+    with pytest.raises(export.ExportError, match="'broken' has vertices with NaN"):
+        export.export_scene(bpy.context.scene)
