@@ -5,9 +5,15 @@ import json
 import numpy as np
 import pytest
 from blender_util import cornell
+from PIL import Image
 
 from addon import apply, images, pipeline
 from addon.export import VPL_MARKER
+
+
+def load_png_linear(path):
+    c = np.asarray(Image.open(path).convert("RGB"), dtype=np.float64) / 255.0
+    return images.srgb_to_linear(c)
 
 
 def luminance(img):
@@ -44,10 +50,10 @@ def test_main_job_writes_everything_and_vpls_bring_eevee_close_to_cycles(tmp_pat
     # EEVEE with the VPLs is as bright as the evaluator's direct + VPL image, and clearly
     # brighter than direct light alone. (Both stay below Cycles GI: first-hit VPLs carry one
     # bounce; the Cornell box's further bounces are missing by design of the uniform layout.)
-    gi = luminance(images.load_png_linear(tmp_path / "cycles_gi.png")).mean()
-    eevee = luminance(images.load_png_linear(tmp_path / "eevee_vpl.png")).mean()
-    direct = luminance(images.load_png_linear(tmp_path / "direct.png")).mean()
-    ours = luminance(images.load_png_linear(tmp_path / "direct_plus_vpl.png")).mean()
+    gi = luminance(load_png_linear(tmp_path / "cycles_gi.png")).mean()
+    eevee = luminance(load_png_linear(tmp_path / "eevee_vpl.png")).mean()
+    direct = luminance(load_png_linear(tmp_path / "direct.png")).mean()
+    ours = luminance(load_png_linear(tmp_path / "direct_plus_vpl.png")).mean()
     print(
         f"mean luminance: Cycles GI {gi:.4f}, evaluator direct + VPLs {ours:.4f}, "
         f"EEVEE + VPLs {eevee:.4f}, direct {direct:.4f}"
