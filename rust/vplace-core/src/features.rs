@@ -1,1 +1,735 @@
-//! Placeholder: filled by its issue.
+//! Per-cell features and the regression label (DESIGN: Features and label; paper 1, steps 1-4).
+//!
+//! The image is split into square cells of `cell_px` pixels (the last row and column of cells
+//! may be smaller). Over the *usable* pixels of a cell (covered by geometry, every pass finite)
+//! each per-pixel feature of [`FEATURES`] is averaged; the cell-level features (coverage, normal
+//! and depth variance) are computed from the same pixels. The label of a cell is
+//! `dL = mean |L(G) - L(D)|` over its usable pixels, `L` the Rec. 709 luminance
+//! ([`crate::vpl::LUMINANCE`]).
+//!
+//! Decisions recorded here:
+//! - Cells without a usable pixel are excluded and counted ([`CellFeatures::empty_cells`]).
+//! - A covered pixel holding NaN or inf in any pass the features read is *masked*: treated as
+//!   uncovered and counted ([`CellFeatures::masked_pixels`]). A firefly in a render should not
+//!   abort a fit; the count is reported so that it cannot go unnoticed. If nothing usable is
+//!   left, extraction fails with [`VplaceError::Empty`].
+//! - Values are raw per-cell means; Min-Max normalization over cells is [`MinMax`], kept with a
+//!   fitted model so that another view is normalized with the same ranges.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::error::{Result, VplaceError};
+use crate::regression::{self, DropReason, Fit, FitParams};
+use crate::vpl::LUMINANCE;
+
+/// Where a feature comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Origin {
+    /// Listed by the paper (section 1 of the papers summary).
+    Paper,
+    /// Added by vplace.
+    Ours,
+}
+
+/// One entry of the feature registry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FeatureDef {
+    /// Stable name, used in tables and saved models (`snake_case`).
+    pub name: &'static str,
+    /// What the per-cell value is, in one line.
+    pub doc: &'static str,
+    /// Paper or ours.
+    pub origin: Origin,
+}
+
+/// Number of registered features.
+pub const FEATURE_COUNT: usize = 14;
+
+/// Column of the light-cosine feature (unavailable without a light).
+pub const LIGHT_COSINE: usize = 8;
+/// Column of the reflectance feature (unavailable without a specular colour pass).
+pub const REFLECTANCE: usize = 9;
+
+/// The feature registry, in column order of [`CellFeatures::values`].
+pub const FEATURES: [FeatureDef; FEATURE_COUNT] = [
+    FeatureDef {
+        name: "normal_x",
+        doc: "mean world normal, x",
+        origin: Origin::Paper,
+    },
+    FeatureDef {
+        name: "normal_y",
+        doc: "mean world normal, y",
+        origin: Origin::Paper,
+    },
+    FeatureDef {
+        name: "normal_z",
+        doc: "mean world normal, z (up)",
+        origin: Origin::Paper,
+    },
+    FeatureDef {
+        name: "albedo_luminance",
+        doc: "mean luminance of the diffuse albedo (DiffCol)",
+        origin: Origin::Paper,
+    },
+    FeatureDef {
+        name: "depth",
+        doc: "mean planar camera depth, metres",
+        origin: Origin::Paper,
+    },
+    FeatureDef {
+        name: "position_x",
+        doc: "mean world position, x",
+        origin: Origin::Paper,
+    },
+    FeatureDef {
+        name: "position_y",
+        doc: "mean world position, y",
+        origin: Origin::Paper,
+    },
+    FeatureDef {
+        name: "position_z",
+        doc: "mean world position, z",
+        origin: Origin::Paper,
+    },
+    FeatureDef {
+        name: "light_cosine",
+        doc: "mean max(0, n . l), l the unit direction to the strongest light",
+        origin: Origin::Paper,
+    },
+    FeatureDef {
+        name: "reflectance",
+        doc: "mean luminance of diffuse + specular colour (DiffCol + GlossCol)",
+        origin: Origin::Paper,
+    },
+    FeatureDef {
+        name: "direct_luminance",
+        doc: "mean luminance of the direct image D",
+        origin: Origin::Ours,
+    },
+    FeatureDef {
+        name: "coverage",
+        doc: "fraction of the cell's pixels that see geometry",
+        origin: Origin::Ours,
+    },
+    FeatureDef {
+        name: "normal_variance",
+        doc: "total variance of the normals, E[n.n] - |E[n]|^2",
+        origin: Origin::Ours,
+    },
+    FeatureDef {
+        name: "depth_variance",
+        doc: "variance of the planar depth, m^2",
+        origin: Origin::Ours,
+    },
+];
+
+/// The strongest light of the view, for [`LIGHT_COSINE`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum StrongestLight {
+    /// A light at a world position (point, spot, area): `l = normalize(position - p)`.
+    Position(Vec3),
+    /// A sun travelling along this world direction: `l = -normalize(direction)`.
+    Direction(Vec3),
+}
+
+/// The captured passes of one view. Images are flat `H x W x 3` (`depth`, `covered`: `H x W`),
+/// row 0 at the top; see DESIGN, Capture.
+#[derive(Debug, Clone, Copy)]
+pub struct FeatureInput<'a> {
+    /// Image width, pixels (at least 1).
+    pub width: usize,
+    /// Image height, pixels (at least 1).
+    pub height: usize,
+    /// World position per pixel.
+    pub position: &'a [f32],
+    /// Unit world normal per pixel.
+    pub normal: &'a [f32],
+    /// Diffuse albedo (Cycles DiffCol) per pixel.
+    pub albedo: &'a [f32],
+    /// Planar camera depth (Cycles Z) per pixel; background values are ignored via `covered`.
+    pub depth: &'a [f32],
+    /// The direct image `D`.
+    pub direct: &'a [f32],
+    /// The GI image `G`; `None` for a view that is only predicted (no label).
+    pub gi: Option<&'a [f32]>,
+    /// Specular colour (Cycles GlossCol); `None` makes [`REFLECTANCE`] unavailable.
+    pub specular: Option<&'a [f32]>,
+    /// True where the pixel sees geometry.
+    pub covered: &'a [bool],
+    /// The strongest light; `None` makes [`LIGHT_COSINE`] unavailable.
+    pub light: Option<StrongestLight>,
+}
+
+/// Per-cell features of one view. Invariant: `values.len() == cells.len() * FEATURE_COUNT`,
+/// `cells` ascending and every listed cell has at least one usable pixel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CellFeatures {
+    /// Cell size, pixels.
+    pub cell_px: usize,
+    /// Cells per image row: `ceil(width / cell_px)`.
+    pub cells_x: usize,
+    /// Cells per image column: `ceil(height / cell_px)`.
+    pub cells_y: usize,
+    /// Flat grid index (`row * cells_x + col`, row 0 at the top) of every non-empty cell.
+    pub cells: Vec<usize>,
+    /// Raw per-cell values, `cells.len() x FEATURE_COUNT`, row-major, columns as [`FEATURES`].
+    pub values: Vec<f64>,
+    /// The label `dL` per listed cell, when the GI image was given.
+    pub label: Option<Vec<f64>>,
+    /// Usable pixels per listed cell.
+    pub pixels: Vec<u32>,
+    /// Cells of the grid without a usable pixel (excluded).
+    pub empty_cells: usize,
+    /// Covered pixels dropped because a pass held NaN or inf there.
+    pub masked_pixels: usize,
+    /// Per feature: false when its input was not given (its column is then all zeros).
+    pub available: [bool; FEATURE_COUNT],
+}
+
+/// Running sums of one cell.
+#[derive(Clone, Copy, Default)]
+struct Acc {
+    n: u32,
+    total: u32,
+    masked: u32,
+    sum: [f64; 11],
+    nn: f64,
+    depth_shift: f32,
+    dsum: f64,
+    dsq: f64,
+    label: f64,
+}
+
+fn check_len(what: &str, arr: &[f32], h: usize, w: usize, c: usize) -> Result<()> {
+    if arr.len() == h * w * c {
+        return Ok(());
+    }
+    let expected = if c == 1 {
+        format!("({h}, {w})")
+    } else {
+        format!("({h}, {w}, {c})")
+    };
+    Err(VplaceError::Shape {
+        what: what.into(),
+        expected,
+        got: format!("{} values", arr.len()),
+    })
+}
+
+#[inline]
+fn lum(v: &[f32]) -> f32 {
+    LUMINANCE.x * v[0] + LUMINANCE.y * v[1] + LUMINANCE.z * v[2]
+}
+
+#[inline]
+fn finite3(v: &[f32]) -> bool {
+    v[0].is_finite() && v[1].is_finite() && v[2].is_finite()
+}
+
+impl FeatureInput<'_> {
+    /// Checks every array's length, `cell_px` and the light.
+    pub fn validate(&self) -> Result<()> {
+        let (h, w) = (self.height, self.width);
+        if h == 0 || w == 0 {
+            return Err(VplaceError::Empty {
+                what: "G-buffer".into(),
+                hint: "width and height must be at least 1".into(),
+            });
+        }
+        for (what, arr) in [
+            ("position", self.position),
+            ("normal", self.normal),
+            ("albedo", self.albedo),
+            ("direct", self.direct),
+        ] {
+            check_len(what, arr, h, w, 3)?;
+        }
+        if let Some(gi) = self.gi {
+            check_len("gi", gi, h, w, 3)?;
+        }
+        if let Some(s) = self.specular {
+            check_len("specular", s, h, w, 3)?;
+        }
+        check_len("depth", self.depth, h, w, 1)?;
+        if self.covered.len() != h * w {
+            return Err(VplaceError::Shape {
+                what: "covered".into(),
+                expected: format!("({h}, {w})"),
+                got: format!("{} values", self.covered.len()),
+            });
+        }
+        match self.light {
+            Some(StrongestLight::Position(p)) if !p.is_finite() => Err(VplaceError::NonFinite {
+                what: "light position".into(),
+                index: 0,
+            }),
+            Some(StrongestLight::Direction(d)) if !d.is_finite() || d.length_squared() == 0.0 => {
+                Err(VplaceError::Invalid {
+                    what: "light direction".into(),
+                    reason: "must be finite and non-zero".into(),
+                })
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+/// Extracts the per-cell features (and the label when `gi` is given) of one view.
+///
+/// Parallel over rows of cells. Errors: bad lengths, `cell_px == 0`, a bad light, or no usable
+/// pixel at all.
+pub fn extract_features(input: &FeatureInput<'_>, cell_px: usize) -> Result<CellFeatures> {
+    input.validate()?;
+    if cell_px == 0 {
+        return Err(VplaceError::OutOfRange {
+            what: "cell_px".into(),
+            value: "0".into(),
+            expected: "at least 1".into(),
+        });
+    }
+    let (w, h) = (input.width, input.height);
+    let cells_x = w.div_ceil(cell_px);
+    let cells_y = h.div_ceil(cell_px);
+    let light = input.light.map(|l| match l {
+        StrongestLight::Position(p) => StrongestLight::Position(p),
+        StrongestLight::Direction(d) => StrongestLight::Direction(-d.normalize()),
+    });
+
+    let rows: Vec<Vec<Acc>> = (0..cells_y)
+        .into_par_iter()
+        .map(|cy| accumulate_row(input, light, cell_px, cells_x, cy))
+        .collect();
+
+    let mut out = CellFeatures {
+        cell_px,
+        cells_x,
+        cells_y,
+        cells: Vec::new(),
+        values: Vec::new(),
+        label: input.gi.map(|_| Vec::new()),
+        pixels: Vec::new(),
+        empty_cells: 0,
+        masked_pixels: 0,
+        available: [true; FEATURE_COUNT],
+    };
+    out.available[LIGHT_COSINE] = input.light.is_some();
+    out.available[REFLECTANCE] = input.specular.is_some();
+    for (cy, row) in rows.iter().enumerate() {
+        for (cx, a) in row.iter().enumerate() {
+            out.masked_pixels += a.masked as usize;
+            if a.n == 0 {
+                out.empty_cells += 1;
+                continue;
+            }
+            let n = f64::from(a.n);
+            out.cells.push(cy * cells_x + cx);
+            out.pixels.push(a.n);
+            let mean: Vec<f64> = a.sum.iter().map(|s| s / n).collect();
+            out.values.extend_from_slice(&mean[..10]);
+            out.values.push(mean[10]);
+            out.values.push(n / f64::from(a.total));
+            let mean_n2 = mean[0] * mean[0] + mean[1] * mean[1] + mean[2] * mean[2];
+            out.values.push((a.nn / n - mean_n2).max(0.0));
+            let dm = a.dsum / n;
+            out.values.push((a.dsq / n - dm * dm).max(0.0));
+            if let Some(label) = out.label.as_mut() {
+                label.push(a.label / n);
+            }
+        }
+    }
+    if out.cells.is_empty() {
+        return Err(VplaceError::Empty {
+            what: "usable pixels".into(),
+            hint: format!(
+                "no covered pixel with finite passes ({} covered pixels masked for NaN or inf)",
+                out.masked_pixels
+            ),
+        });
+    }
+    Ok(out)
+}
+
+/// Pixels summed in `f32` before a flush into the cell's `f64` sums (bounds the rounding).
+const SEGMENT: usize = 32;
+
+/// One image row of every pass.
+struct Row<'a> {
+    pos: &'a [f32],
+    nrm: &'a [f32],
+    alb: &'a [f32],
+    dir: &'a [f32],
+    dep: &'a [f32],
+    cov: &'a [bool],
+    gi: Option<&'a [f32]>,
+    spec: Option<&'a [f32]>,
+}
+
+fn accumulate_row(
+    input: &FeatureInput<'_>,
+    light: Option<StrongestLight>,
+    cell_px: usize,
+    cells_x: usize,
+    cy: usize,
+) -> Vec<Acc> {
+    let w = input.width;
+    let mut accs = vec![Acc::default(); cells_x];
+    let y0 = cy * cell_px;
+    let y1 = (y0 + cell_px).min(input.height);
+    for y in y0..y1 {
+        let (r1, r3) = (y * w..(y + 1) * w, 3 * y * w..3 * (y + 1) * w);
+        let row = Row {
+            pos: &input.position[r3.clone()],
+            nrm: &input.normal[r3.clone()],
+            alb: &input.albedo[r3.clone()],
+            dir: &input.direct[r3.clone()],
+            dep: &input.depth[r1.clone()],
+            cov: &input.covered[r1],
+            gi: input.gi.map(|g| &g[r3.clone()]),
+            spec: input.specular.map(|s| &s[r3.clone()]),
+        };
+        for (cx, acc) in accs.iter_mut().enumerate() {
+            let x0 = cx * cell_px;
+            let x1 = (x0 + cell_px).min(w);
+            acc.total += (x1 - x0) as u32;
+            let mut s = x0;
+            while s < x1 {
+                let e = (s + SEGMENT).min(x1);
+                segment(acc, &row, s, e, light);
+                s = e;
+            }
+        }
+    }
+    accs
+}
+
+/// Adds the usable pixels `s..e` of `row` to `acc`, summing in `f32` first.
+#[inline]
+fn segment(acc: &mut Acc, row: &Row<'_>, s: usize, e: usize, light: Option<StrongestLight>) {
+    let mut sum = [0.0f32; 11];
+    let (mut nn, mut dsum, mut dsq, mut label) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
+    let mut n = 0u32;
+    for x in s..e {
+        if !row.cov[x] {
+            continue;
+        }
+        let j = 3 * x;
+        let p = &row.pos[j..j + 3];
+        let nrm = &row.nrm[j..j + 3];
+        let alb = &row.alb[j..j + 3];
+        let d = &row.dir[j..j + 3];
+        let depth = row.dep[x];
+        let g = row.gi.map(|g| &g[j..j + 3]);
+        let sp = row.spec.map(|s| &s[j..j + 3]);
+        let ok = finite3(p)
+            && finite3(nrm)
+            && finite3(alb)
+            && finite3(d)
+            && depth.is_finite()
+            && g.is_none_or(finite3)
+            && sp.is_none_or(finite3);
+        if !ok {
+            acc.masked += 1;
+            continue;
+        }
+        let alb_l = lum(alb);
+        let refl = sp.map_or(0.0, |s| alb_l + lum(s));
+        let nv = Vec3::from_slice(nrm);
+        let cosine = match light {
+            None => 0.0,
+            Some(StrongestLight::Position(lp)) => {
+                let l = lp - Vec3::from_slice(p);
+                let len2 = l.length_squared();
+                if len2 > 0.0 {
+                    (nv.dot(l) / len2.sqrt()).max(0.0)
+                } else {
+                    0.0
+                }
+            }
+            Some(StrongestLight::Direction(l)) => nv.dot(l).max(0.0),
+        };
+        let direct_l = lum(d);
+        if acc.n == 0 && n == 0 {
+            acc.depth_shift = depth;
+        }
+        n += 1;
+        let vals = [
+            nrm[0], nrm[1], nrm[2], alb_l, depth, p[0], p[1], p[2], cosine, refl, direct_l,
+        ];
+        for (s, v) in sum.iter_mut().zip(vals) {
+            *s += v;
+        }
+        nn += nv.length_squared();
+        let dd = depth - acc.depth_shift;
+        dsum += dd;
+        dsq += dd * dd;
+        if let Some(g) = g {
+            label += (lum(g) - direct_l).abs();
+        }
+    }
+    if n == 0 {
+        return;
+    }
+    acc.n += n;
+    for (a, s) in acc.sum.iter_mut().zip(sum) {
+        *a += f64::from(s);
+    }
+    acc.nn += f64::from(nn);
+    acc.dsum += f64::from(dsum);
+    acc.dsq += f64::from(dsq);
+    acc.label += f64::from(label);
+}
+
+/// Min-Max normalization ranges over cells, one `[min, max]` per feature column.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MinMax {
+    /// Per-column minimum over the fitted cells.
+    pub min: Vec<f64>,
+    /// Per-column maximum over the fitted cells; `max >= min`.
+    pub max: Vec<f64>,
+}
+
+impl MinMax {
+    /// The ranges of the `p` columns of the row-major `values`. Errors on an empty table or
+    /// non-finite values.
+    pub fn fit(values: &[f64], p: usize) -> Result<Self> {
+        if p == 0 || values.is_empty() || values.len() % p != 0 {
+            return Err(VplaceError::Shape {
+                what: "feature values".into(),
+                expected: format!("a non-empty multiple of {p} values"),
+                got: format!("{} values", values.len()),
+            });
+        }
+        if let Some(index) = values.iter().position(|v| !v.is_finite()) {
+            return Err(VplaceError::NonFinite {
+                what: "feature values".into(),
+                index,
+            });
+        }
+        let mut min = vec![f64::INFINITY; p];
+        let mut max = vec![f64::NEG_INFINITY; p];
+        for row in values.chunks_exact(p) {
+            for (j, &v) in row.iter().enumerate() {
+                min[j] = min[j].min(v);
+                max[j] = max[j].max(v);
+            }
+        }
+        Ok(Self { min, max })
+    }
+
+    /// `(v - min) / (max - min)` per column; a column whose range is zero maps to 0. Values of
+    /// another view may fall outside `[0, 1]`.
+    #[must_use]
+    pub fn apply(&self, values: &[f64]) -> Vec<f64> {
+        let p = self.min.len();
+        values
+            .chunks_exact(p)
+            .flat_map(|row| {
+                row.iter().enumerate().map(|(j, &v)| {
+                    let range = self.max[j] - self.min[j];
+                    if range > 0.0 {
+                        (v - self.min[j]) / range
+                    } else {
+                        0.0
+                    }
+                })
+            })
+            .collect()
+    }
+}
+
+/// A regression model fitted on the cells of one view, with the Min-Max ranges that normalize
+/// the features of any other view the same way.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CellModel {
+    /// Min-Max ranges of the raw features over the fitted cells.
+    pub ranges: MinMax,
+    /// The fit on the normalized features (columns as [`FEATURES`]).
+    pub fit: Fit,
+}
+
+/// Normalizes the features of `cells` and fits their label (see [`crate::regression`]).
+/// Features whose input was not given are reported as [`DropReason::Unavailable`].
+pub fn fit_cells(cells: &CellFeatures, params: &FitParams) -> Result<CellModel> {
+    let label = cells.label.as_ref().ok_or_else(|| VplaceError::Invalid {
+        what: "label".into(),
+        reason: "the view has no GI image; fitting needs one (prediction does not)".into(),
+    })?;
+    let ranges = MinMax::fit(&cells.values, FEATURE_COUNT)?;
+    let x = ranges.apply(&cells.values);
+    let mut fit = regression::fit(&x, label, FEATURE_COUNT, params)?;
+    for (j, reason) in &mut fit.dropped {
+        if !cells.available[*j] {
+            *reason = DropReason::Unavailable(if *j == LIGHT_COSINE {
+                "no strongest light given"
+            } else {
+                "no specular colour pass given"
+            });
+        }
+    }
+    Ok(CellModel { ranges, fit })
+}
+
+impl CellModel {
+    /// The predicted label of every cell of the grid of `cells` (`cells_y x cells_x`, row-major);
+    /// cells without geometry get 0 (they hold no pixel to light).
+    #[must_use]
+    pub fn predict(&self, cells: &CellFeatures) -> Vec<f64> {
+        let x = self.ranges.apply(&cells.values);
+        let mut out = vec![0.0; cells.cells_x * cells.cells_y];
+        for (row, &c) in x.chunks_exact(FEATURE_COUNT).zip(&cells.cells) {
+            out[c] = self.fit.predict_row(row);
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    struct Bufs {
+        w: usize,
+        h: usize,
+        position: Vec<f32>,
+        normal: Vec<f32>,
+        albedo: Vec<f32>,
+        depth: Vec<f32>,
+        direct: Vec<f32>,
+        gi: Vec<f32>,
+        covered: Vec<bool>,
+    }
+
+    fn bufs(w: usize, h: usize) -> Bufs {
+        let n = w * h;
+        let mut b = Bufs {
+            w,
+            h,
+            position: vec![0.0; 3 * n],
+            normal: vec![0.0; 3 * n],
+            albedo: vec![0.5; 3 * n],
+            depth: vec![1e10; n],
+            direct: vec![0.0; 3 * n],
+            gi: vec![0.0; 3 * n],
+            covered: vec![false; n],
+        };
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                b.covered[i] = x < w / 2 || y < h / 2;
+                b.position[3 * i] = x as f32;
+                b.position[3 * i + 1] = y as f32;
+                b.normal[3 * i + 2] = 1.0;
+                b.depth[i] = 2.0 + y as f32;
+                b.direct[3 * i..3 * i + 3].fill(0.25);
+                b.gi[3 * i..3 * i + 3].fill(0.25 + 0.01 * x as f32);
+            }
+        }
+        b
+    }
+
+    fn input(b: &Bufs) -> FeatureInput<'_> {
+        FeatureInput {
+            width: b.w,
+            height: b.h,
+            position: &b.position,
+            normal: &b.normal,
+            albedo: &b.albedo,
+            depth: &b.depth,
+            direct: &b.direct,
+            gi: Some(&b.gi),
+            specular: None,
+            covered: &b.covered,
+            light: Some(StrongestLight::Position(Vec3::new(0.0, 0.0, 10.0))),
+        }
+    }
+
+    #[test]
+    fn registry_names_are_unique_and_documented() {
+        for (i, f) in FEATURES.iter().enumerate() {
+            assert!(!f.doc.is_empty());
+            assert!(FEATURES[i + 1..].iter().all(|g| g.name != f.name));
+        }
+        assert_eq!(FEATURES[LIGHT_COSINE].name, "light_cosine");
+        assert_eq!(FEATURES[REFLECTANCE].name, "reflectance");
+    }
+
+    #[test]
+    fn cell_means_label_and_empty_cells() {
+        let b = bufs(8, 6);
+        let f = extract_features(&input(&b), 2).unwrap();
+        assert_eq!((f.cells_x, f.cells_y), (4, 3));
+        // Pixels with x >= 4 and y >= 3 are background: cells (row 2, cols 2 and 3) are empty.
+        assert_eq!(f.empty_cells, 2);
+        assert_eq!(f.cells.len(), 10);
+        let p = FEATURE_COUNT;
+        // Cell 0 (x 0..2, y 0..2): position_x mean 0.5, label mean 0.01 * 0.5.
+        assert!((f.values[5] - 0.5).abs() < 1e-12);
+        assert!((f.values[4] - 2.5).abs() < 1e-12);
+        assert!((f.values[11] - 1.0).abs() < 1e-12);
+        assert!((f.values[13] - 0.25).abs() < 1e-9);
+        assert!(f.values[12].abs() < 1e-12);
+        let label = f.label.as_ref().unwrap();
+        assert!((label[0] - 0.005).abs() < 1e-6);
+        // Cell at row 1, col 2 (x 4..6, y 2..4): only y = 2 covered -> coverage 0.5.
+        let k = f.cells.iter().position(|&c| c == 4 + 2).unwrap();
+        assert!((f.values[k * p + 11] - 0.5).abs() < 1e-12);
+        assert_eq!(f.pixels[k], 2);
+        assert!(f.available[LIGHT_COSINE] && !f.available[REFLECTANCE]);
+    }
+
+    #[test]
+    fn non_finite_pixels_are_masked_and_counted() {
+        let mut b = bufs(4, 4);
+        b.gi[0] = f32::NAN;
+        b.depth[1] = f32::INFINITY;
+        b.position[3 * 6] = f32::NAN;
+        b.position[3 * 15] = f32::NAN; // uncovered: not counted
+        let f = extract_features(&input(&b), 2).unwrap();
+        assert_eq!(f.masked_pixels, 3);
+        assert!(f.values.iter().all(|v| v.is_finite()));
+        assert!(f.label.unwrap().iter().all(|v| v.is_finite()));
+    }
+
+    #[test]
+    fn one_pixel_cells_and_bad_input() {
+        let b = bufs(3, 2);
+        let f = extract_features(&input(&b), 1).unwrap();
+        assert_eq!(f.cells.len() + f.empty_cells, 6);
+        assert!(f.pixels.iter().all(|&n| n == 1));
+        assert!(extract_features(&input(&b), 0).is_err());
+        let mut bad = input(&b);
+        bad.depth = &b.depth[1..];
+        assert!(matches!(
+            extract_features(&bad, 1),
+            Err(VplaceError::Shape { .. })
+        ));
+        let mut none = bufs(2, 2);
+        none.covered.fill(false);
+        assert!(matches!(
+            extract_features(&input(&none), 1),
+            Err(VplaceError::Empty { .. })
+        ));
+    }
+
+    #[test]
+    fn light_cosine_point_and_sun() {
+        let b = bufs(2, 2);
+        let mut inp = input(&b);
+        inp.light = Some(StrongestLight::Direction(Vec3::new(0.0, 0.0, -2.0)));
+        let f = extract_features(&inp, 1).unwrap();
+        assert!((f.values[LIGHT_COSINE] - 1.0).abs() < 1e-6);
+        inp.light = Some(StrongestLight::Position(Vec3::new(0.0, 0.0, -1.0)));
+        let f = extract_features(&inp, 1).unwrap();
+        assert_eq!(f.values[LIGHT_COSINE], 0.0);
+    }
+
+    #[test]
+    fn min_max() {
+        let mm = MinMax::fit(&[1.0, 5.0, 3.0, 5.0], 2).unwrap();
+        assert_eq!(mm.apply(&[2.0, 5.0, 5.0, 5.0]), vec![0.5, 0.0, 2.0, 0.0]);
+        assert!(MinMax::fit(&[], 2).is_err());
+        assert!(MinMax::fit(&[f64::NAN, 1.0], 2).is_err());
+    }
+}

@@ -18,9 +18,11 @@ from vplace._native import (
     rmse,
     uniform_vpls,
 )
+from vplace.fit import FitResult, extract_features, fit, fit_design
 
 __all__ = [
     "CancelledError",
+    "FitResult",
     "InputError",
     "InternalError",
     "Light",
@@ -29,6 +31,9 @@ __all__ = [
     "VplaceError",
     "__version__",
     "evaluate",
+    "extract_features",
+    "fit",
+    "fit_design",
     "relative_mse",
     "rmse",
     "uniform_vpls",

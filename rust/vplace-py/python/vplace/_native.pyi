@@ -90,3 +90,53 @@ def evaluate(
 ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]: ...
 def rmse(image: npt.NDArray[np.float32], reference: npt.NDArray[np.float32]) -> float: ...
 def relative_mse(image: npt.NDArray[np.float32], reference: npt.NDArray[np.float32]) -> float: ...
+
+# --- features and regression (fit.rs) -----------------------------------------------------
+def feature_registry() -> list[tuple[str, str, str]]: ...
+def extract_features(
+    position: npt.NDArray[np.float32],
+    normal: npt.NDArray[np.float32],
+    albedo: npt.NDArray[np.float32],
+    depth: npt.NDArray[np.float32],
+    direct: npt.NDArray[np.float32],
+    covered: npt.NDArray[np.bool_],
+    *,
+    gi: npt.NDArray[np.float32] | None = None,
+    specular: npt.NDArray[np.float32] | None = None,
+    light_position: _Vec3 | None = None,
+    light_direction: _Vec3 | None = None,
+    cell_px: int = 16,
+) -> dict[str, Any]: ...
+def fit_capture(
+    position: npt.NDArray[np.float32],
+    normal: npt.NDArray[np.float32],
+    albedo: npt.NDArray[np.float32],
+    depth: npt.NDArray[np.float32],
+    direct: npt.NDArray[np.float32],
+    covered: npt.NDArray[np.bool_],
+    gi: npt.NDArray[np.float32],
+    *,
+    specular: npt.NDArray[np.float32] | None = None,
+    light_position: _Vec3 | None = None,
+    light_direction: _Vec3 | None = None,
+    cell_px: int = 16,
+    folds: int = 5,
+    select: bool = True,
+    min_cv_gain: float = 1e-3,
+    collinear_rtol: float = 1e-6,
+    rank_rtol: float | None = None,
+    ridge_above: float = 1e6,
+    seed: int = 0x5EED,
+) -> tuple[dict[str, Any], dict[str, Any], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+def fit_design(
+    x: npt.NDArray[np.float64],
+    y: npt.NDArray[np.float64],
+    *,
+    folds: int = 5,
+    select: bool = True,
+    min_cv_gain: float = 1e-3,
+    collinear_rtol: float = 1e-6,
+    rank_rtol: float | None = None,
+    ridge_above: float = 1e6,
+    seed: int = 0x5EED,
+) -> dict[str, Any]: ...
