@@ -27,7 +27,8 @@ $(NATIVE): $(NATIVE_SRC) $(DEPS)
 build: $(NATIVE)
 
 demo: build
-	$(PY) -m addon.cli demo --out out/cornell
+	$(PY) -m addon.cli demo --scene cornell --out out/cornell
+	$(PY) -m addon.cli demo --scene sponza --out out/sponza --samples 128 --no-eevee
 
 lint: build
 	cargo fmt --all --check

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import bpy
@@ -13,33 +14,67 @@ import bpy
 REPO = Path(__file__).resolve().parent.parent
 CORNELL_OBJ = REPO / "blend_scenes" / "cornell_box" / "CornellBox-Original.obj"
 CORNELL_BLEND = REPO / "blend_scenes" / "cornell_box" / "cornell_box.blend"
+SPONZA_GLTF = REPO / "blend_scenes" / "sponza" / "Sponza.gltf"
+SPONZA_BLEND = REPO / "blend_scenes" / "sponza" / "sponza.blend"
 
 
-def ensure_cornell_blend() -> Path:
-    """The Cornell box .blend, built from the OBJ when missing or older than its sources."""
-    from .default_scene import write_cornell_blend
+def _ensure_blend(blend: Path, sources: list[Path], build: Callable[[], Path]) -> Path:
+    """``blend``, rebuilt by ``build`` when missing or older than any of ``sources``."""
+    if not blend.exists() or any(src.stat().st_mtime > blend.stat().st_mtime for src in sources):
+        print(f"[vplace] building {blend.relative_to(REPO)}")
+        build()
+    return blend
 
-    sources = [CORNELL_OBJ, Path(__file__).with_name("default_scene.py")]
-    if not CORNELL_BLEND.exists() or any(
-        s.stat().st_mtime > CORNELL_BLEND.stat().st_mtime for s in sources
-    ):
-        print(f"[vplace] building {CORNELL_BLEND.relative_to(REPO)} from the OBJ")
-        write_cornell_blend(CORNELL_OBJ, CORNELL_BLEND)
-    return CORNELL_BLEND
+
+def builtin_scene(name: str) -> Path:
+    """The .blend of a built-in scene (``cornell`` or ``sponza``), built on first use."""
+    from . import default_scene
+
+    script = Path(default_scene.__file__)
+    if name == "cornell":
+        return _ensure_blend(
+            CORNELL_BLEND,
+            [CORNELL_OBJ, script],
+            lambda: default_scene.write_cornell_blend(CORNELL_OBJ, CORNELL_BLEND),
+        )
+    if name == "sponza":
+        return _ensure_blend(
+            SPONZA_BLEND,
+            [SPONZA_GLTF, script],
+            lambda: default_scene.write_sponza_blend(SPONZA_GLTF, SPONZA_BLEND),
+        )
+    raise SystemExit(f"unknown built-in scene {name!r}: use cornell, sponza or a .blend path")
+
+
+def output_size(scene: bpy.types.Scene) -> tuple[int, int]:
+    """The scene's render size in pixels."""
+    pct = scene.render.resolution_percentage / 100.0
+    return (int(scene.render.resolution_x * pct), int(scene.render.resolution_y * pct))
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="vplace", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True)
     demo = sub.add_parser("demo", help="run the main job on a scene (default: the Cornell box)")
-    demo.add_argument("--scene", type=Path, default=None, help=".blend file (default: Cornell box)")
+    demo.add_argument(
+        "--scene", default="cornell", help="cornell (default), sponza, or a .blend file"
+    )
     demo.add_argument("--out", type=Path, default=Path("out/cornell"))
     demo.add_argument("--vpls", type=int, default=128, help="VPL budget")
-    demo.add_argument("--resolution", type=int, nargs=2, default=(160, 160), metavar=("W", "H"))
+    demo.add_argument(
+        "--resolution",
+        type=int,
+        nargs=2,
+        default=None,
+        metavar=("W", "H"),
+        help="capture size (default: the scene's output size)",
+    )
     demo.add_argument("--samples", type=int, default=256, help="Cycles samples of the capture")
     demo.add_argument("--seed", type=int, default=0)
     demo.add_argument("--profile", choices=("cosine", "omni"), default="cosine")
-    demo.add_argument("--r-min", type=float, default=0.01, help="distance clamp, metres")
+    demo.add_argument(
+        "--r-min", type=float, default=None, help="distance clamp, m (default: 1%% of the scene)"
+    )
     demo.add_argument("--no-eevee", action="store_true", help="skip the EEVEE preview render")
     return p.parse_args(argv)
 
@@ -48,21 +83,19 @@ def main(argv: list[str] | None = None) -> int:
     if argv is None:
         argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else sys.argv[1:]
     args = parse_args(argv)
-    from .pipeline import run_main_job
+    from .pipeline import Job, run_main_job
 
-    blend = args.scene if args.scene is not None else ensure_cornell_blend()
+    blend = Path(args.scene) if args.scene.endswith(".blend") else builtin_scene(args.scene)
     bpy.ops.wm.open_mainfile(filepath=str(blend))
-    run_main_job(
-        bpy.context.scene,
-        args.out,
+    job = Job(
         n_vpls=args.vpls,
-        resolution=tuple(args.resolution),
+        resolution=tuple(args.resolution) if args.resolution else output_size(bpy.context.scene),
         samples=args.samples,
         seed=args.seed,
         profile=args.profile,
         r_min=args.r_min,
-        eevee=not args.no_eevee,
     )
+    run_main_job(bpy.context.scene, args.out, job=job, eevee=not args.no_eevee)
     print(f"[vplace] results in {args.out}")
     return 0
 

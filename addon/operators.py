@@ -1,11 +1,142 @@
-"""Operators. Thin: poll guards the context, execute calls the pipeline and reports errors."""
+"""Operators. Thin: ``poll`` guards the context, ``execute`` calls the pipeline and reports errors.
+
+"Lay out and apply" runs interactively as a modal operator: the Blender side (export, capture)
+runs on the main thread, the native side (VPLs, evaluator) on a worker thread whose progress
+shows in the status bar and the window's progress indicator; Esc cancels it, and a cancelled
+run leaves the scene as it was (the write-back only happens after success).
+"""
 
 from __future__ import annotations
 
+import json
+import threading
+from typing import Any, ClassVar
+
 import bpy
 
-from . import apply
+from . import apply, capture, export, pipeline
 from .native import vplace
+
+#: Errors an operator reports to the user instead of raising.
+USER_ERRORS = (
+    vplace.VplaceError,
+    apply.WriteBackError,
+    capture.CaptureError,
+    export.ExportError,
+)
+
+
+def _store_report(scene: bpy.types.Scene, report: dict[str, Any]) -> None:
+    scene.vplace.last_report = json.dumps(report)
+
+
+class VPLACE_OT_apply(bpy.types.Operator):
+    """Capture the view with Cycles, place VPLs and write them as lights for EEVEE"""
+
+    bl_idname = "vplace.apply"
+    bl_label = "Lay out and apply"
+    bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
+
+    _thread: threading.Thread | None = None
+    _timer: Any = None
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return context.scene is not None and context.scene.camera is not None
+
+    def _start(self, context: bpy.types.Context) -> bool:
+        scene = context.scene
+        self.job = pipeline.Job.from_settings(scene.vplace)
+        self.timer = pipeline.StageTimer(log=lambda _line: None)
+        try:
+            self.prepared = pipeline.prepare(scene, self.job, self.timer)
+        except USER_ERRORS as exc:
+            self.report({"ERROR"}, str(exc))
+            return False
+        return True
+
+    def _finish(self, context: bpy.types.Context, computed: pipeline.Computed) -> set[str]:
+        scene = context.scene
+        try:
+            apply.write_vpls(
+                scene,
+                computed.vpls,
+                profile=self.job.profile,
+                scene_diagonal=self.prepared.scene.diagonal,
+            )
+        except USER_ERRORS as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        _store_report(scene, pipeline.summary(scene, self.job, self.prepared, computed, self.timer))
+        self.report({"INFO"}, f"wrote {len(computed.vpls)} VPL lights")
+        return {"FINISHED"}
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        if not self._start(context):
+            return {"CANCELLED"}
+        try:
+            computed = pipeline.compute(self.prepared, self.job, self.timer)
+        except USER_ERRORS as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        return self._finish(context, computed)
+
+    def invoke(self, context: bpy.types.Context, _event: bpy.types.Event) -> set[str]:
+        if context.window is None:  # headless: nothing to be modal in
+            return self.execute(context)
+        if not self._start(context):
+            return {"CANCELLED"}
+        self.progress = vplace.Progress()
+        self.result: list[Any] = []
+
+        def work() -> None:
+            try:
+                self.result.append(
+                    pipeline.compute(self.prepared, self.job, self.timer, self.progress)
+                )
+            except Exception as exc:  # handed to the main thread, re-raised or reported there
+                self.result.append(exc)
+
+        self._thread = threading.Thread(target=work, daemon=True)
+        self._thread.start()
+        wm = context.window_manager
+        wm.progress_begin(0, 100)
+        self._timer = wm.event_timer_add(0.1, window=context.window)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
+        if event.type == "ESC":
+            self.progress.cancel()
+        if event.type != "TIMER":
+            return {"RUNNING_MODAL"}
+        total = max(self.progress.total, 1)
+        context.window_manager.progress_update(int(100 * self.progress.done / total))
+        if context.workspace is not None:
+            context.workspace.status_text_set(
+                f"vplace: evaluating VPLs {self.progress.done}/{self.progress.total} tiles "
+                "(Esc to cancel)"
+            )
+        if self._thread is not None and self._thread.is_alive():
+            return {"RUNNING_MODAL"}
+        self._cleanup(context)
+        outcome = self.result[0]
+        if isinstance(outcome, vplace.CancelledError):
+            self.report({"WARNING"}, "vplace: cancelled; the scene is unchanged")
+            return {"CANCELLED"}
+        if isinstance(outcome, USER_ERRORS):
+            self.report({"ERROR"}, str(outcome))
+            return {"CANCELLED"}
+        if isinstance(outcome, BaseException):
+            raise outcome
+        return self._finish(context, outcome)
+
+    def _cleanup(self, context: bpy.types.Context) -> None:
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
 
 
 class VPLACE_OT_clear_vpls(bpy.types.Operator):
@@ -13,19 +144,19 @@ class VPLACE_OT_clear_vpls(bpy.types.Operator):
 
     bl_idname = "vplace.clear_vpls"
     bl_label = "Clear VPLs"
-    bl_options = {"REGISTER", "UNDO"}  # noqa: RUF012 (Blender reads a plain set)
+    bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         try:
             n = apply.clear_vpls()
-        except (apply.WriteBackError, vplace.VplaceError) as exc:
+        except USER_ERRORS as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         self.report({"INFO"}, f"removed {n} VPL lights")
         return {"FINISHED"}
 
 
-CLASSES = (VPLACE_OT_clear_vpls,)
+CLASSES = (VPLACE_OT_apply, VPLACE_OT_clear_vpls)
 
 
 def register() -> None:

@@ -97,23 +97,60 @@ def render_eevee_preview(
         return time.perf_counter() - start
 
 
-def run_main_job(
-    bl_scene: bpy.types.Scene,
-    out_dir: Path,
-    *,
-    n_vpls: int = 128,
-    resolution: tuple[int, int] = (160, 160),
-    samples: int = 256,
-    seed: int = 0,
-    profile: str = "cosine",
-    r_min: float = 0.01,
-    eevee: bool = True,
-    cache_dir: Path | None = None,
-    log: Callable[[str], None] = print,
-) -> dict[str, Any]:
-    """Runs the whole pipe on ``bl_scene`` and writes the results into ``out_dir``."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    timer = StageTimer(log)
+#: Default distance clamp as a fraction of the scene diagonal.
+R_MIN_FRACTION = 0.01
+
+
+@dataclass
+class Job:
+    """The parameters of one run (the panel's settings, or the CLI's options)."""
+
+    n_vpls: int = 128
+    resolution: tuple[int, int] = (160, 160)
+    samples: int = 256
+    seed: int = 0
+    profile: str = "cosine"
+    #: Distance clamp (m); None: 1% of the scene's diagonal (VPL spacing grows with the scene).
+    r_min: float | None = None
+    cell_px: int = 16
+    cache_dir: Path | None = None
+
+    @classmethod
+    def from_settings(cls, settings: Any, cache_dir: Path | None = None) -> Job:
+        """A job from ``Scene.vplace`` (see properties.py)."""
+        return cls(
+            n_vpls=settings.vpl_budget,
+            resolution=(settings.resolution_x, settings.resolution_y),
+            samples=settings.samples,
+            seed=settings.seed,
+            profile=settings.profile,
+            cell_px=settings.cell_px,
+            cache_dir=cache_dir,
+        )
+
+
+@dataclass
+class Prepared:
+    """What the Blender side hands to the native side: the core scene and the capture."""
+
+    scene: vplace.Scene
+    capture: capture.Capture
+    exported: export.ExportedScene
+
+
+@dataclass
+class Computed:
+    """The native side's results: VPLs, their indirect image, evaluator stats, metrics."""
+
+    vpls: apply.VplSet
+    indirect: np.ndarray
+    stats: dict[str, Any]
+    metrics: dict[str, float]
+    fit: vplace.FitResult | None = None
+
+
+def prepare(bl_scene: bpy.types.Scene, job: Job, timer: StageTimer) -> Prepared:
+    """Export, BVH and capture. Uses bpy: call it on Blender's main thread."""
     with timer.stage("export scene"):
         exported = export.export_scene(bl_scene)
     with timer.stage("build BVH"):
@@ -125,20 +162,37 @@ def run_main_job(
             now = time.perf_counter()
             if now - last[0] > 2.0:
                 last[0] = now
-                log(f"[vplace]   {line}")
+                timer.log(f"[vplace]   {line}")
 
         cap = capture.capture(
             bl_scene,
-            resolution=resolution,
-            samples=samples,
-            seed=seed,
-            cache_dir=cache_dir if cache_dir is not None else out_dir / "cache",
+            resolution=job.resolution,
+            samples=job.samples,
+            seed=job.seed,
+            cache_dir=job.cache_dir,
             on_progress=on_progress,
         )
-    with timer.stage(f"uniform VPLs (n={n_vpls})"):
-        vpls = vpl_set(vplace.uniform_vpls(scene, n_vpls, seed))
+    return Prepared(scene, cap, exported)
+
+
+def compute(
+    prepared: Prepared,
+    job: Job,
+    timer: StageTimer,
+    progress: vplace.Progress | None = None,
+) -> Computed:
+    """VPLs, evaluator and metrics. No bpy: safe on a worker thread; ``progress`` cancels it."""
+    scene, cap = prepared.scene, prepared.capture
+    with timer.stage("fit regression"):
+        fitted = vplace.fit(fit_input(prepared), cell_px=job.cell_px)
+    with timer.stage(f"uniform VPLs (n={job.n_vpls})"):
+        vpls = vpl_set(vplace.uniform_vpls(scene, job.n_vpls, job.seed))
+    r_min = job.r_min if job.r_min is not None else R_MIN_FRACTION * scene.diagonal
     with timer.stage("evaluate VPLs"):
-        indirect, stats = evaluate_capture(scene, cap, vpls, profile=profile, r_min=r_min)
+        indirect, stats = evaluate_capture(
+            scene, cap, vpls, profile=job.profile, r_min=r_min, progress=progress
+        )
+    stats["r_min"] = r_min
     direct, gi = cap.direct, cap.gi
     estimate = (direct + indirect).astype(np.float32)
     metrics = {
@@ -148,16 +202,88 @@ def run_main_job(
         "relative_mse_direct_only": vplace.relative_mse(direct, gi),
         "rmse_indirect": vplace.rmse(indirect, cap.indirect),
     }
+    return Computed(vpls, indirect, stats, metrics, fitted)
+
+
+def fit_input(prepared: Prepared) -> dict[str, Any]:
+    """The capture as ``vplace.fit`` reads it, with the scene's lights."""
+    cap = prepared.capture
+    return {
+        "position": cap.position,
+        "normal": cap.normal,
+        "albedo": cap.albedo,
+        "specular": cap.glossy_color,
+        "depth": cap.depth,
+        "direct": cap.direct,
+        "gi": cap.gi,
+        "covered": cap.covered,
+        "lights": prepared.exported.lights,
+    }
+
+
+def summary(
+    bl_scene: bpy.types.Scene, job: Job, prepared: Prepared, computed: Computed, timer: StageTimer
+) -> dict[str, Any]:
+    """The run's report as a JSON-ready dict."""
+    return {
+        "scene": bl_scene.name,
+        "triangles": prepared.scene.triangle_count,
+        "lights": prepared.scene.light_count,
+        "resolution": list(job.resolution),
+        "samples": job.samples,
+        "capture_render_seconds": prepared.capture.render_seconds,
+        "n_vpls": job.n_vpls,
+        "profile": job.profile,
+        "r_min": computed.stats["r_min"],
+        "seed": job.seed,
+        "stage_seconds": dict(timer.seconds),
+        "evaluator": computed.stats,
+        "metrics": computed.metrics,
+        "fit": None
+        if computed.fit is None
+        else {
+            "r2": computed.fit.r2,
+            "adjusted_r2": computed.fit.adjusted_r2,
+            "kept": list(computed.fit.kept),
+            "weights": dict(computed.fit.weights),
+            "dropped": dict(computed.fit.dropped),
+        },
+    }
+
+
+def run_main_job(
+    bl_scene: bpy.types.Scene,
+    out_dir: Path,
+    *,
+    job: Job | None = None,
+    eevee: bool = True,
+    log: Callable[[str], None] = print,
+    **job_options: Any,
+) -> dict[str, Any]:
+    """Runs the whole pipe on ``bl_scene`` and writes the results into ``out_dir``.
+
+    ``job_options`` are :class:`Job` fields, for a job built on the spot.
+    """
+    if job is None:
+        job = Job(**job_options)
+    if job.cache_dir is None:
+        job.cache_dir = out_dir / "cache"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    timer = StageTimer(log)
+    prepared = prepare(bl_scene, job, timer)
+    computed = compute(prepared, job, timer)
     with timer.stage("write back"):
-        apply.write_vpls(bl_scene, vpls, profile=profile, scene_diagonal=scene.diagonal)
-        blend_path = out_dir / "scene.blend"
-        bpy.ops.wm.save_as_mainfile(filepath=str(blend_path), copy=True)
-    images.save_png(out_dir / "cycles_gi.png", gi)
-    images.save_png(out_dir / "direct.png", direct)
-    images.save_png(out_dir / "direct_plus_vpl.png", estimate)
+        apply.write_vpls(
+            bl_scene, computed.vpls, profile=job.profile, scene_diagonal=prepared.scene.diagonal
+        )
+        bpy.ops.wm.save_as_mainfile(filepath=str(out_dir / "scene.blend"), copy=True)
+    cap, vpls = prepared.capture, computed.vpls
+    images.save_png(out_dir / "cycles_gi.png", cap.gi)
+    images.save_png(out_dir / "direct.png", cap.direct)
+    images.save_png(out_dir / "direct_plus_vpl.png", cap.direct + computed.indirect)
     if eevee:
         with timer.stage("EEVEE preview"):
-            render_eevee_preview(bl_scene, out_dir / "eevee_vpl.png", resolution)
+            render_eevee_preview(bl_scene, out_dir / "eevee_vpl.png", job.resolution)
     np.savetxt(
         out_dir / "vpls.csv",
         np.hstack([vpls.position, vpls.normal, vpls.flux]),
@@ -166,22 +292,12 @@ def run_main_job(
         comments="",
         fmt="%.6g",
     )
-    report = {
-        "scene": bl_scene.name,
-        "triangles": scene.triangle_count,
-        "lights": scene.light_count,
-        "resolution": list(resolution),
-        "samples": samples,
-        "capture_render_seconds": cap.render_seconds,
-        "n_vpls": n_vpls,
-        "profile": profile,
-        "r_min": r_min,
-        "seed": seed,
-        "stage_seconds": timer.seconds,
-        "evaluator": stats,
-        "metrics": metrics,
-        "files": sorted(p.name for p in out_dir.iterdir() if p.is_file()),
-    }
+    if computed.fit is not None:
+        (out_dir / "model.json").write_text(computed.fit.to_json())
+        log(f"[vplace] fitted model (cells of {job.cell_px} px):\n{computed.fit}")
+    report = summary(bl_scene, job, prepared, computed, timer)
+    (out_dir / "report.json").write_text(json.dumps(report, indent=2))
+    report["files"] = sorted(p.name for p in out_dir.iterdir() if p.is_file())
     (out_dir / "report.json").write_text(json.dumps(report, indent=2))
     (out_dir / "report.md").write_text(report_markdown(report))
     log(report_markdown(report))
@@ -196,7 +312,7 @@ def report_markdown(report: dict[str, Any]) -> str:
         "",
         f"{report['triangles']} triangles, {report['lights']} lights, "
         f"{report['resolution'][0]}x{report['resolution'][1]} px, {report['samples']} spp Cycles, "
-        f"{report['n_vpls']} uniform VPLs ({report['profile']}, r_min {report['r_min']} m)",
+        f"{report['n_vpls']} uniform VPLs ({report['profile']}, r_min {report['r_min']:.3g} m)",
         "",
         "| stage | seconds |",
         "|---|---|",

@@ -4,6 +4,7 @@ Usable without Blender. The native classes and functions come from ``vplace._nat
 this package re-exports them and adds the Python-level API.
 """
 
+from vplace import par2d as par2d
 from vplace._native import (
     CancelledError,
     InputError,

@@ -140,3 +140,37 @@ def fit_design(
     ridge_above: float = 1e6,
     seed: int = 0x5EED,
 ) -> dict[str, Any]: ...
+
+# --- PAR 2D (par2d.rs) --------------------------------------------------------------------
+@final
+class Scene2D:
+    def __new__(
+        cls,
+        vertices: npt.NDArray[np.float64],
+        counts: list[int],
+        emission: npt.NDArray[np.float64],
+    ) -> Scene2D: ...
+    @property
+    def polygon_count(self) -> int: ...
+    @property
+    def light_count(self) -> int: ...
+    def polygon(self, index: int) -> npt.NDArray[np.float64]: ...
+    def irradiance(
+        self,
+        points: npt.NDArray[np.float64],
+        method: str = "exact",
+        rays: int = 1024,
+        seed: int = 0,
+        progress: Progress | None = None,
+    ) -> npt.NDArray[np.float64]: ...
+    def light_map(
+        self,
+        bounds: tuple[float, float, float, float] | list[float],
+        width: int,
+        height: int,
+        method: str = "exact",
+        rays: int = 1024,
+        seed: int = 0,
+        progress: Progress | None = None,
+    ) -> npt.NDArray[np.float64]: ...
+    def __len__(self) -> int: ...

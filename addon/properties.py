@@ -1,0 +1,84 @@
+"""Settings and last results, stored in the .blend as ``Scene.vplace``."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import bpy
+from bpy.props import (
+    EnumProperty,
+    FloatProperty,
+    IntProperty,
+    PointerProperty,
+    StringProperty,
+)
+
+PROFILE_ITEMS = [
+    ("cosine", "Cosine (area disk)", "Lambertian VPLs as small AREA disk lights (exact)"),
+    ("omni", "Omni (point)", "VPLs as POINT lights of twice the flux (cheaper in EEVEE)"),
+]
+FEATURE_MODE_ITEMS = [
+    ("auto", "Auto", "Drop constant, collinear and unhelpful features (cross-validated)"),
+    ("paper", "Paper", "The paper's features only"),
+    ("all", "All", "Every feature of the registry that is not constant or collinear"),
+]
+
+
+class VPLACE_PG_settings(bpy.types.PropertyGroup):
+    """vplace settings of a scene and the results of its last run."""
+
+    vpl_budget: IntProperty(  # type: ignore[valid-type]
+        name="VPL budget", description="Number of VPLs to place", default=128, min=1, max=8192
+    )
+    cell_px: IntProperty(  # type: ignore[valid-type]
+        name="Cell size", description="Grid cell side, pixels", default=16, min=1, max=256
+    )
+    alpha: FloatProperty(  # type: ignore[valid-type]
+        name="Alpha",
+        description="0: uniform layout, 1: fully regression-guided",
+        default=0.5,
+        min=0.0,
+        max=1.0,
+    )
+    iterations: IntProperty(  # type: ignore[valid-type]
+        name="Iterations", description="Cap on layout iterations", default=3, min=0, max=32
+    )
+    resolution_x: IntProperty(  # type: ignore[valid-type]
+        name="Capture width", default=160, min=8, max=4096, subtype="PIXEL"
+    )
+    resolution_y: IntProperty(  # type: ignore[valid-type]
+        name="Capture height", default=160, min=8, max=4096, subtype="PIXEL"
+    )
+    samples: IntProperty(  # type: ignore[valid-type]
+        name="Capture samples", description="Cycles samples of the capture", default=64, min=1
+    )
+    profile: EnumProperty(  # type: ignore[valid-type]
+        name="Emission profile", items=PROFILE_ITEMS, default="cosine"
+    )
+    feature_mode: EnumProperty(  # type: ignore[valid-type]
+        name="Features", items=FEATURE_MODE_ITEMS, default="auto"
+    )
+    seed: IntProperty(name="Seed", default=0, min=0)  # type: ignore[valid-type]
+    # Results of the last run, as JSON (kept in the .blend).
+    last_report: StringProperty(name="Last report", default="")  # type: ignore[valid-type]
+    model_json: StringProperty(name="Fitted model", default="")  # type: ignore[valid-type]
+
+    def report(self) -> dict[str, Any]:
+        """The last run's report, or an empty dict."""
+        return json.loads(self.last_report) if self.last_report else {}
+
+
+CLASSES = (VPLACE_PG_settings,)
+
+
+def register() -> None:
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.vplace = PointerProperty(type=VPLACE_PG_settings)
+
+
+def unregister() -> None:
+    del bpy.types.Scene.vplace
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)
