@@ -8,7 +8,7 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
-_MODULE_NAMES = ("operators",)
+_MODULE_NAMES = ("properties", "operators", "ui")
 
 
 def _modules() -> list[ModuleType]:

@@ -153,6 +153,11 @@ def prepare(bl_scene: bpy.types.Scene, job: Job, timer: StageTimer) -> Prepared:
     """Export, BVH and capture. Uses bpy: call it on Blender's main thread."""
     with timer.stage("export scene"):
         exported = export.export_scene(bl_scene)
+    if not exported.lights:
+        raise export.ExportError(
+            "the scene has no lights that render: VPLs are traced from light objects "
+            "(emissive meshes are not light sources for vplace yet)"
+        )
     with timer.stage("build BVH"):
         scene = build_scene(exported)
     with timer.stage("capture (Cycles)"):

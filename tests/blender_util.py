@@ -37,7 +37,9 @@ def empty_file() -> None:
 def cornell() -> bpy.types.Scene:
     """A fresh file holding only the Cornell box."""
     empty_file()
-    return build_cornell_box(CORNELL_OBJ)
+    scene = build_cornell_box(CORNELL_OBJ)
+    bpy.context.view_layer.update()  # evaluated matrices, as in a file opened from disk
+    return scene
 
 
 def _written_by_vplace(item: Any) -> bool:
@@ -108,7 +110,7 @@ def data_snapshot() -> dict[str, Any]:
     snap: dict[str, Any] = {}
     for coll_name in DATA_COLLECTIONS:
         for block in getattr(bpy.data, coll_name):
-            if is_vplace(block):
+            if is_vplace(block) or block.name == "Render Result":  # Blender's render buffer
                 continue
             s = rna_snapshot(block, depth=3)
             if isinstance(block, bpy.types.Scene):

@@ -1,0 +1,60 @@
+"""The add-on registered as Blender does it: the apply and clear operators, persistence."""
+
+import json
+
+import bpy
+import pytest
+from blender_util import CORNELL_OBJ, data_snapshot, diff, empty_file
+
+import addon
+from addon import apply
+from addon.default_scene import build_cornell_box
+
+
+@pytest.fixture
+def registered():
+    addon.register()
+    yield
+    addon.unregister()
+
+
+def small_cornell():
+    empty_file()
+    scene = build_cornell_box(CORNELL_OBJ)
+    s = scene.vplace
+    s.resolution_x = s.resolution_y = 24
+    s.samples = 4
+    s.vpl_budget = 16
+    bpy.context.view_layer.update()  # evaluated matrices, as in a file opened from disk
+    return scene
+
+
+def test_apply_clear_and_reload(registered, tmp_path):
+    scene = small_cornell()
+    assert bpy.ops.vplace.apply() == {"FINISHED"}
+    coll = apply.find_collection()
+    assert coll is not None and len(coll.objects) == 16
+    report = json.loads(scene.vplace.last_report)
+    assert report["n_vpls"] == 16 and report["metrics"]["rmse"] > 0
+    assert report["fit"]["kept"]
+    path = tmp_path / "saved.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    scene = bpy.context.scene
+    assert scene.vplace.vpl_budget == 16 and scene.vplace.resolution_x == 24
+    assert json.loads(scene.vplace.last_report) == report
+    assert len(apply.find_collection().objects) == 16
+    assert bpy.ops.vplace.clear_vpls() == {"FINISHED"}
+    assert apply.find_collection() is None
+
+
+def test_failed_apply_reports_and_changes_nothing(registered):
+    scene = small_cornell()
+    bpy.data.objects["light"].hide_render = True  # no light: the VPLs cannot be placed
+    before = data_snapshot()
+    with pytest.raises(RuntimeError, match="the scene has no lights that render"):
+        bpy.ops.vplace.apply()  # an operator that reports ERROR makes bpy.ops raise
+    assert apply.find_collection() is None
+    assert diff(before, data_snapshot()) == []
+    scene.camera = None
+    assert not bpy.ops.vplace.apply.poll()
