@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -76,13 +77,39 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         "--r-min", type=float, default=None, help="distance clamp, m (default: 1%% of the scene)"
     )
     demo.add_argument("--no-eevee", action="store_true", help="skip the EEVEE preview render")
+    par = sub.add_parser("par2d", help="bake the PAR 2D demo scene and render it with EEVEE")
+    par.add_argument("--out", type=Path, default=Path("out/par2d"))
+    par.add_argument("--size", type=int, default=256, help="light map side, pixels")
+    par.add_argument("--method", choices=("exact", "par", "monte_carlo"), default="exact")
     return p.parse_args(argv)
+
+
+def run_par2d_demo(out: Path, size: int, method: str) -> None:
+    """Builds the PAR demo scene, bakes its light map, renders it with EEVEE, saves both."""
+    from . import default_scene, par2d_bake
+    from .pipeline import render_eevee_preview
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    source = default_scene.build_par2d_demo(scene)
+    out.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    par2d_bake.bake_to_scene(scene, source, size, size, method)
+    print(
+        f"[vplace] baked a {size}x{size} {method} light map in {time.perf_counter() - start:.2f} s"
+    )
+    bpy.ops.wm.save_as_mainfile(filepath=str(out / "par2d_demo.blend"), copy=True)
+    seconds = render_eevee_preview(scene, out / "eevee.png", (size, size))
+    print(f"[vplace] EEVEE render {seconds:.1f} s -> {out / 'eevee.png'}")
 
 
 def main(argv: list[str] | None = None) -> int:
     if argv is None:
         argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else sys.argv[1:]
     args = parse_args(argv)
+    if args.command == "par2d":
+        run_par2d_demo(args.out, args.size, args.method)
+        return 0
     from .pipeline import Job, run_main_job
 
     blend = Path(args.scene) if args.scene.endswith(".blend") else builtin_scene(args.scene)

@@ -186,3 +186,71 @@ def write_sponza_blend(gltf_path: Path, blend_path: Path) -> Path:
     blend_path.parent.mkdir(parents=True, exist_ok=True)
     bpy.ops.wm.save_as_mainfile(filepath=str(blend_path), compress=True)
     return blend_path
+
+
+def _flat_object(
+    name: str,
+    outline: list[tuple[float, float]],
+    collection: bpy.types.Collection,
+    emission: tuple[float, float, float] | None = None,
+) -> bpy.types.Object:
+    """A flat polygon in the XY plane; emissive when ``emission`` is given."""
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata([(x, y, 0.0) for x, y in outline], [], [list(range(len(outline)))])
+    mesh.update()
+    mat = bpy.data.materials.new(name)
+    bsdf = mat.node_tree.nodes.get("Principled BSDF")
+    if emission is None:
+        bsdf.inputs["Base Color"].default_value = (0.05, 0.05, 0.05, 1.0)
+    else:
+        strength = max(emission)
+        bsdf.inputs["Emission Color"].default_value = (*(c / strength for c in emission), 1.0)
+        bsdf.inputs["Emission Strength"].default_value = strength
+    mesh.materials.append(mat)
+    obj = bpy.data.objects.new(name, mesh)
+    collection.objects.link(obj)
+    return obj
+
+
+def build_par2d_demo(scene: bpy.types.Scene | None = None) -> bpy.types.Collection:
+    """A 2D scene for PAR: two lights and seven occluders (one non-convex) in the XY plane, in
+    the collection ``PAR scene``, seen from above by an orthographic camera."""
+    scene = scene or bpy.context.scene
+    coll = bpy.data.collections.new("PAR scene")
+    scene.collection.children.link(coll)
+    circle = [
+        (-2.0 + 0.35 * math.cos(a), 1.2 + 0.35 * math.sin(a))
+        for a in np.linspace(0.0, 2.0 * math.pi, 16, endpoint=False)
+    ]
+    _flat_object("Warm light", circle, coll, emission=(4.0, 2.6, 1.2))
+    _flat_object(
+        "Cool light",
+        [(1.6, -1.6), (2.4, -1.6), (2.4, -1.3), (1.6, -1.3)],
+        coll,
+        emission=(1.0, 2.0, 4.0),
+    )
+    boxes = [
+        ("Pillar A", [(-0.9, 0.3), (-0.5, 0.3), (-0.5, 0.7), (-0.9, 0.7)]),
+        ("Pillar B", [(0.4, -0.2), (0.8, -0.2), (0.8, 0.2), (0.4, 0.2)]),
+        ("Wall", [(-1.6, -0.9), (-0.2, -0.6), (-0.25, -0.45), (-1.65, -0.75)]),
+        ("Wedge", [(0.9, 1.0), (1.6, 0.7), (1.3, 1.5)]),
+        ("L block", [(-0.2, 1.4), (0.6, 1.4), (0.6, 1.6), (0.0, 1.6), (0.0, 2.1), (-0.2, 2.1)]),
+        ("Post", [(1.2, -0.8), (1.35, -0.8), (1.35, -0.65), (1.2, -0.65)]),
+        ("Shard", [(-2.6, -1.5), (-2.2, -1.7), (-2.3, -1.2)]),
+    ]
+    for name, outline in boxes:
+        _flat_object(name, outline, coll)
+    cam_data = bpy.data.cameras.new("Top camera")
+    cam_data.type = "ORTHO"
+    cam_data.ortho_scale = 6.5
+    cam = bpy.data.objects.new("Top camera", cam_data)
+    cam.location = (0.0, 0.2, 10.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    world = bpy.data.worlds.new("Black")
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
+    scene.world = world
+    scene.render.engine = "BLENDER_EEVEE"
+    scene.render.resolution_x = scene.render.resolution_y = 256
+    scene.eevee.taa_render_samples = 4
+    return coll

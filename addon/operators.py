@@ -14,7 +14,7 @@ from typing import Any, ClassVar
 
 import bpy
 
-from . import apply, capture, export, pipeline
+from . import apply, capture, export, par2d_bake, pipeline
 from .native import vplace
 
 #: Errors an operator reports to the user instead of raising.
@@ -156,7 +156,46 @@ class VPLACE_OT_clear_vpls(bpy.types.Operator):
         return {"FINISHED"}
 
 
-CLASSES = (VPLACE_OT_apply, VPLACE_OT_clear_vpls)
+class VPLACE_OT_bake_par2d(bpy.types.Operator):
+    """Bake the 2D direct light (PAR) of the flat objects of a collection, seen from above,
+    onto an image-textured plane; objects whose material emits are the lights"""
+
+    bl_idname = "vplace.bake_par2d"
+    bl_label = "Bake 2D light map (PAR)"
+    bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
+
+    collection: bpy.props.StringProperty(  # type: ignore[valid-type]
+        name="Collection", description="Collection of flat objects (default: the active one)"
+    )
+    width: bpy.props.IntProperty(name="Width", default=256, min=8, max=8192)  # type: ignore[valid-type]
+    height: bpy.props.IntProperty(name="Height", default=256, min=8, max=8192)  # type: ignore[valid-type]
+    method: bpy.props.EnumProperty(  # type: ignore[valid-type]
+        name="Method",
+        items=[
+            ("exact", "Exact sweep", "Exact for every layout"),
+            ("par", "PAR (paper)", "The paper's interval method; wrong where shapes cross"),
+            ("monte_carlo", "Monte Carlo", "Ray-marching baseline"),
+        ],
+        default="exact",
+    )
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        source = (
+            bpy.data.collections.get(self.collection) if self.collection else context.collection
+        )
+        if source is None:
+            self.report({"ERROR"}, f"no collection named {self.collection!r}")
+            return {"CANCELLED"}
+        try:
+            par2d_bake.bake_to_scene(context.scene, source, self.width, self.height, self.method)
+        except USER_ERRORS as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"baked the PAR light map of {source.name!r}")
+        return {"FINISHED"}
+
+
+CLASSES = (VPLACE_OT_apply, VPLACE_OT_clear_vpls, VPLACE_OT_bake_par2d)
 
 
 def register() -> None:

@@ -161,3 +161,46 @@ def make_display_plane(
     obj = bpy.data.objects.new(name, mesh)
     collection.objects.link(obj)
     return obj
+
+
+#: The collection the bake writes (replaced on every bake) and the mark on what it owns.
+OUTPUT_COLLECTION = "vplace PAR light map"
+OUTPUT_MARKER = "vplace_par2d"
+
+
+def bake_to_scene(
+    scene: bpy.types.Scene,
+    source: bpy.types.Collection,
+    width: int = 256,
+    height: int = 256,
+    method: str = "exact",
+    z: float = -0.01,
+) -> bpy.types.Object:
+    """Bakes ``source`` and shows the light map on a plane in the ``vplace PAR light map``
+    collection, replacing the previous bake (its plane, material, mesh and image) only."""
+    flat = collect_polygons(source, bpy.context.evaluated_depsgraph_get())
+    pixels, bounds = bake_collection(flat, width, height, method)
+    old = bpy.data.collections.get(OUTPUT_COLLECTION)
+    if old is not None:
+        if not old.get(OUTPUT_MARKER, False):
+            raise vplace.InputError(
+                f"a collection named {OUTPUT_COLLECTION!r} exists but was not made by vplace"
+            )
+        for obj in list(old.objects):
+            if obj.get(OUTPUT_MARKER, False):
+                mesh = obj.data
+                mats = [m for m in mesh.materials if m is not None]
+                bpy.data.objects.remove(obj)
+                bpy.data.meshes.remove(mesh)
+                for mat in mats:
+                    if mat.users == 0:
+                        bpy.data.materials.remove(mat)
+        bpy.data.collections.remove(old)
+    coll = bpy.data.collections.new(OUTPUT_COLLECTION)
+    coll[OUTPUT_MARKER] = True
+    scene.collection.children.link(coll)
+    image = light_map_image("vplace PAR light map", pixels)
+    obj = make_display_plane(image, bounds, coll, z=z)
+    obj[OUTPUT_MARKER] = True
+    obj["vplace_method"] = method
+    return obj

@@ -37,6 +37,7 @@ class VPLACE_PT_main(bpy.types.Panel):
         row = layout.row(align=True)
         row.operator("vplace.apply", icon="LIGHT")
         row.operator("vplace.clear_vpls", icon="X")
+        layout.operator("vplace.bake_par2d", icon="IMAGE_DATA")
         report = settings.report()
         if not report:
             return
@@ -44,7 +45,9 @@ class VPLACE_PT_main(bpy.types.Panel):
         m = report.get("metrics", {})
         box.label(text=f"{report.get('n_vpls', 0)} VPLs, {report.get('profile', '')} profile")
         if m:
-            box.label(text=f"RMSE vs Cycles GI: {m['rmse']:.4f} (direct only {m['rmse_direct_only']:.4f})")
+            box.label(
+                text=f"RMSE vs Cycles GI: {m['rmse']:.4f} (direct only {m['rmse_direct_only']:.4f})"
+            )
         fit = report.get("fit")
         if fit:
             box.label(text=f"R² {fit['r2']:.3f}, kept {len(fit['kept'])} features")

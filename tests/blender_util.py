@@ -9,6 +9,15 @@ import bpy
 
 from addon.default_scene import build_cornell_box
 from addon.export import VPL_MARKER
+from addon.par2d_bake import OUTPUT_MARKER
+
+#: Custom properties that mark what vplace writes (and may replace).
+MARKERS = (VPL_MARKER, OUTPUT_MARKER)
+
+
+def _marked(idblock: Any) -> bool:
+    return any(idblock.get(m, False) for m in MARKERS)
+
 
 ROOT_OBJ = __import__("pathlib").Path(__file__).resolve().parent.parent / "blend_scenes"
 CORNELL_OBJ = ROOT_OBJ / "cornell_box" / "CornellBox-Original.obj"
@@ -46,7 +55,7 @@ def _written_by_vplace(item: Any) -> bool:
     if isinstance(item, bpy.types.ID):
         return is_vplace(item)
     if isinstance(item, bpy.types.LayerCollection):
-        return bool(item.collection.get(VPL_MARKER, False))
+        return _marked(item.collection)
     return False
 
 
@@ -97,10 +106,10 @@ DATA_COLLECTIONS = (
 
 
 def is_vplace(idblock: Any) -> bool:
-    if idblock.get(VPL_MARKER, False):
+    if _marked(idblock):
         return True
-    if isinstance(idblock, bpy.types.Light):
-        return any(o.get(VPL_MARKER, False) for o in bpy.data.objects if o.data == idblock)
+    if isinstance(idblock, bpy.types.Light | bpy.types.Mesh):
+        return any(_marked(o) for o in bpy.data.objects if o.data == idblock)
     return False
 
 
@@ -115,10 +124,8 @@ def data_snapshot() -> dict[str, Any]:
             s = rna_snapshot(block, depth=3)
             if isinstance(block, bpy.types.Scene):
                 s.pop("collection", None)
-                s["children"] = sorted(
-                    c.name for c in block.collection.children if not c.get(VPL_MARKER, False)
-                )
-                s["objects"] = sorted(o.name for o in block.collection.objects)
+                s["children"] = sorted(c.name for c in block.collection.children if not _marked(c))
+                s["objects"] = sorted(o.name for o in block.collection.objects if not _marked(o))
             if isinstance(block, bpy.types.Object):
                 s["matrix_world"] = tuple(tuple(r) for r in block.matrix_world)
             snap[f"{coll_name}/{block.name_full}"] = s
