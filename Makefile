@@ -9,7 +9,7 @@ DEPS := $(VENV)/.deps-stamp
 NATIVE := $(VENV)/.native-stamp
 NATIVE_SRC := $(shell find rust -name '*.rs' -o -name 'Cargo.toml' -o -name 'pyproject.toml') Cargo.toml Cargo.lock
 
-.PHONY: demo test test-fast build lint clean
+.PHONY: demo test test-fast build lint clean extension
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -43,5 +43,8 @@ test: lint
 test-fast: build
 	$(PY) -m pytest tests -m "not slow"
 
+extension: build
+	$(PY) addon/_build/build_extension.py --out dist
+
 clean:
-	rm -rf $(VENV) target out
+	rm -rf $(VENV) target out dist

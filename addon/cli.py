@@ -128,4 +128,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    if not __package__:  # run as a file: blender --background --python addon/cli.py -- ...
+        sys.path.insert(0, str(REPO))
+        from addon.cli import main as package_main
+
+        sys.exit(package_main())
     sys.exit(main())
