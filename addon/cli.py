@@ -72,6 +72,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     )
     demo.add_argument("--samples", type=int, default=256, help="Cycles samples of the capture")
     demo.add_argument("--seed", type=int, default=0)
+    demo.add_argument("--cell-px", type=int, default=16, help="regression grid cell, pixels")
     demo.add_argument("--profile", choices=("cosine", "omni"), default="cosine")
     demo.add_argument(
         "--r-min", type=float, default=None, help="distance clamp, m (default: 1%% of the scene)"
@@ -121,6 +122,7 @@ def main(argv: list[str] | None = None) -> int:
         seed=args.seed,
         profile=args.profile,
         r_min=args.r_min,
+        cell_px=args.cell_px,
     )
     run_main_job(bpy.context.scene, args.out, job=job, eevee=not args.no_eevee)
     print(f"[vplace] results in {args.out}")

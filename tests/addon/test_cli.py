@@ -1,0 +1,75 @@
+"""The headless command line: ``python -m vplace`` and the file form used by
+``blender --background --python addon/cli.py -- ...``."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import bpy
+from blender_util import cornell
+
+ROOT = Path(__file__).resolve().parents[2]
+ARGS = ["--resolution", "16", "16", "--samples", "4", "--vpls", "8", "--no-eevee"]
+
+
+def saved_cornell(tmp_path):
+    cornell()
+    path = tmp_path / "in.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    return path
+
+
+def run(cmd, cwd):
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=600, cwd=cwd)
+
+
+def test_python_m_vplace_runs_the_main_job(tmp_path):
+    blend = saved_cornell(tmp_path)
+    out = tmp_path / "out"
+    r = run(
+        [
+            sys.executable,
+            "-m",
+            "vplace",
+            "demo",
+            "--scene",
+            str(blend),
+            "--out",
+            str(out),
+            "--cell-px",
+            "8",
+            *ARGS,
+        ],
+        cwd=ROOT,
+    )
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    report = json.loads((out / "report.json").read_text())
+    assert report["n_vpls"] == 8 and (out / "scene.blend").exists()
+    assert "fitted model (cells of 8 px)" in r.stdout
+
+
+def test_cli_as_a_file_with_blender_style_arguments(tmp_path):
+    blend = saved_cornell(tmp_path)
+    out = tmp_path / "out"
+    r = run(
+        [
+            sys.executable,
+            str(ROOT / "addon/cli.py"),
+            "--",
+            "demo",
+            "--scene",
+            str(blend),
+            "--out",
+            str(out),
+            *ARGS,
+        ],
+        cwd=tmp_path,
+    )
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    assert (out / "vpls.csv").exists()
+
+
+def test_bad_arguments_exit_with_a_message(tmp_path):
+    r = run([sys.executable, "-m", "vplace", "demo", "--profile", "phong"], cwd=ROOT)
+    assert r.returncode == 2 and "invalid choice: 'phong'" in r.stderr
