@@ -56,10 +56,18 @@ def clear_vpls(name: str = COLLECTION_NAME) -> int:
     coll = find_collection(name)
     if coll is None:
         return 0
+    return _remove_collection(coll)
+
+
+def _remove_collection(coll: bpy.types.Collection) -> int:
+    """Removes a vplace collection with the objects and lights vplace made in it."""
     count = 0
     for obj in list(coll.objects):
         if not obj.get(VPL_MARKER, False):
-            # Something the user moved into our collection: keep it, unlink it only.
+            # Something the user put into our collection: keep it, in the scene's collection
+            # if ours was its only one (an object in no collection would be lost on save).
+            if len(obj.users_collection) == 1:
+                bpy.context.scene.collection.objects.link(obj)
             coll.objects.unlink(obj)
             continue
         data = obj.data
@@ -69,6 +77,44 @@ def clear_vpls(name: str = COLLECTION_NAME) -> int:
         count += 1
     bpy.data.collections.remove(coll)
     return count
+
+
+_DOWN = Vector((0.0, 0.0, -1.0))
+
+
+def _new_vpl_object(
+    coll: bpy.types.Collection,
+    i: int,
+    vpls: VplSet,
+    power: np.ndarray,
+    profile: str,
+    size: float,
+    cutoff: float,
+    shadows: bool,
+) -> bpy.types.Object:
+    """Light ``i`` of ``vpls`` as a new light object in ``coll``."""
+    energy = float(power.max())
+    light = bpy.data.lights.new(f"vplace VPL {i:04d}", "AREA" if profile == "cosine" else "POINT")
+    light.energy = energy
+    light.color = tuple(float(c) / energy for c in power) if energy > 0 else (1.0, 1.0, 1.0)
+    light.use_custom_distance = True
+    light.cutoff_distance = cutoff
+    light.use_shadow = shadows
+    if profile == "cosine":
+        light.shape = "DISK"
+        light.size = size
+    else:
+        light.shadow_soft_size = 0.0
+        light.use_soft_falloff = False
+    obj = bpy.data.objects.new(light.name, light)
+    obj.location = tuple(float(c) for c in vpls.position[i])
+    obj.rotation_mode = "QUATERNION"
+    obj.rotation_quaternion = _DOWN.rotation_difference(Vector(vpls.normal[i].tolist()))
+    obj[VPL_MARKER] = True
+    obj["vplace_index"] = i
+    obj["vplace_flux"] = [float(c) for c in vpls.flux[i]]
+    coll.objects.link(obj)
+    return obj
 
 
 def write_vpls(
@@ -95,37 +141,19 @@ def write_vpls(
     for what, arr in (("position", vpls.position), ("normal", vpls.normal), ("flux", vpls.flux)):
         if arr.shape != (n, 3) or not np.isfinite(arr).all():
             raise WriteBackError(f"VPL {what} must be a finite (N, 3) array")
-    clear_vpls(name)
-    coll = bpy.data.collections.new(name)
-    coll[VPL_MARKER] = True
-    scene.collection.children.link(coll)
+    find_collection(name)  # refuses a foreign collection of that name before any change
     size = disk_size if disk_size is not None else 2e-3 * scene_diagonal
-    cutoff = 2.0 * scene_diagonal
     power = vpls.flux * (2.0 if profile == "omni" else 1.0)
-    down = Vector((0.0, 0.0, -1.0))
-    for i in range(n):
-        p = power[i]
-        energy = float(p.max())
-        light = bpy.data.lights.new(
-            f"vplace VPL {i:04d}", "AREA" if profile == "cosine" else "POINT"
-        )
-        light.energy = energy
-        light.color = tuple(float(c) / energy for c in p) if energy > 0 else (1.0, 1.0, 1.0)
-        light.use_custom_distance = True
-        light.cutoff_distance = cutoff
-        light.use_shadow = shadows
-        if profile == "cosine":
-            light.shape = "DISK"
-            light.size = size
-        else:
-            light.shadow_soft_size = 0.0
-            light.use_soft_falloff = False
-        obj = bpy.data.objects.new(light.name, light)
-        obj.location = tuple(float(c) for c in vpls.position[i])
-        obj.rotation_mode = "QUATERNION"
-        obj.rotation_quaternion = down.rotation_difference(Vector(vpls.normal[i].tolist()))
-        obj[VPL_MARKER] = True
-        obj["vplace_index"] = i
-        obj["vplace_flux"] = [float(c) for c in vpls.flux[i]]
-        coll.objects.link(obj)
+    # Build the new collection unlinked; only a complete one replaces the old one.
+    coll = bpy.data.collections.new(name + " (writing)")
+    coll[VPL_MARKER] = True
+    try:
+        for i in range(n):
+            _new_vpl_object(coll, i, vpls, power[i], profile, size, 2.0 * scene_diagonal, shadows)
+    except BaseException:
+        _remove_collection(coll)
+        raise
+    clear_vpls(name)
+    coll.name = name
+    scene.collection.children.link(coll)
     return coll

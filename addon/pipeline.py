@@ -158,6 +158,8 @@ def prepare(bl_scene: bpy.types.Scene, job: Job, timer: StageTimer) -> Prepared:
             "the scene has no lights that render: VPLs are traced from light objects "
             "(emissive meshes are not light sources for vplace yet)"
         )
+    if all(max(light.power) <= 0.0 for light in exported.lights):
+        raise export.ExportError("every light has zero power: there is no light to bounce")
     with timer.stage("build BVH"):
         scene = build_scene(exported)
     with timer.stage("capture (Cycles)"):
@@ -176,6 +178,10 @@ def prepare(bl_scene: bpy.types.Scene, job: Job, timer: StageTimer) -> Prepared:
             seed=job.seed,
             cache_dir=job.cache_dir,
             on_progress=on_progress,
+        )
+    if not cap.covered.any():
+        raise capture.CaptureError(
+            "the camera sees no geometry (only background): aim it at the scene"
         )
     return Prepared(scene, cap, exported)
 

@@ -51,6 +51,15 @@ def cornell() -> bpy.types.Scene:
     return scene
 
 
+def _nan_safe(value: Any) -> Any:
+    """NaN compares unequal to itself: stand it in by a string."""
+    if isinstance(value, float) and math.isnan(value):
+        return "nan"
+    if isinstance(value, tuple):
+        return tuple(_nan_safe(v) for v in value)
+    return value
+
+
 def _written_by_vplace(item: Any) -> bool:
     if isinstance(item, bpy.types.ID):
         return is_vplace(item)
@@ -79,8 +88,7 @@ def rna_snapshot(struct: Any, depth: int = 3) -> Any:
                 value = tuple(value)
                 if value and hasattr(value[0], "__len__"):
                     value = tuple(tuple(v) for v in value)
-            if isinstance(value, float) and math.isnan(value):
-                value = "nan"
+            value = _nan_safe(value)
             out[key] = value
         elif prop.type == "POINTER" and depth > 0:
             out[key] = rna_snapshot(value, depth - 1)
@@ -124,6 +132,7 @@ def data_snapshot() -> dict[str, Any]:
             s = rna_snapshot(block, depth=3)
             if isinstance(block, bpy.types.Scene):
                 s.pop("collection", None)
+                s.pop("vplace", None)  # the add-on's own settings and results
                 s["children"] = sorted(c.name for c in block.collection.children if not _marked(c))
                 s["objects"] = sorted(o.name for o in block.collection.objects if not _marked(o))
             if isinstance(block, bpy.types.Object):

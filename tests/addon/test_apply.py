@@ -87,3 +87,34 @@ def test_clear_operator_is_undoable_and_reports():
         assert bpy.data.collections.get(apply.COLLECTION_NAME) is None
     finally:
         operators.unregister()
+
+
+def test_failure_half_way_keeps_the_previous_vpls(monkeypatch):
+    scene = cornell()
+    apply.write_vpls(scene, some_vpls(5), scene_diagonal=3.4)
+    before = data_snapshot()
+    old_names = sorted(o.name for o in apply.find_collection().objects)
+    real = apply._new_vpl_object
+
+    def failing(coll, i, *args):
+        if i == 3:
+            raise RuntimeError("injected failure while writing VPL 3")
+        return real(coll, i, *args)
+
+    monkeypatch.setattr(apply, "_new_vpl_object", failing)
+    with pytest.raises(RuntimeError, match="injected failure"):
+        apply.write_vpls(scene, some_vpls(9, seed=2), scene_diagonal=3.4)
+    assert sorted(o.name for o in apply.find_collection().objects) == old_names
+    assert [c.name for c in bpy.data.collections if c.get(VPL_MARKER)] == [apply.COLLECTION_NAME]
+    assert not [o for o in bpy.data.objects if o.get(VPL_MARKER) and not o.users_collection]
+    assert diff(before, data_snapshot()) == []
+
+
+def test_user_object_put_in_the_vpl_collection_survives_a_rerun():
+    scene = cornell()
+    coll = apply.write_vpls(scene, some_vpls(2), scene_diagonal=3.4)
+    mine = bpy.data.objects.new("my empty", None)
+    coll.objects.link(mine)
+    apply.write_vpls(scene, some_vpls(2, seed=5), scene_diagonal=3.4)
+    assert bpy.data.objects.get("my empty") is mine
+    assert scene.collection.objects.get("my empty") is mine

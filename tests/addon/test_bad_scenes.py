@@ -1,0 +1,125 @@
+"""Scenes that must give a clear message (or just work), never a traceback or a crash."""
+
+import math
+
+import bpy
+import numpy as np
+import pytest
+from blender_util import CORNELL_OBJ, data_snapshot, diff, empty_file
+
+import addon
+from addon import apply
+from addon.default_scene import build_cornell_box
+
+
+@pytest.fixture
+def scene():
+    addon.register()
+    empty_file()
+    sc = build_cornell_box(CORNELL_OBJ)
+    s = sc.vplace
+    s.resolution_x = s.resolution_y = 16
+    s.samples, s.vpl_budget = 2, 8
+    sc.render.image_settings.file_format = "PNG"  # see test_capture: a saved file has it set
+    bpy.context.view_layer.update()
+    yield sc
+    addon.unregister()
+
+
+def add_mesh(scene, name, verts, faces):
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata(verts, [], faces)
+    obj = bpy.data.objects.new(name, mesh)
+    scene.collection.objects.link(obj)
+    bpy.context.view_layer.update()
+    return obj
+
+
+def fails_cleanly(message):
+    before = data_snapshot()
+    with pytest.raises(RuntimeError, match=message):
+        bpy.ops.vplace.apply()
+    assert apply.find_collection() is None
+    assert diff(before, data_snapshot()) == []
+
+
+def test_no_camera(scene):
+    scene.camera = None
+    assert not bpy.ops.vplace.apply.poll()
+    with pytest.raises(RuntimeError, match="poll"):
+        bpy.ops.vplace.apply()
+
+
+def test_everything_black(scene):
+    bpy.data.lights["light"].energy = 0.0
+    fails_cleanly("every light has zero power")
+
+
+def test_only_background_in_view(scene):
+    scene.camera.rotation_euler = (-math.pi / 2, 0.0, 0.0)  # looking away from the box
+    scene.camera.location = (0.0, -5.0, 1.0)
+    bpy.context.view_layer.update()
+    fails_cleanly("the camera sees no geometry")
+
+
+def test_mesh_with_nan_vertices(scene):
+    add_mesh(scene, "broken", [(0, 0, 0), (1, 0, 0), (0, math.nan, 0)], [(0, 1, 2)])
+    fails_cleanly("'broken' has vertices with NaN")
+
+
+def test_zero_area_faces_are_harmless(scene):
+    add_mesh(scene, "flat", [(0, 0, 1), (0.1, 0, 1), (0.2, 0, 1)], [(0, 1, 2)])
+    assert bpy.ops.vplace.apply() == {"FINISHED"}
+    assert len(apply.find_collection().objects) == 8
+
+
+def test_linked_library_object(scene, tmp_path):
+    # A library file holding one box, linked (read-only) into the Cornell scene.
+    lib_scene = bpy.data.scenes.new("lib")
+    mesh = bpy.data.meshes.new("libbox")
+    mesh.from_pydata(
+        [(-0.2, -0.2, 0.0), (0.2, -0.2, 0.0), (0.0, 0.2, 0.0), (0.0, 0.0, 0.4)],
+        [],
+        [(0, 1, 2), (0, 1, 3), (1, 2, 3), (2, 0, 3)],
+    )
+    lib_obj = bpy.data.objects.new("libbox", mesh)
+    lib_scene.collection.objects.link(lib_obj)
+    lib = tmp_path / "lib.blend"
+    bpy.data.libraries.write(str(lib), {lib_obj})
+    bpy.data.objects.remove(lib_obj)
+    bpy.data.meshes.remove(mesh)
+    bpy.data.scenes.remove(lib_scene)
+    with bpy.data.libraries.load(str(lib), link=True) as (_src, dst):
+        dst.objects = ["libbox"]
+    linked = dst.objects[0]
+    assert linked.library is not None
+    scene.collection.objects.link(linked)
+    bpy.context.view_layer.update()
+    before = data_snapshot()
+    assert bpy.ops.vplace.apply() == {"FINISHED"}
+    assert diff(before, data_snapshot()) == []
+
+
+@pytest.mark.slow
+def test_a_million_triangles_works(scene):
+    n = 709  # (n - 1)^2 * 2 = 1,002,528 triangles
+    xs = np.linspace(-0.9, 0.9, n)
+    gx, gy = np.meshgrid(xs, xs)
+    verts = np.stack([gx.ravel(), gy.ravel(), 0.3 + 0.02 * np.sin(9 * gx.ravel())], axis=1)
+    idx = np.arange(n * n).reshape(n, n)
+    a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, 1:], idx[1:, :-1]
+    quads = np.stack([a, b, c, d], axis=-1).reshape(-1, 4)
+    mesh = bpy.data.meshes.new("terrain")
+    mesh.vertices.add(len(verts))
+    mesh.vertices.foreach_set("co", verts.astype(np.float32).ravel())
+    mesh.loops.add(quads.size)
+    mesh.loops.foreach_set("vertex_index", quads.astype(np.int32).ravel())
+    mesh.polygons.add(len(quads))
+    mesh.polygons.foreach_set("loop_start", np.arange(0, quads.size, 4, dtype=np.int32))
+    mesh.update()
+    scene.collection.objects.link(bpy.data.objects.new("terrain", mesh))
+    bpy.context.view_layer.update()
+    assert bpy.ops.vplace.apply() == {"FINISHED"}
+    report = scene.vplace.report()
+    assert report["triangles"] > 1_000_000
+    assert len(apply.find_collection().objects) == 8
