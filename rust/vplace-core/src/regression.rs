@@ -40,6 +40,10 @@ use rayon::prelude::*;
 use crate::error::{Result, VplaceError};
 use crate::rng::Rng;
 
+/// Largest magnitude accepted in a design or label: squares and sums of up to 1e8 rows of
+/// such values stay finite in `f64`.
+pub const MAX_MAGNITUDE: f64 = 1e150;
+
 /// Relative spread below which a column (or the label) is constant: `std <= 1e-13 max|x|`.
 pub const CONSTANT_RTOL: f64 = 1e-13;
 
@@ -415,6 +419,17 @@ fn validate(x: &[f64], y: &[f64], p: usize, params: &FitParams) -> Result<usize>
             index,
         });
     }
+    // Sums of squares of larger values overflow f64 (found by the fuzzer: labels of 1e300
+    // gave NaN coefficients): refuse them with a clear message rather than return NaN.
+    for (what, values) in [("x", x), ("y", y)] {
+        if let Some(index) = values.iter().position(|v| v.abs() > MAX_MAGNITUDE) {
+            return Err(VplaceError::OutOfRange {
+                what: format!("{what}[{index}]"),
+                value: values[index].to_string(),
+                expected: format!("|value| <= {MAX_MAGNITUDE:e}: rescale the data"),
+            });
+        }
+    }
     let range = |what: &str, v: f64, ok: bool, expected: &str| {
         if ok {
             Ok(())
@@ -709,12 +724,42 @@ pub fn fit(x: &[f64], y: &[f64], p: usize, params: &FitParams) -> Result<Fit> {
     let kk = model.kept.len();
     model.adjusted_r2 =
         (n > kk + 1).then(|| 1.0 - (1.0 - model.r2) * (n - 1) as f64 / (n - kk - 1) as f64);
+    // A safety net: never hand back a silent NaN.
+    let finite = model.intercept.is_finite()
+        && model.coefficients.iter().all(|v| v.is_finite())
+        && model.fitted.iter().all(|v| v.is_finite())
+        && model.r2.is_finite();
+    if !finite {
+        return Err(VplaceError::Invalid {
+            what: "fit".into(),
+            reason: "the solution overflowed f64: rescale x and y to moderate magnitudes".into(),
+        });
+    }
     Ok(model)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Found by `examples/fuzz.rs` (seed 1, case 115774): a label of 1e300 gave NaN
+    /// coefficients and an `Ok`. Now a clear error.
+    #[test]
+    fn huge_labels_are_an_error_not_nan() {
+        let x = [
+            -4e-20, -3.9e-5, -4.9e-22, -48.8, 353.4, 7.4e-309, 7.4e-309, 0.0,
+        ];
+        let y = [-3e-14, 0.12, 0.17, -1.3e-18, 1e300, 0.91, 0.13, 0.014];
+        for params in [FitParams::DEFAULT, FitParams::PLAIN_OLS] {
+            let err = fit(&x, &y, 1, &params).unwrap_err();
+            assert!(matches!(err, VplaceError::OutOfRange { ref what, .. } if what == "y[4]"));
+        }
+        let y = [0.0, 1.0, 0.5, 0.2, 1e149, 0.3, 0.1, 0.7];
+        match fit(&x, &y, 1, &FitParams::PLAIN_OLS) {
+            Ok(f) => assert!(f.coefficients.iter().all(|v| v.is_finite())),
+            Err(e) => assert!(matches!(e, VplaceError::Invalid { .. }), "{e}"),
+        }
+    }
 
     fn design(n: usize, p: usize, seed: u64) -> Vec<f64> {
         let mut rng = Rng::new(seed, 3);
