@@ -176,6 +176,33 @@ pub fn evaluate(
     params: &EvalParams,
     progress: Option<&Progress>,
 ) -> Result<(Vec<f32>, EvalStats)> {
+    evaluate_with(scene, gbuffer, vpls, params, progress, |a, b| {
+        scene.occluded(a, b)
+    })
+}
+
+/// [`evaluate`] with shadow rays that test every triangle instead of the BVH
+/// ([`Scene::occluded_brute_force`]): the same image, a baseline for benchmarks.
+pub fn evaluate_brute_force(
+    scene: &Scene,
+    gbuffer: &GBuffer,
+    vpls: &[Vpl],
+    params: &EvalParams,
+    progress: Option<&Progress>,
+) -> Result<(Vec<f32>, EvalStats)> {
+    evaluate_with(scene, gbuffer, vpls, params, progress, |a, b| {
+        scene.occluded_brute_force(a, b)
+    })
+}
+
+fn evaluate_with(
+    scene: &Scene,
+    gbuffer: &GBuffer,
+    vpls: &[Vpl],
+    params: &EvalParams,
+    progress: Option<&Progress>,
+    occluded: impl Fn(Vec3, Vec3) -> bool + Sync,
+) -> Result<(Vec<f32>, EvalStats)> {
     gbuffer.validate()?;
     validate_vpls(vpls)?;
     if !(params.r_min >= 0.0 && params.r_min.is_finite()) {
@@ -244,7 +271,7 @@ pub fn evaluate(
                             continue;
                         }
                         tile_rays += 1;
-                        if !scene.occluded(origin, v.position) {
+                        if !occluded(origin, v.position) {
                             sum += c;
                         }
                     }
@@ -362,6 +389,20 @@ mod tests {
         };
         let (img, _) = evaluate(&scene, &g, &[above], &EvalParams::PREVIEW, None).unwrap();
         assert!(img.iter().all(|&v| v == 0.0));
+        let (img, _) =
+            evaluate_brute_force(&scene, &g, &[above], &EvalParams::PREVIEW, None).unwrap();
+        assert!(img.iter().all(|&v| v == 0.0));
+        let inside = Vpl {
+            position: Vec3::new(0.3, 0.1, 1.2),
+            normal: Vec3::NEG_Z,
+            flux: Vec3::ONE,
+        };
+        let (a, sa) = evaluate(&scene, &g, &[inside], &EvalParams::PREVIEW, None).unwrap();
+        let (b, sb) =
+            evaluate_brute_force(&scene, &g, &[inside], &EvalParams::PREVIEW, None).unwrap();
+        assert_eq!(a, b);
+        assert_eq!(sa.shadow_rays, sb.shadow_rays);
+        assert!(a.iter().any(|&v| v > 0.0));
         // Facing up (away from the floor): the cosine profile gives nothing, no ray traced.
         let up = Vpl {
             position: Vec3::new(0.0, 0.0, 1.0),

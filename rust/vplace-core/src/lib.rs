@@ -12,7 +12,12 @@
 //! 2. [`vpl::uniform_vpls`]: Keller's instant radiosity: rays from the lights, first hits become
 //!    VPLs carrying `P / n * albedo`.
 //! 3. [`evaluator::evaluate`]: the indirect image of a VPL set over a captured G-buffer.
-//! 4. [`metrics`]: RMSE and relative MSE against a reference.
+//! 4. [`metrics`]: RMSE and relative MSE against a reference, SSIM on the display luminance.
+//! 5. [`layout`]: candidate emitters (lit pixels and off-screen light-ray hits), strata (image
+//!    cells plus an off-screen stratum), the budget split `N * lerp(u_k, m_k, alpha)` by largest
+//!    remainder, flux-proportional draws that keep the total flux; [`refine`]: the iteration that
+//!    evaluates the layout, compares it per cell with the indirect image and moves budget toward
+//!    high residuals, returning the best layout; [`rsm`]: the reflective-shadow-map baseline.
 //!
 //! ```
 //! use vplace_core::{scene::{Scene, Light}, vpl::{uniform_vpls, Profile}};
@@ -31,10 +36,13 @@
 pub mod error;
 pub mod evaluator;
 pub mod features;
+pub mod layout;
 pub mod metrics;
 pub mod par2d;
+pub mod refine;
 pub mod regression;
 pub mod rng;
+pub mod rsm;
 pub mod scene;
 pub mod vpl;
 

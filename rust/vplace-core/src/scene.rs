@@ -387,6 +387,21 @@ impl Scene {
             .bvh
             .ray_traverse_miss(ray, |r, id| self.bvh_triangles[id].intersect(r))
     }
+
+    /// [`Scene::occluded`] without the BVH: tests every triangle. A baseline for benchmarks.
+    #[must_use]
+    pub fn occluded_brute_force(&self, from: Vec3, to: Vec3) -> bool {
+        let d = to - from;
+        let len = d.length();
+        if len <= 0.0 {
+            return false;
+        }
+        let ray = Ray::new(Vec3A::from(from), Vec3A::from(d / len), 0.0, len);
+        self.bvh_triangles.iter().any(|t| {
+            let h = t.intersect(&ray);
+            h > ray.tmin && h < ray.tmax
+        })
+    }
 }
 
 #[cfg(test)]
@@ -452,6 +467,14 @@ mod tests {
         assert!(s.normal(h.triangle).z.abs() > 0.999);
         assert!(!s.occluded(Vec3::new(0., 0., 0.5), Vec3::new(0., 0., 1.5)));
         assert!(s.occluded(Vec3::new(0., 0., 0.5), Vec3::new(0., 0., -0.5)));
+        for (a, b) in [
+            (Vec3::new(0., 0., 0.5), Vec3::new(0., 0., 1.5)),
+            (Vec3::new(0., 0., 0.5), Vec3::new(0., 0., -0.5)),
+            (Vec3::new(0.3, 0.2, 0.5), Vec3::new(1.5, -0.2, 1.0)),
+            (Vec3::new(-0.3, 0.2, 1.5), Vec3::new(0.5, -0.9, 0.1)),
+        ] {
+            assert_eq!(s.occluded(a, b), s.occluded_brute_force(a, b), "{a} {b}");
+        }
         assert!((s.diagonal() - (4.0f32 + 4.0 + 4.0).sqrt()).abs() < 1e-5);
     }
 

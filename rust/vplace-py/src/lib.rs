@@ -9,6 +9,7 @@ use pyo3::prelude::*;
 mod arrays;
 mod errors;
 mod fit;
+mod layout;
 mod par2d;
 mod scene;
 
@@ -18,6 +19,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
     scene::register(m)?;
     fit::register(m)?;
+    layout::register(m)?;
     par2d::register(m)?;
     Ok(())
 }

@@ -235,7 +235,7 @@ pub fn parse_profile(profile: &str) -> PyResult<Profile> {
     }
 }
 
-fn vpls_to_dict<'py>(py: Python<'py>, vpls: &[Vpl]) -> PyResult<Bound<'py, PyDict>> {
+pub fn vpls_to_dict<'py>(py: Python<'py>, vpls: &[Vpl]) -> PyResult<Bound<'py, PyDict>> {
     let n = vpls.len();
     let flat =
         |f: fn(&Vpl) -> Vec3| -> Vec<f32> { vpls.iter().flat_map(|v| f(v).to_array()).collect() };
@@ -295,10 +295,11 @@ pub fn read_vpls(
 }
 
 /// The indirect image (H, W, 3) float32 of a VPL set over a G-buffer, and a stats dict
-/// (`shadow_rays`, `pairs`, `seconds`, `rays_per_second`).
+/// (`shadow_rays`, `pairs`, `seconds`, `rays_per_second`). `brute_force` traces shadow rays
+/// against every triangle instead of the BVH (same image; a benchmark baseline).
 #[pyfunction]
 #[pyo3(signature = (scene, position, normal, albedo, covered, vpl_position, vpl_normal, vpl_flux,
-    profile = "cosine", r_min = 0.01, tile = 16, progress = None))]
+    profile = "cosine", r_min = 0.01, tile = 16, progress = None, brute_force = false))]
 #[allow(clippy::too_many_arguments)]
 fn evaluate<'py>(
     py: Python<'py>,
@@ -314,6 +315,7 @@ fn evaluate<'py>(
     r_min: f32,
     tile: usize,
     progress: Option<&PyProgress>,
+    brute_force: bool,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyDict>)> {
     let profile = parse_profile(profile)?;
     let pos = array::<f32>(
@@ -344,7 +346,11 @@ fn evaluate<'py>(
     let s = Arc::clone(&scene.inner);
     let prog = progress.map(|p| Arc::clone(&p.inner));
     let (image, stats) = run(py, move || {
-        evaluator::evaluate(&s, &g, &vpls, &params, prog.as_deref())
+        if brute_force {
+            evaluator::evaluate_brute_force(&s, &g, &vpls, &params, prog.as_deref())
+        } else {
+            evaluator::evaluate(&s, &g, &vpls, &params, prog.as_deref())
+        }
     })?;
     let out = PyArray1::from_vec(py, image).reshape([h, w, 3])?.into_any();
     let d = PyDict::new(py);

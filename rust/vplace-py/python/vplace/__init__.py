@@ -17,15 +17,19 @@ from vplace._native import (
     evaluate,
     relative_mse,
     rmse,
+    rsm_vpls,
+    ssim,
     uniform_vpls,
 )
 from vplace.fit import FitResult, extract_features, fit, fit_design
+from vplace.layout import Layout, layout
 
 __all__ = [
     "CancelledError",
     "FitResult",
     "InputError",
     "InternalError",
+    "Layout",
     "Light",
     "Progress",
     "Scene",
@@ -35,7 +39,10 @@ __all__ = [
     "extract_features",
     "fit",
     "fit_design",
+    "layout",
     "relative_mse",
     "rmse",
+    "rsm_vpls",
+    "ssim",
     "uniform_vpls",
 ]

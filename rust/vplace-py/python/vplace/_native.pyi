@@ -87,6 +87,7 @@ def evaluate(
     r_min: float = 0.01,
     tile: int = 16,
     progress: Progress | None = None,
+    brute_force: bool = False,
 ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]: ...
 def rmse(image: npt.NDArray[np.float32], reference: npt.NDArray[np.float32]) -> float: ...
 def relative_mse(image: npt.NDArray[np.float32], reference: npt.NDArray[np.float32]) -> float: ...
@@ -174,3 +175,33 @@ class Scene2D:
         progress: Progress | None = None,
     ) -> npt.NDArray[np.float64]: ...
     def __len__(self) -> int: ...
+
+# --- layout, RSM baseline, SSIM (layout.rs) -----------------------------------------------
+def layout(
+    scene: Scene,
+    position: npt.NDArray[np.float32],
+    normal: npt.NDArray[np.float32],
+    albedo: npt.NDArray[np.float32],
+    covered: npt.NDArray[np.bool_],
+    diffuse_direct: npt.NDArray[np.float32],
+    camera_position: _Vec3,
+    world_to_clip: Any,
+    *,
+    indirect: npt.NDArray[np.float32] | None = None,
+    predicted: npt.NDArray[np.float64] | None = None,
+    budget: int = 256,
+    alpha: float = 1.0,
+    cell_px: int = 16,
+    light_rays: int = 4096,
+    seed: int = 0,
+    stride: int = 4,
+    iterations: int = 3,
+    tolerance: float = 0.01,
+    step: float = 0.5,
+    profile: str = "cosine",
+    r_min: float = 0.01,
+    tile: int = 16,
+    progress: Progress | None = None,
+) -> dict[str, Any]: ...
+def rsm_vpls(scene: Scene, n: int) -> dict[str, npt.NDArray[np.float32]]: ...
+def ssim(image: npt.NDArray[np.float32], reference: npt.NDArray[np.float32]) -> float: ...

@@ -1,0 +1,854 @@
+//! Regression-guided VPL layout (DESIGN, Layout): candidate emitters, strata, allocation by
+//! largest remainder, and flux-proportional draws inside each stratum.
+//!
+//! Candidate emitters are surface points that receive direct light:
+//! - every covered pixel `p` of the view, reflecting `Phi_p = albedo_p * pi * DiffDir_p * A_p`,
+//!   `A_p = r^2 * omega_p / |cos|` its world-space footprint (`r` the radial distance from the
+//!   camera, `omega_p` the pixel's solid angle from the camera matrix, `cos` between the normal
+//!   and the view ray, clamped at [`MIN_VIEW_COSINE`]);
+//! - first hits of light rays (Keller's [`uniform_vpls`]) that the camera does not see: they
+//!   stand for the light reflected off screen.
+//!
+//! Strata are the image cells (`cell_px` square, row-major, row 0 at the top) plus one off-screen
+//! stratum (index `cells_x * cells_y`). Stratum `k` holds the flux `F_k`. The budget `N` is split
+//! `n_k = N * lerp(u_k, m_k, alpha)` by largest remainder, with `u_k = lum(F_k) / sum lum(F)`
+//! and `m_k` proportional to `lum(F_k) * max(0, predicted dL_k)`. Strata that hold flux but
+//! receive no VPL are pooled into one group drawn jointly (so no flux is ever lost). Inside a
+//! group, `n` emitters are drawn by luminance flux with systematic sampling; each VPL carries the
+//! luminance `lum(F_group) / n` with its emitter's chromaticity, so the total reflected
+//! luminance flux is the same for every allocation: the layout moves accuracy, not energy.
+//!
+//! The iteration that moves budget toward cells with a high residual is [`crate::refine`].
+
+use glam::{Mat4, Vec3};
+use std::f32::consts::PI;
+
+use crate::error::{check_finite, Result, VplaceError};
+use crate::evaluator::GBuffer;
+use crate::rng::Rng;
+use crate::scene::Scene;
+use crate::vpl::{uniform_vpls, Vpl, LUMINANCE};
+
+/// Smallest `|cos|` between a pixel's normal and its view ray used for its footprint: bounds
+/// the `1 / cos` of grazing pixels (about 87 degrees).
+pub const MIN_VIEW_COSINE: f32 = 0.05;
+
+/// One view of the scene as the layout sees it.
+#[derive(Debug, Clone, Copy)]
+pub struct LayoutView<'a> {
+    /// The G-buffer (position, normal, albedo, covered) of the view.
+    pub gbuffer: GBuffer<'a>,
+    /// Cycles `DiffDir` pass (irradiance / pi), `H x W x 3`.
+    pub diffuse_direct: &'a [f32],
+    /// Camera position, world space.
+    pub camera_position: Vec3,
+    /// World to clip matrix of the (perspective) camera, OpenGL conventions: NDC x to the
+    /// right, y up, both in `[-1, 1]` over the image (in Blender:
+    /// `camera.calc_matrix_camera(depsgraph, x=W, y=H) @ camera.matrix_world.inverted()`).
+    pub world_to_clip: Mat4,
+}
+
+/// Settings of the layout. `Copy`, with named presets.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LayoutParams {
+    /// VPL budget `N`, `>= 1`.
+    pub budget: usize,
+    /// Blend between the uniform (0) and the regression-guided (1) allocation, in `[0, 1]`.
+    pub alpha: f32,
+    /// Cell size in pixels (`>= 1`); must match the cells of the predicted `dL`.
+    pub cell_px: usize,
+    /// Light rays hitting geometry traced for the off-screen stratum (0: no off-screen stratum).
+    pub light_rays: usize,
+    /// Seed of the light rays and the draws.
+    pub seed: u64,
+}
+
+impl LayoutParams {
+    /// 256 VPLs, fully guided, 16-pixel cells, 4096 light rays.
+    pub const DEFAULT: Self = Self {
+        budget: 256,
+        alpha: 1.0,
+        cell_px: 16,
+        light_rays: 4096,
+        seed: 0,
+    };
+}
+
+impl Default for LayoutParams {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// A candidate emitter: a surface point and the flux it reflects.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Emitter {
+    /// Position, offset off the surface like a [`Vpl`].
+    pub position: Vec3,
+    /// Unit normal, facing the side the light arrives from.
+    pub normal: Vec3,
+    /// Reflected flux, RGB watts; its luminance is `> 0`.
+    pub flux: Vec3,
+}
+
+/// The candidate emitters of a view grouped in strata.
+///
+/// Invariants: `start.len() == strata() + 1`, non-decreasing, `start[strata()] ==
+/// emitters.len()`; stratum `k` holds `emitters[start[k]..start[k + 1]]` and `flux[k]` is their
+/// sum; the last stratum is the off-screen one.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Strata {
+    /// Cell size, pixels.
+    pub cell_px: usize,
+    /// Cells per row.
+    pub cells_x: usize,
+    /// Cells per column.
+    pub cells_y: usize,
+    /// Every candidate, grouped by stratum.
+    pub emitters: Vec<Emitter>,
+    /// Start of each stratum in `emitters`, plus the end.
+    pub start: Vec<usize>,
+    /// `F_k`: the flux of each stratum, RGB watts.
+    pub flux: Vec<Vec3>,
+    /// Light-ray hits dropped because the camera sees them (their pixels stand for them).
+    pub light_hits_on_screen: usize,
+}
+
+impl Strata {
+    /// Number of strata (cells plus the off-screen one).
+    #[must_use]
+    pub fn strata(&self) -> usize {
+        self.flux.len()
+    }
+
+    /// Index of the off-screen stratum.
+    #[must_use]
+    pub fn offscreen(&self) -> usize {
+        self.cells_x * self.cells_y
+    }
+
+    /// Luminance of each `F_k`.
+    #[must_use]
+    pub fn luminance(&self) -> Vec<f64> {
+        self.flux
+            .iter()
+            .map(|f| f64::from(f.dot(LUMINANCE)))
+            .collect()
+    }
+}
+
+#[inline]
+fn vec3(arr: &[f32], p: usize) -> Vec3 {
+    Vec3::new(arr[3 * p], arr[3 * p + 1], arr[3 * p + 2])
+}
+
+fn check_view(view: &LayoutView<'_>) -> Result<()> {
+    let g = &view.gbuffer;
+    g.validate()?;
+    let n = g.width * g.height;
+    if view.diffuse_direct.len() != 3 * n {
+        return Err(VplaceError::Shape {
+            what: "diffuse_direct".into(),
+            expected: format!("({}, {}, 3)", g.height, g.width),
+            got: format!("{} values", view.diffuse_direct.len()),
+        });
+    }
+    check_finite("camera_position", &view.camera_position.to_array())?;
+    check_finite("world_to_clip", &view.world_to_clip.to_cols_array())?;
+    if view.world_to_clip.determinant().abs() < 1e-30 {
+        return Err(VplaceError::Invalid {
+            what: "world_to_clip".into(),
+            reason: "the camera matrix is singular".into(),
+        });
+    }
+    Ok(())
+}
+
+/// Clip space to pixel coordinates `(x, y)` (x right, y down, pixel centres at `+0.5`), or `None`
+/// behind the camera.
+fn to_pixel(m: &Mat4, p: Vec3, w: usize, h: usize) -> Option<(f32, f32)> {
+    let c = *m * p.extend(1.0);
+    if c.w <= 0.0 {
+        return None;
+    }
+    let (x, y) = (c.x / c.w, c.y / c.w);
+    Some(((x + 1.0) * 0.5 * w as f32, (1.0 - y) * 0.5 * h as f32))
+}
+
+/// The solid angle of the pixel whose top-left corner is `(x, y)`, from the view directions of
+/// three of its corners (each the line through two unprojected depths, so the camera position
+/// and the depth range do not enter).
+fn pixel_solid_angle(inv: &Mat4, x: f32, y: f32, w: usize, h: usize) -> f32 {
+    let dir = |px: f32, py: f32| {
+        let (nx, ny) = (px / w as f32 * 2.0 - 1.0, 1.0 - py / h as f32 * 2.0);
+        let near = inv.project_point3(Vec3::new(nx, ny, -0.5));
+        let far = inv.project_point3(Vec3::new(nx, ny, 0.5));
+        (far - near).normalize_or_zero()
+    };
+    let d00 = dir(x, y);
+    (dir(x + 1.0, y) - d00)
+        .cross(dir(x, y + 1.0) - d00)
+        .length()
+}
+
+/// Gathers the candidate emitters of `view` into strata.
+///
+/// Errors: bad view arrays, `cell_px == 0`, or failing light rays (see [`uniform_vpls`]). A scene
+/// without lights gets an empty off-screen stratum (its pixels still emit).
+pub fn build_strata(scene: &Scene, view: &LayoutView<'_>, params: &LayoutParams) -> Result<Strata> {
+    check_view(view)?;
+    if params.cell_px == 0 {
+        return Err(VplaceError::OutOfRange {
+            what: "cell_px".into(),
+            value: "0".into(),
+            expected: ">= 1".into(),
+        });
+    }
+    let g = &view.gbuffer;
+    let (w, h, c) = (g.width, g.height, params.cell_px);
+    let (cells_x, cells_y) = (w.div_ceil(c), h.div_ceil(c));
+    let cam = view.camera_position;
+    let inv = view.world_to_clip.inverse();
+    let offset = Vpl::SURFACE_OFFSET * scene.diagonal();
+    let strata_n = cells_x * cells_y + 1;
+    let mut per: Vec<Vec<Emitter>> = vec![Vec::new(); strata_n];
+    for y in 0..h {
+        for x in 0..w {
+            let p = y * w + x;
+            if !g.covered[p] {
+                continue;
+            }
+            let dd = vec3(view.diffuse_direct, p);
+            if !dd.is_finite() {
+                continue;
+            }
+            let pos = vec3(g.position, p);
+            let mut n = vec3(g.normal, p).normalize_or_zero();
+            let to_cam = cam - pos;
+            let r = to_cam.length();
+            if n == Vec3::ZERO || r <= 0.0 {
+                continue;
+            }
+            let mut cos = n.dot(to_cam) / r;
+            if cos < 0.0 {
+                n = -n;
+                cos = -cos;
+            }
+            let omega = pixel_solid_angle(&inv, x as f32, y as f32, w, h);
+            let area = r * r * omega / cos.max(MIN_VIEW_COSINE);
+            let flux = vec3(g.albedo, p) * (PI * dd.max(Vec3::ZERO)) * area;
+            if flux.dot(LUMINANCE).is_nan() || flux.dot(LUMINANCE) <= 0.0 || !flux.is_finite() {
+                continue;
+            }
+            per[(y / c) * cells_x + x / c].push(Emitter {
+                position: pos + n * offset,
+                normal: n,
+                flux,
+            });
+        }
+    }
+    let mut light_hits_on_screen = 0;
+    if params.light_rays > 0 && !scene.lights.is_empty() {
+        for v in uniform_vpls(scene, params.light_rays, params.seed)? {
+            let seen = to_pixel(&view.world_to_clip, v.position, w, h).is_some_and(|(px, py)| {
+                px >= 0.0
+                    && py >= 0.0
+                    && px < w as f32
+                    && py < h as f32
+                    && g.covered[py as usize * w + px as usize]
+                    && !scene.occluded(cam, v.position)
+            });
+            if seen {
+                light_hits_on_screen += 1;
+            } else if v.flux.dot(LUMINANCE) > 0.0 {
+                per[strata_n - 1].push(Emitter {
+                    position: v.position,
+                    normal: v.normal,
+                    flux: v.flux,
+                });
+            }
+        }
+    }
+    let mut start = Vec::with_capacity(strata_n + 1);
+    let mut emitters = Vec::new();
+    let mut flux = Vec::with_capacity(strata_n);
+    for s in per {
+        start.push(emitters.len());
+        flux.push(s.iter().map(|e| e.flux).sum());
+        emitters.extend(s);
+    }
+    start.push(emitters.len());
+    Ok(Strata {
+        cell_px: c,
+        cells_x,
+        cells_y,
+        emitters,
+        start,
+        flux,
+        light_hits_on_screen,
+    })
+}
+
+/// Largest-remainder rounding of `budget * w_k / sum w`: non-negative integers summing to
+/// `budget` (ties go to the lower index). All-zero weights give all zeros.
+#[must_use]
+pub fn largest_remainder(weights: &[f64], budget: usize) -> Vec<usize> {
+    let total: f64 = weights.iter().map(|w| w.max(0.0)).sum();
+    if total.is_nan() || total <= 0.0 || !total.is_finite() {
+        return vec![0; weights.len()];
+    }
+    let quota: Vec<f64> = weights
+        .iter()
+        .map(|w| w.max(0.0) / total * budget as f64)
+        .collect();
+    let mut counts: Vec<usize> = quota.iter().map(|q| q.floor() as usize).collect();
+    let given: usize = counts.iter().sum();
+    let mut order: Vec<usize> = (0..weights.len()).collect();
+    order.sort_by(|&a, &b| {
+        let (ra, rb) = (quota[a] - quota[a].floor(), quota[b] - quota[b].floor());
+        rb.total_cmp(&ra).then(a.cmp(&b))
+    });
+    for &k in order.iter().take(budget.saturating_sub(given)) {
+        counts[k] += 1;
+    }
+    counts
+}
+
+/// The share of each stratum: `lerp(u_k, m_k, alpha)`, summing to 1.
+///
+/// `predicted` is the predicted `dL` per cell (`cells_y x cells_x`, row-major) or `None`
+/// (uniform); negative predictions count as 0 and the off-screen stratum gets the flux-weighted
+/// mean prediction of the cells. When every `m_k` is 0 the uniform share is used.
+pub fn shares(strata: &Strata, predicted: Option<&[f64]>, alpha: f32) -> Result<Vec<f64>> {
+    if !(0.0..=1.0).contains(&alpha) {
+        return Err(VplaceError::OutOfRange {
+            what: "alpha".into(),
+            value: alpha.to_string(),
+            expected: "[0, 1]".into(),
+        });
+    }
+    let lum = strata.luminance();
+    let total: f64 = lum.iter().sum();
+    if total.is_nan() || total <= 0.0 {
+        return Err(VplaceError::Invalid {
+            what: "candidate emitters".into(),
+            reason: "no surface receives direct light: check the DiffDir pass and the lights"
+                .into(),
+        });
+    }
+    let u: Vec<f64> = lum.iter().map(|l| l / total).collect();
+    let Some(pred) = predicted else {
+        return Ok(u);
+    };
+    let cells = strata.offscreen();
+    if pred.len() != cells {
+        return Err(VplaceError::Shape {
+            what: "predicted".into(),
+            expected: format!("({}, {})", strata.cells_y, strata.cells_x),
+            got: format!("{} values", pred.len()),
+        });
+    }
+    if let Some(index) = pred.iter().position(|v| !v.is_finite()) {
+        return Err(VplaceError::NonFinite {
+            what: "predicted".into(),
+            index,
+        });
+    }
+    Ok(blend(&u, &importance(&lum, pred), f64::from(alpha)))
+}
+
+/// `lum_k * max(0, d_k)` normalized, with the off-screen stratum (last) given the flux-weighted
+/// mean of `d` over the cells; all zeros when nothing is positive.
+pub(crate) fn importance(lum: &[f64], per_cell: &[f64]) -> Vec<f64> {
+    let cells = per_cell.len();
+    let cell_lum: f64 = lum[..cells].iter().sum();
+    let mean = if cell_lum > 0.0 {
+        per_cell
+            .iter()
+            .zip(lum)
+            .map(|(d, l)| d.max(0.0) * l)
+            .sum::<f64>()
+            / cell_lum
+    } else {
+        0.0
+    };
+    let mut m: Vec<f64> = per_cell
+        .iter()
+        .chain(std::iter::once(&mean))
+        .zip(lum)
+        .map(|(d, l)| d.max(0.0) * l)
+        .collect();
+    let total: f64 = m.iter().sum();
+    if total > 0.0 {
+        m.iter_mut().for_each(|v| *v /= total);
+    }
+    m
+}
+
+/// `(1 - t) * u + t * m`, or `u` when `m` is all zeros.
+pub(crate) fn blend(u: &[f64], m: &[f64], t: f64) -> Vec<f64> {
+    if m.iter().sum::<f64>() <= 0.0 {
+        return u.to_vec();
+    }
+    u.iter().zip(m).map(|(a, b)| a + (b - a) * t).collect()
+}
+
+/// How a budget is split over the strata.
+///
+/// Invariant: `counts.iter().sum() + pool_count == budget`; every stratum with flux either has
+/// `counts[k] >= 1` or is listed in `pool`, and `pool_count >= 1` when `pool` is non-empty.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Allocation {
+    /// VPLs drawn from each stratum alone.
+    pub counts: Vec<usize>,
+    /// Strata with flux but no VPL of their own, drawn from jointly.
+    pub pool: Vec<usize>,
+    /// VPLs drawn from the pool.
+    pub pool_count: usize,
+}
+
+/// Splits `budget` over the strata by largest remainder of `budget * shares`, then pools the
+/// strata that hold flux but got no VPL: the pool gets `max(1, round(budget * their shares))`
+/// VPLs, taken one by one from the stratum with the most (the lowest index on ties).
+pub fn allocate(strata: &Strata, shares: &[f64], budget: usize) -> Result<Allocation> {
+    if budget == 0 {
+        return Err(VplaceError::OutOfRange {
+            what: "budget".into(),
+            value: "0".into(),
+            expected: ">= 1".into(),
+        });
+    }
+    if shares.len() != strata.strata() {
+        return Err(VplaceError::Shape {
+            what: "shares".into(),
+            expected: format!("{} values (one per stratum)", strata.strata()),
+            got: format!("{} values", shares.len()),
+        });
+    }
+    let lum = strata.luminance();
+    // A stratum without flux cannot emit, whatever its share.
+    let w: Vec<f64> = shares
+        .iter()
+        .zip(&lum)
+        .map(|(&s, &l)| if l > 0.0 { s } else { 0.0 })
+        .collect();
+    let mut counts = largest_remainder(&w, budget);
+    let pool: Vec<usize> = (0..counts.len())
+        .filter(|&k| lum[k] > 0.0 && counts[k] == 0)
+        .collect();
+    let mut pool_count = 0;
+    if pool.is_empty() {
+        return Ok(Allocation {
+            counts,
+            pool,
+            pool_count,
+        });
+    }
+    let total: f64 = w.iter().sum();
+    let want = pool.iter().map(|&k| w[k]).sum::<f64>() / total * budget as f64;
+    let want = (want.round() as usize).max(1);
+    while pool_count < want {
+        let (k, &most) = counts
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.cmp(b.1).then(b.0.cmp(&a.0)))
+            .expect("at least one stratum");
+        if most >= 2 {
+            counts[k] -= 1;
+            pool_count += 1;
+            continue;
+        }
+        if most == 1 && pool_count == 0 {
+            // No stratum can spare one: this one gives its only VPL and joins the pool.
+            counts[k] = 0;
+            pool_count = 1;
+        }
+        break;
+    }
+    let pool: Vec<usize> = (0..counts.len())
+        .filter(|&k| lum[k] > 0.0 && counts[k] == 0)
+        .collect();
+    Ok(Allocation {
+        counts,
+        pool,
+        pool_count,
+    })
+}
+
+/// Draws `n` emitters of `group` (stratum ranges) by luminance flux with systematic sampling
+/// (one random offset); each VPL carries the luminance `lum(group) / n` with its emitter's colour.
+fn draw_group(strata: &Strata, group: &[usize], n: usize, rng: &mut Rng, out: &mut Vec<Vpl>) {
+    if n == 0 {
+        return;
+    }
+    let items = || {
+        group
+            .iter()
+            .flat_map(|&k| &strata.emitters[strata.start[k]..strata.start[k + 1]])
+    };
+    let total: f64 = items().map(|e| f64::from(e.flux.dot(LUMINANCE))).sum();
+    if total.is_nan() || total <= 0.0 {
+        return;
+    }
+    let per = total / n as f64;
+    let r = f64::from(rng.next_f32());
+    let mut acc = 0.0f64;
+    let mut i = 0usize;
+    let mut last = None;
+    for e in items() {
+        let l = f64::from(e.flux.dot(LUMINANCE));
+        acc += l;
+        last = Some(e);
+        while i < n && (i as f64 + r) * per < acc {
+            out.push(Vpl {
+                position: e.position,
+                normal: e.normal,
+                flux: e.flux * (per / l) as f32,
+            });
+            i += 1;
+        }
+    }
+    // Rounding can leave the last target just past the end of the sum.
+    if let Some(e) = last {
+        let l = f64::from(e.flux.dot(LUMINANCE));
+        while i < n {
+            out.push(Vpl {
+                position: e.position,
+                normal: e.normal,
+                flux: e.flux * (per / l) as f32,
+            });
+            i += 1;
+        }
+    }
+}
+
+/// Draws the VPLs of `allocation`. Deterministic for `seed`: each stratum has its own random
+/// stream, so one stratum's count does not change another's draws.
+#[must_use]
+pub fn draw(strata: &Strata, allocation: &Allocation, seed: u64) -> Vec<Vpl> {
+    let mut out =
+        Vec::with_capacity(allocation.counts.iter().sum::<usize>() + allocation.pool_count);
+    for (k, &n) in allocation.counts.iter().enumerate() {
+        let mut rng = Rng::new(seed, k as u64 + 1);
+        draw_group(strata, &[k], n, &mut rng, &mut out);
+    }
+    let mut rng = Rng::new(seed, 0);
+    draw_group(
+        strata,
+        &allocation.pool,
+        allocation.pool_count,
+        &mut rng,
+        &mut out,
+    );
+    out
+}
+
+/// The one-shot layout: strata, shares, allocation and draw. Returns the VPLs and the allocation.
+pub fn layout(
+    scene: &Scene,
+    view: &LayoutView<'_>,
+    predicted: Option<&[f64]>,
+    params: &LayoutParams,
+) -> Result<(Vec<Vpl>, Allocation, Strata)> {
+    let strata = build_strata(scene, view, params)?;
+    let s = shares(&strata, predicted, params.alpha)?;
+    let a = allocate(&strata, &s, params.budget)?;
+    Ok((draw(&strata, &a, params.seed), a, strata))
+}
+
+#[cfg(test)]
+pub(crate) mod test_util {
+    //! A camera looking down at the floor of the test box.
+    use super::*;
+
+    /// Arrays of a `w x w` view of the test box's floor from `(0, 0, 1.9)` straight down,
+    /// with DiffDir from a point light at `light` of power `power` (no shadows: the floor
+    /// sees it entirely).
+    pub struct FloorView {
+        pub w: usize,
+        pub position: Vec<f32>,
+        pub normal: Vec<f32>,
+        pub albedo: Vec<f32>,
+        pub covered: Vec<bool>,
+        pub diffuse_direct: Vec<f32>,
+        pub camera: Vec3,
+        pub world_to_clip: Mat4,
+    }
+
+    impl FloorView {
+        pub fn new(w: usize, light: Vec3, power: f32) -> Self {
+            let camera = Vec3::new(0.0, 0.0, 1.9);
+            let fov = 2.0 * (1.0f32 / 1.9).atan();
+            // OpenGL perspective (aspect 1, near 0.1, far 10) and a view looking down -Z, up +Y.
+            let (f, near, far) = (1.0 / (0.5 * fov).tan(), 0.1f32, 10.0f32);
+            let proj = Mat4::from_cols(
+                glam::Vec4::new(f, 0.0, 0.0, 0.0),
+                glam::Vec4::new(0.0, f, 0.0, 0.0),
+                glam::Vec4::new(0.0, 0.0, (far + near) / (near - far), -1.0),
+                glam::Vec4::new(0.0, 0.0, 2.0 * far * near / (near - far), 0.0),
+            );
+            let view = Mat4::from_translation(-camera);
+            let world_to_clip = proj * view;
+            let inv = world_to_clip.inverse();
+            let mut s = Self {
+                w,
+                position: Vec::new(),
+                normal: [0.0, 0.0, 1.0].repeat(w * w),
+                albedo: Vec::new(),
+                covered: vec![true; w * w],
+                diffuse_direct: Vec::new(),
+                camera,
+                world_to_clip,
+            };
+            for y in 0..w {
+                for x in 0..w {
+                    let ndc = Vec3::new(
+                        (x as f32 + 0.5) / w as f32 * 2.0 - 1.0,
+                        1.0 - (y as f32 + 0.5) / w as f32 * 2.0,
+                        0.0,
+                    );
+                    let d = (inv.project_point3(ndc) - camera).normalize();
+                    let p = camera + d * (camera.z / -d.z);
+                    s.position.extend(p.to_array());
+                    // Red on the left half, grey elsewhere.
+                    let a = if p.x < 0.0 {
+                        [0.8, 0.2, 0.2]
+                    } else {
+                        [0.5, 0.5, 0.5]
+                    };
+                    s.albedo.extend(a);
+                    let l = light - p;
+                    let irr = power / (4.0 * PI) * l.z / l.length().powi(3);
+                    s.diffuse_direct.extend([irr / PI; 3]);
+                }
+            }
+            s
+        }
+
+        pub fn view(&self) -> LayoutView<'_> {
+            LayoutView {
+                gbuffer: GBuffer {
+                    width: self.w,
+                    height: self.w,
+                    position: &self.position,
+                    normal: &self.normal,
+                    albedo: &self.albedo,
+                    covered: &self.covered,
+                },
+                diffuse_direct: &self.diffuse_direct,
+                camera_position: self.camera,
+                world_to_clip: self.world_to_clip,
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::test_util::FloorView;
+    use super::*;
+    use crate::scene::test_util::closed_box;
+    use crate::scene::Light;
+
+    const LIGHT: Vec3 = Vec3::new(0.3, -0.2, 1.0);
+
+    fn setup() -> (Scene, FloorView) {
+        let scene = closed_box(vec![Light::point(LIGHT, Vec3::splat(20.0))]);
+        (scene, FloorView::new(32, LIGHT, 20.0))
+    }
+
+    fn lum_total(v: &[Vpl]) -> f64 {
+        v.iter().map(|v| f64::from(v.flux.dot(LUMINANCE))).sum()
+    }
+
+    /// A prediction favouring the top-left cells.
+    fn prediction(s: &Strata) -> Vec<f64> {
+        (0..s.offscreen())
+            .map(|c| {
+                let (x, y) = (c % s.cells_x, c / s.cells_x);
+                1.0 / (1.0 + (x + y) as f64)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn pixel_flux_is_the_reflected_direct_light() {
+        // The floor seen whole: sum of pixel flux = albedo-weighted direct flux on the floor.
+        let (scene, fv) = setup();
+        let params = LayoutParams {
+            light_rays: 0,
+            cell_px: 8,
+            ..LayoutParams::DEFAULT
+        };
+        let s = build_strata(&scene, &fv.view(), &params).unwrap();
+        assert_eq!(s.strata(), 4 * 4 + 1);
+        assert_eq!(s.emitters.len(), 32 * 32);
+        // Reference by fine numerical integration over the floor.
+        let m = 400;
+        let mut expect = Vec3::ZERO;
+        for j in 0..m {
+            for i in 0..m {
+                let p = Vec3::new(
+                    (i as f32 + 0.5) / m as f32 * 2.0 - 1.0,
+                    (j as f32 + 0.5) / m as f32 * 2.0 - 1.0,
+                    0.0,
+                );
+                let l = LIGHT - p;
+                let e = 20.0 / (4.0 * PI) * l.z / l.length().powi(3);
+                let a = if p.x < 0.0 {
+                    Vec3::new(0.8, 0.2, 0.2)
+                } else {
+                    Vec3::splat(0.5)
+                };
+                expect += a * e * (4.0 / (m * m) as f32);
+            }
+        }
+        let got: Vec3 = s.flux.iter().copied().sum();
+        assert!(
+            (got - expect).abs().max_element() < 0.02 * expect.max_element(),
+            "{got} {expect}"
+        );
+    }
+
+    #[test]
+    fn allocation_sums_to_budget_and_conserves_energy() {
+        let (scene, fv) = setup();
+        for (cell_px, light_rays) in [(8, 500), (4, 500), (32, 0), (1, 200)] {
+            let params = LayoutParams {
+                cell_px,
+                light_rays,
+                ..LayoutParams::DEFAULT
+            };
+            let s = build_strata(&scene, &fv.view(), &params).unwrap();
+            let pred = prediction(&s);
+            let total = s.luminance().iter().sum::<f64>();
+            for budget in [1, 3, 16, 100, 256] {
+                for alpha in [0.0, 0.3, 1.0] {
+                    let sh = shares(&s, Some(&pred), alpha).unwrap();
+                    let a = allocate(&s, &sh, budget).unwrap();
+                    assert_eq!(a.counts.iter().sum::<usize>() + a.pool_count, budget);
+                    let lum = s.luminance();
+                    for (k, &l) in lum.iter().enumerate() {
+                        assert!(l == 0.0 || a.counts[k] > 0 || a.pool.contains(&k));
+                    }
+                    let v = draw(&s, &a, 5);
+                    assert_eq!(v.len(), budget, "{cell_px} {budget} {alpha}");
+                    let got = lum_total(&v);
+                    assert!(
+                        (got - total).abs() < 1e-4 * total,
+                        "{cell_px} {budget} {alpha}: {got} {total}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn alpha_zero_is_the_uniform_allocation_and_alpha_moves_budget() {
+        let (scene, fv) = setup();
+        let params = LayoutParams {
+            cell_px: 8,
+            light_rays: 500,
+            ..LayoutParams::DEFAULT
+        };
+        let s = build_strata(&scene, &fv.view(), &params).unwrap();
+        let pred = prediction(&s);
+        let uniform = allocate(&s, &shares(&s, None, 1.0).unwrap(), 256).unwrap();
+        let a0 = allocate(&s, &shares(&s, Some(&pred), 0.0).unwrap(), 256).unwrap();
+        assert_eq!(a0, uniform);
+        // Uniform counts follow the flux.
+        let lum = s.luminance();
+        let total: f64 = lum.iter().sum();
+        for (k, &n) in uniform.counts.iter().enumerate() {
+            assert!((n as f64 - 256.0 * lum[k] / total).abs() <= 1.0);
+        }
+        // Guided: the favoured top-left cell gains, the bottom-right one loses.
+        let a1 = allocate(&s, &shares(&s, Some(&pred), 1.0).unwrap(), 256).unwrap();
+        let last = s.offscreen() - 1;
+        assert!(a1.counts[0] > uniform.counts[0]);
+        assert!(a1.counts[last] < uniform.counts[last]);
+    }
+
+    #[test]
+    fn deterministic_per_seed() {
+        let (scene, fv) = setup();
+        let mut params = LayoutParams {
+            cell_px: 8,
+            light_rays: 300,
+            budget: 64,
+            ..LayoutParams::DEFAULT
+        };
+        let (a, _, _) = layout(&scene, &fv.view(), None, &params).unwrap();
+        let (b, _, _) = layout(&scene, &fv.view(), None, &params).unwrap();
+        params.seed = 9;
+        let (c, _, _) = layout(&scene, &fv.view(), None, &params).unwrap();
+        assert_eq!(a, b);
+        assert_ne!(a, c);
+        for v in &a {
+            assert!((v.normal.length() - 1.0).abs() < 1e-4);
+            assert!(v.flux.min_element() >= 0.0);
+        }
+    }
+
+    #[test]
+    fn offscreen_stratum_holds_what_the_camera_misses() {
+        let (scene, fv) = setup();
+        let params = LayoutParams {
+            cell_px: 8,
+            light_rays: 2000,
+            ..LayoutParams::DEFAULT
+        };
+        let s = build_strata(&scene, &fv.view(), &params).unwrap();
+        let k = s.offscreen();
+        let off = &s.emitters[s.start[k]..s.start[k + 1]];
+        assert!(!off.is_empty());
+        assert!(s.light_hits_on_screen > 0);
+        // The camera sees the whole floor: no off-screen emitter lies on it.
+        assert!(off.iter().all(|e| e.normal.z < 0.5));
+    }
+
+    #[test]
+    fn largest_remainder_rounds() {
+        assert_eq!(largest_remainder(&[1.0, 1.0, 1.0], 4), vec![2, 1, 1]);
+        assert_eq!(largest_remainder(&[0.0, 0.0], 4), vec![0, 0]);
+        assert_eq!(largest_remainder(&[0.2, 0.8], 10), vec![2, 8]);
+        assert_eq!(largest_remainder(&[-1.0, 1.0], 3), vec![0, 3]);
+    }
+
+    #[test]
+    fn bad_input() {
+        let (scene, fv) = setup();
+        let params = LayoutParams {
+            light_rays: 0,
+            ..LayoutParams::DEFAULT
+        };
+        let s = build_strata(&scene, &fv.view(), &params).unwrap();
+        assert!(shares(&s, None, 1.5).is_err());
+        assert!(shares(&s, Some(&[1.0]), 0.5).is_err());
+        let nan = vec![f64::NAN; s.offscreen()];
+        assert!(shares(&s, Some(&nan), 0.5).is_err());
+        assert!(allocate(&s, &[1.0], 5).is_err());
+        assert!(allocate(&s, &vec![1.0; s.strata()], 0).is_err());
+        let mut v = fv.view();
+        v.diffuse_direct = &fv.diffuse_direct[..3];
+        assert!(matches!(
+            build_strata(&scene, &v, &params),
+            Err(VplaceError::Shape { .. })
+        ));
+        let v = LayoutView {
+            world_to_clip: Mat4::ZERO,
+            ..fv.view()
+        };
+        assert!(build_strata(&scene, &v, &params).is_err());
+        let dark = vec![0.0; fv.diffuse_direct.len()];
+        let v = LayoutView {
+            diffuse_direct: &dark,
+            ..fv.view()
+        };
+        let s = build_strata(&scene, &v, &params).unwrap();
+        assert!(matches!(
+            shares(&s, None, 0.0),
+            Err(VplaceError::Invalid { .. })
+        ));
+    }
+}

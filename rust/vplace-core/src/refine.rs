@@ -1,0 +1,377 @@
+//! The layout iteration (DESIGN, Layout): evaluate the layout, compare per cell with the
+//! captured indirect image `I`, move budget toward cells with a high residual, repeat.
+//!
+//! Each iteration renders the VPL indirect image with [`evaluate`] on every `stride`-th pixel of
+//! the view (rows and columns), measures the error (RMSE over the covered pixels of that grid,
+//! RGB, linear) and the mean absolute luminance residual `r_k` of each cell. The shares move
+//! toward the residual-guided target `t_k ∝ lum(F_k) * r_k` (the off-screen stratum gets the
+//! flux-weighted mean residual): `q <- lerp(q, t, step)`. The loop stops when the error improves
+//! by less than `tolerance` (relative to the best so far) or after `max_iterations` evaluations,
+//! and returns the best layout seen: its error never exceeds the first one.
+
+use glam::Vec3;
+use std::time::Instant;
+
+use crate::error::{check_finite, Result, VplaceError};
+use crate::evaluator::{evaluate, EvalParams, GBuffer, Progress};
+use crate::layout::{
+    allocate, blend, build_strata, draw, importance, shares, Allocation, LayoutParams, LayoutView,
+    Strata,
+};
+use crate::scene::Scene;
+use crate::vpl::{Vpl, LUMINANCE};
+
+/// Settings of the iteration. `Copy`, with named presets.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RefineParams {
+    /// The layout (budget, alpha, cells, seed).
+    pub layout: LayoutParams,
+    /// The evaluator used to score each iteration.
+    pub eval: EvalParams,
+    /// Evaluate every `stride`-th pixel in x and y (`>= 1`; 4 is quarter resolution).
+    pub stride: usize,
+    /// At most this many evaluations (`>= 1`); 1 only scores the initial layout.
+    pub max_iterations: usize,
+    /// Stop when the error improves by less than this fraction of the best error (`>= 0`).
+    pub tolerance: f64,
+    /// How far each iteration moves the shares toward the residual target, in `[0, 1]`.
+    pub step: f64,
+}
+
+impl RefineParams {
+    /// Three iterations at quarter resolution, 1 % tolerance, half steps.
+    pub const DEFAULT: Self = Self {
+        layout: LayoutParams::DEFAULT,
+        eval: EvalParams::PREVIEW,
+        stride: 4,
+        max_iterations: 3,
+        tolerance: 0.01,
+        step: 0.5,
+    };
+}
+
+impl Default for RefineParams {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// One evaluated layout.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Iteration {
+    /// RMSE of the VPL indirect image against `I` over the covered pixels of the strided grid.
+    pub error: f64,
+    /// Shadow rays the evaluation traced.
+    pub shadow_rays: u64,
+    /// Seconds the evaluation took.
+    pub seconds: f64,
+    /// The allocation that was evaluated.
+    pub allocation: Allocation,
+}
+
+/// The result of [`refine`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Refined {
+    /// The VPLs of the best iteration.
+    pub vpls: Vec<Vpl>,
+    /// Index of the best iteration in `iterations`.
+    pub best: usize,
+    /// Every iteration, in order.
+    pub iterations: Vec<Iteration>,
+    /// The strata the layouts were drawn from.
+    pub strata: Strata,
+}
+
+impl Refined {
+    /// The error of the returned layout (the minimum over the iterations).
+    #[must_use]
+    pub fn error(&self) -> f64 {
+        self.iterations[self.best].error
+    }
+}
+
+/// The strided sub-image of a G-buffer: owned arrays plus the full-resolution cell of each pixel.
+struct Strided {
+    width: usize,
+    height: usize,
+    position: Vec<f32>,
+    normal: Vec<f32>,
+    albedo: Vec<f32>,
+    covered: Vec<bool>,
+    indirect: Vec<f32>,
+    cell: Vec<usize>,
+}
+
+fn strided(g: &GBuffer<'_>, indirect: &[f32], stride: usize, cell_px: usize) -> Strided {
+    let (w, h) = (g.width.div_ceil(stride), g.height.div_ceil(stride));
+    let cells_x = g.width.div_ceil(cell_px);
+    let mut s = Strided {
+        width: w,
+        height: h,
+        position: Vec::with_capacity(3 * w * h),
+        normal: Vec::with_capacity(3 * w * h),
+        albedo: Vec::with_capacity(3 * w * h),
+        covered: Vec::with_capacity(w * h),
+        indirect: Vec::with_capacity(3 * w * h),
+        cell: Vec::with_capacity(w * h),
+    };
+    for y in (0..g.height).step_by(stride) {
+        for x in (0..g.width).step_by(stride) {
+            let p = y * g.width + x;
+            let rgb = 3 * p..3 * p + 3;
+            s.position.extend_from_slice(&g.position[rgb.clone()]);
+            s.normal.extend_from_slice(&g.normal[rgb.clone()]);
+            s.albedo.extend_from_slice(&g.albedo[rgb.clone()]);
+            s.indirect.extend_from_slice(&indirect[rgb]);
+            s.covered.push(g.covered[p]);
+            s.cell.push((y / cell_px) * cells_x + x / cell_px);
+        }
+    }
+    s
+}
+
+/// Lays out VPLs for `view` and refines the allocation against the indirect image `indirect`
+/// (`I = G - D`, `H x W x 3`, finite on covered pixels). `predicted` is the predicted `dL` per
+/// cell (`cells_y x cells_x`) or `None` for the uniform start.
+pub fn refine(
+    scene: &Scene,
+    view: &LayoutView<'_>,
+    indirect: &[f32],
+    predicted: Option<&[f64]>,
+    params: &RefineParams,
+    progress: Option<&Progress>,
+) -> Result<Refined> {
+    let g = &view.gbuffer;
+    if indirect.len() != 3 * g.width * g.height {
+        return Err(VplaceError::Shape {
+            what: "indirect".into(),
+            expected: format!("({}, {}, 3)", g.height, g.width),
+            got: format!("{} values", indirect.len()),
+        });
+    }
+    for (what, value, ok) in [
+        ("stride", params.stride as f64, params.stride >= 1),
+        (
+            "max_iterations",
+            params.max_iterations as f64,
+            params.max_iterations >= 1,
+        ),
+        ("tolerance", params.tolerance, params.tolerance >= 0.0),
+        ("step", params.step, (0.0..=1.0).contains(&params.step)),
+    ] {
+        if !ok {
+            return Err(VplaceError::OutOfRange {
+                what: what.into(),
+                value: value.to_string(),
+                expected: "stride >= 1, max_iterations >= 1, tolerance >= 0, step in [0, 1]".into(),
+            });
+        }
+    }
+    let strata = build_strata(scene, view, &params.layout)?;
+    let lp = &params.layout;
+    let sub = strided(g, indirect, params.stride, lp.cell_px);
+    for (i, _) in sub.covered.iter().enumerate().filter(|(_, &c)| c) {
+        check_finite("indirect (covered pixel)", &sub.indirect[3 * i..3 * i + 3])?;
+    }
+    let sub_g = GBuffer {
+        width: sub.width,
+        height: sub.height,
+        position: &sub.position,
+        normal: &sub.normal,
+        albedo: &sub.albedo,
+        covered: &sub.covered,
+    };
+    let covered = sub.covered.iter().filter(|&&c| c).count().max(1) as f64;
+    let cells = strata.offscreen();
+    let lum = strata.luminance();
+    let mut q = shares(&strata, predicted, lp.alpha)?;
+    let mut iterations: Vec<Iteration> = Vec::new();
+    let mut best_vpls = Vec::new();
+    let mut best = 0;
+    loop {
+        let allocation = allocate(&strata, &q, lp.budget)?;
+        let vpls = draw(&strata, &allocation, lp.seed);
+        let start = Instant::now();
+        let (image, stats) = evaluate(scene, &sub_g, &vpls, &params.eval, progress)?;
+        let mut sq = 0.0f64;
+        let mut residual = vec![0.0f64; cells];
+        let mut pixels = vec![0u32; cells];
+        for (p, _) in sub.covered.iter().enumerate().filter(|(_, &c)| c) {
+            let e = Vec3::from_slice(&image[3 * p..]);
+            let i = Vec3::from_slice(&sub.indirect[3 * p..]);
+            let d = e - i;
+            sq += f64::from(d.dot(d));
+            residual[sub.cell[p]] += f64::from(d.dot(LUMINANCE).abs());
+            pixels[sub.cell[p]] += 1;
+        }
+        let error = (sq / (3.0 * covered)).sqrt();
+        let n = iterations.len();
+        let improved = n == 0 || error < iterations[best].error;
+        let gain = if n == 0 {
+            f64::INFINITY
+        } else {
+            iterations[best].error - error
+        };
+        iterations.push(Iteration {
+            error,
+            shadow_rays: stats.shadow_rays,
+            seconds: start.elapsed().as_secs_f64(),
+            allocation,
+        });
+        if improved {
+            best = n;
+            best_vpls = vpls;
+        }
+        if iterations.len() >= params.max_iterations
+            || (n > 0 && gain < params.tolerance * iterations[best].error)
+        {
+            break;
+        }
+        for (r, &c) in residual.iter_mut().zip(&pixels) {
+            if c > 0 {
+                *r /= f64::from(c);
+            }
+        }
+        let target = importance(&lum, &residual);
+        q = blend(&q, &target, params.step);
+    }
+    Ok(Refined {
+        vpls: best_vpls,
+        best,
+        iterations,
+        strata,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::layout::test_util::FloorView;
+    use crate::scene::test_util::closed_box;
+    use crate::scene::Light;
+
+    const LIGHT: Vec3 = Vec3::new(0.3, -0.2, 1.0);
+
+    /// A reference indirect image: the floor lit by many uniform VPLs.
+    fn reference(scene: &Scene, fv: &FloorView) -> Vec<f32> {
+        let vpls = crate::vpl::uniform_vpls(scene, 4000, 77).unwrap();
+        evaluate(scene, &fv.view().gbuffer, &vpls, &EvalParams::PREVIEW, None)
+            .unwrap()
+            .0
+    }
+
+    #[test]
+    fn returns_the_best_iteration_and_never_worse_than_the_first() {
+        let scene = closed_box(vec![Light::point(LIGHT, Vec3::splat(20.0))]);
+        let fv = FloorView::new(32, LIGHT, 20.0);
+        let indirect = reference(&scene, &fv);
+        for (alpha, stride, step, seed) in [(0.0, 2, 0.5, 1), (1.0, 1, 1.0, 2), (0.5, 4, 0.3, 3)] {
+            let params = RefineParams {
+                layout: LayoutParams {
+                    budget: 24,
+                    alpha,
+                    cell_px: 8,
+                    light_rays: 400,
+                    seed,
+                },
+                stride,
+                max_iterations: 5,
+                tolerance: 0.0,
+                step,
+                ..RefineParams::DEFAULT
+            };
+            let pred: Vec<f64> = (0..16).map(|c| (c % 4) as f64).collect();
+            let r = refine(&scene, &fv.view(), &indirect, Some(&pred), &params, None).unwrap();
+            assert!(!r.iterations.is_empty() && r.iterations.len() <= 5);
+            let min = r
+                .iterations
+                .iter()
+                .map(|i| i.error)
+                .fold(f64::INFINITY, f64::min);
+            assert_eq!(r.error(), min);
+            assert!(r.error() <= r.iterations[0].error);
+            assert_eq!(r.vpls.len(), 24);
+            // The returned VPLs are those of the best allocation.
+            let again = draw(&r.strata, &r.iterations[r.best].allocation, seed);
+            assert_eq!(again, r.vpls);
+            for it in &r.iterations {
+                assert_eq!(
+                    it.allocation.counts.iter().sum::<usize>() + it.allocation.pool_count,
+                    24
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn stops_on_tolerance_and_cap() {
+        let scene = closed_box(vec![Light::point(LIGHT, Vec3::splat(20.0))]);
+        let fv = FloorView::new(16, LIGHT, 20.0);
+        let indirect = reference(&scene, &fv);
+        let base = RefineParams {
+            layout: LayoutParams {
+                budget: 16,
+                cell_px: 4,
+                light_rays: 200,
+                ..LayoutParams::DEFAULT
+            },
+            ..RefineParams::DEFAULT
+        };
+        // A huge tolerance stops after the second evaluation.
+        let p = RefineParams {
+            tolerance: 1e9,
+            max_iterations: 10,
+            ..base
+        };
+        let r = refine(&scene, &fv.view(), &indirect, None, &p, None).unwrap();
+        assert_eq!(r.iterations.len(), 2);
+        let p = RefineParams {
+            max_iterations: 1,
+            ..base
+        };
+        let r = refine(&scene, &fv.view(), &indirect, None, &p, None).unwrap();
+        assert_eq!(r.iterations.len(), 1);
+        assert_eq!(r.best, 0);
+        // Step 0: the allocation never moves, the error is constant: stops at the second.
+        let p = RefineParams {
+            step: 0.0,
+            max_iterations: 10,
+            ..base
+        };
+        let r = refine(&scene, &fv.view(), &indirect, None, &p, None).unwrap();
+        assert_eq!(r.iterations.len(), 2);
+        assert_eq!(r.iterations[0].error, r.iterations[1].error);
+    }
+
+    #[test]
+    fn bad_input() {
+        let scene = closed_box(vec![Light::point(LIGHT, Vec3::splat(20.0))]);
+        let fv = FloorView::new(8, LIGHT, 20.0);
+        let indirect = vec![0.0; 8 * 8 * 3];
+        let ok = RefineParams::DEFAULT;
+        assert!(refine(&scene, &fv.view(), &indirect[..3], None, &ok, None).is_err());
+        for p in [
+            RefineParams { stride: 0, ..ok },
+            RefineParams {
+                max_iterations: 0,
+                ..ok
+            },
+            RefineParams {
+                tolerance: -1.0,
+                ..ok
+            },
+            RefineParams { step: 2.0, ..ok },
+        ] {
+            assert!(matches!(
+                refine(&scene, &fv.view(), &indirect, None, &p, None),
+                Err(VplaceError::OutOfRange { .. })
+            ));
+        }
+        let mut bad = indirect.clone();
+        bad[2] = f32::NAN;
+        assert!(matches!(
+            refine(&scene, &fv.view(), &bad, None, &ok, None),
+            Err(VplaceError::NonFinite { .. })
+        ));
+    }
+}
