@@ -73,6 +73,10 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     demo.add_argument("--samples", type=int, default=256, help="Cycles samples of the capture")
     demo.add_argument("--seed", type=int, default=0)
     demo.add_argument("--cell-px", type=int, default=16, help="regression grid cell, pixels")
+    demo.add_argument("--method", choices=("uniform", "vplace", "rsm"), default="uniform")
+    demo.add_argument("--alpha", type=float, default=0.5, help="0 uniform .. 1 regression-guided")
+    demo.add_argument("--iterations", type=int, default=3, help="layout iterations (cap)")
+    demo.add_argument("--feature-mode", choices=("auto", "all"), default="auto")
     demo.add_argument("--profile", choices=("cosine", "omni"), default="cosine")
     demo.add_argument(
         "--r-min", type=float, default=None, help="distance clamp, m (default: 1%% of the scene)"
@@ -123,6 +127,10 @@ def main(argv: list[str] | None = None) -> int:
         profile=args.profile,
         r_min=args.r_min,
         cell_px=args.cell_px,
+        method=args.method,
+        alpha=args.alpha,
+        iterations=args.iterations,
+        feature_mode=args.feature_mode,
     )
     run_main_job(bpy.context.scene, args.out, job=job, eevee=not args.no_eevee)
     print(f"[vplace] results in {args.out}")

@@ -68,6 +68,8 @@ class VPLACE_OT_apply(bpy.types.Operator):
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         _store_report(scene, pipeline.summary(scene, self.job, self.prepared, computed, self.timer))
+        if computed.fit is not None:
+            scene.vplace.model_json = computed.fit.to_json()
         self.report({"INFO"}, f"wrote {len(computed.vpls)} VPL lights")
         return {"FINISHED"}
 

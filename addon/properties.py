@@ -18,9 +18,13 @@ PROFILE_ITEMS = [
     ("cosine", "Cosine (area disk)", "Lambertian VPLs as small AREA disk lights (exact)"),
     ("omni", "Omni (point)", "VPLs as POINT lights of twice the flux (cheaper in EEVEE)"),
 ]
+METHOD_ITEMS = [
+    ("vplace", "Regression-guided", "The paper's layout: more VPLs where indirect light is strong"),
+    ("uniform", "Uniform", "Keller's instant radiosity: first hits of light rays"),
+    ("rsm", "RSM", "A regular grid over each light's view (reflective shadow maps)"),
+]
 FEATURE_MODE_ITEMS = [
     ("auto", "Auto", "Drop constant, collinear and unhelpful features (cross-validated)"),
-    ("paper", "Paper", "The paper's features only"),
     ("all", "All", "Every feature of the registry that is not constant or collinear"),
 ]
 
@@ -59,6 +63,7 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
     feature_mode: EnumProperty(  # type: ignore[valid-type]
         name="Features", items=FEATURE_MODE_ITEMS, default="auto"
     )
+    method: EnumProperty(name="Layout", items=METHOD_ITEMS, default="uniform")  # type: ignore[valid-type]
     seed: IntProperty(name="Seed", default=0, min=0)  # type: ignore[valid-type]
     # Results of the last run, as JSON (kept in the .blend).
     last_report: StringProperty(name="Last report", default="")  # type: ignore[valid-type]

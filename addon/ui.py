@@ -25,6 +25,7 @@ class VPLACE_PT_main(bpy.types.Panel):
         layout.use_property_split = True
         col = layout.column()
         col.prop(settings, "vpl_budget")
+        col.prop(settings, "method")
         col.prop(settings, "profile")
         col.prop(settings, "cell_px")
         col.prop(settings, "alpha")

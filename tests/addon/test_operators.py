@@ -9,6 +9,7 @@ from blender_util import CORNELL_OBJ, data_snapshot, diff, empty_file
 import addon
 from addon import apply
 from addon.default_scene import build_cornell_box
+from addon.native import vplace
 
 
 @pytest.fixture
@@ -37,12 +38,15 @@ def test_apply_clear_and_reload(registered, tmp_path):
     report = json.loads(scene.vplace.last_report)
     assert report["n_vpls"] == 16 and report["metrics"]["rmse"] > 0
     assert report["fit"]["kept"]
+    model = scene.vplace.model_json
+    assert vplace.FitResult.from_json(model).kept == report["fit"]["kept"]
     path = tmp_path / "saved.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     bpy.ops.wm.open_mainfile(filepath=str(path))
     scene = bpy.context.scene
     assert scene.vplace.vpl_budget == 16 and scene.vplace.resolution_x == 24
     assert json.loads(scene.vplace.last_report) == report
+    assert scene.vplace.model_json == model  # the fitted model is kept in the .blend
     assert len(apply.find_collection().objects) == 16
     assert bpy.ops.vplace.clear_vpls() == {"FINISHED"}
     assert apply.find_collection() is None
@@ -58,3 +62,18 @@ def test_failed_apply_reports_and_changes_nothing(registered):
     assert diff(before, data_snapshot()) == []
     scene.camera = None
     assert not bpy.ops.vplace.apply.poll()
+
+
+@pytest.mark.parametrize("method", ["vplace", "rsm"])
+def test_apply_with_each_layout_method(registered, method):
+    scene = small_cornell()
+    scene.vplace.method = method
+    scene.vplace.cell_px = 8
+    assert bpy.ops.vplace.apply() == {"FINISHED"}
+    report = json.loads(scene.vplace.last_report)
+    assert report["method"] == method
+    n = len(apply.find_collection().objects)
+    assert (n == 16) if method == "vplace" else (0 < n <= 16)
+    if method == "vplace":
+        errors = report["evaluator"]["iteration_errors"]
+        assert errors and report["evaluator"]["best_iteration"] == errors.index(min(errors))
