@@ -9,7 +9,9 @@ run leaves the scene as it was (the write-back only happens after success).
 from __future__ import annotations
 
 import json
+import tempfile
 import threading
+from pathlib import Path
 from typing import Any, ClassVar
 
 import bpy
@@ -30,6 +32,114 @@ def _store_report(scene: bpy.types.Scene, report: dict[str, Any]) -> None:
     scene.vplace.last_report = json.dumps(report)
 
 
+def cache_dir() -> Path:
+    """Where captures are cached between operator runs (keyed by content, so shared safely)."""
+    return Path(tempfile.gettempdir()) / "vplace-cache"
+
+
+def _job(scene: bpy.types.Scene) -> pipeline.Job:
+    return pipeline.Job.from_settings(scene.vplace, cache_dir())
+
+
+class VPLACE_OT_capture(bpy.types.Operator):
+    """Render the G-buffer and lighting passes of the camera view with Cycles (cached)"""
+
+    bl_idname = "vplace.capture"
+    bl_label = "Capture"
+    bl_options: ClassVar[set[str]] = {"REGISTER"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return context.scene is not None and context.scene.camera is not None
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        timer = pipeline.StageTimer(log=lambda _line: None)
+        try:
+            prepared = pipeline.prepare(context.scene, _job(context.scene), timer)
+        except USER_ERRORS as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        cap = prepared.capture
+        self.report(
+            {"INFO"},
+            f"captured {cap.width}x{cap.height} at {cap.samples} spp "
+            f"(render {cap.render_seconds:.1f} s; cached)",
+        )
+        return {"FINISHED"}
+
+
+class VPLACE_OT_fit(bpy.types.Operator):
+    """Fit the regression of indirect light on the view's features; the table shows in the panel"""
+
+    bl_idname = "vplace.fit"
+    bl_label = "Fit"
+    bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return context.scene is not None and context.scene.camera is not None
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        scene = context.scene
+        job = _job(scene)
+        timer = pipeline.StageTimer(log=lambda _line: None)
+        try:
+            prepared = pipeline.prepare(scene, job, timer)
+            with timer.stage("fit regression"):
+                fitted = vplace.fit(
+                    pipeline.fit_input(prepared),
+                    cell_px=job.cell_px,
+                    select=job.feature_mode == "auto",
+                )
+        except USER_ERRORS as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        scene.vplace.model_json = fitted.to_json()
+        report = scene.vplace.report()
+        report["fit"] = pipeline.fit_summary(fitted)
+        report["stage_seconds"] = dict(timer.seconds)
+        _store_report(scene, report)
+        self.report({"INFO"}, f"R² {fitted.r2:.3f} with {len(fitted.kept)} features")
+        return {"FINISHED"}
+
+
+class VPLACE_OT_report(bpy.types.Operator):
+    """Write a report of the current settings (every layout method at the same VPL budget,
+    metrics against Cycles, images, CSV and JSON) into a folder; the scene is not changed"""
+
+    bl_idname = "vplace.report"
+    bl_label = "Report"
+    bl_options: ClassVar[set[str]] = {"REGISTER"}
+
+    directory: bpy.props.StringProperty(  # type: ignore[valid-type]
+        name="Folder", subtype="DIR_PATH", default=""
+    )
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return context.scene is not None and context.scene.camera is not None
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        out = (
+            Path(bpy.path.abspath(self.directory))
+            if self.directory
+            else (Path(tempfile.gettempdir()) / "vplace-report")
+        )
+        try:
+            pipeline.run_main_job(
+                context.scene,
+                out,
+                job=_job(context.scene),
+                write_back=False,
+                log=lambda _line: None,
+            )
+        except USER_ERRORS as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"report written to {out}")
+        return {"FINISHED"}
+
+
 class VPLACE_OT_apply(bpy.types.Operator):
     """Capture the view with Cycles, place VPLs and write them as lights for EEVEE"""
 
@@ -46,7 +156,7 @@ class VPLACE_OT_apply(bpy.types.Operator):
 
     def _start(self, context: bpy.types.Context) -> bool:
         scene = context.scene
-        self.job = pipeline.Job.from_settings(scene.vplace)
+        self.job = _job(scene)
         self.timer = pipeline.StageTimer(log=lambda _line: None)
         try:
             self.prepared = pipeline.prepare(scene, self.job, self.timer)
@@ -197,7 +307,14 @@ class VPLACE_OT_bake_par2d(bpy.types.Operator):
         return {"FINISHED"}
 
 
-CLASSES = (VPLACE_OT_apply, VPLACE_OT_clear_vpls, VPLACE_OT_bake_par2d)
+CLASSES = (
+    VPLACE_OT_capture,
+    VPLACE_OT_fit,
+    VPLACE_OT_apply,
+    VPLACE_OT_clear_vpls,
+    VPLACE_OT_report,
+    VPLACE_OT_bake_par2d,
+)
 
 
 def register() -> None:

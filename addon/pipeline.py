@@ -290,6 +290,17 @@ def fit_input(prepared: Prepared) -> dict[str, Any]:
     }
 
 
+def fit_summary(fitted: vplace.FitResult) -> dict[str, Any]:
+    """The fit's figures for reports and the panel."""
+    return {
+        "r2": fitted.r2,
+        "adjusted_r2": fitted.adjusted_r2,
+        "kept": list(fitted.kept),
+        "weights": dict(fitted.weights),
+        "dropped": dict(fitted.dropped),
+    }
+
+
 def summary(
     bl_scene: bpy.types.Scene, job: Job, prepared: Prepared, computed: Computed, timer: StageTimer
 ) -> dict[str, Any]:
@@ -311,15 +322,7 @@ def summary(
         "stage_seconds": dict(timer.seconds),
         "evaluator": computed.stats,
         "metrics": computed.metrics,
-        "fit": None
-        if computed.fit is None
-        else {
-            "r2": computed.fit.r2,
-            "adjusted_r2": computed.fit.adjusted_r2,
-            "kept": list(computed.fit.kept),
-            "weights": dict(computed.fit.weights),
-            "dropped": dict(computed.fit.dropped),
-        },
+        "fit": None if computed.fit is None else fit_summary(computed.fit),
     }
 
 
@@ -329,13 +332,16 @@ def run_main_job(
     *,
     job: Job | None = None,
     eevee: bool = True,
+    write_back: bool = True,
     baselines: tuple[str, ...] = ("uniform", "vplace", "rsm"),
     log: Callable[[str], None] = print,
     **job_options: Any,
 ) -> dict[str, Any]:
     """Runs the whole pipe on ``bl_scene`` and writes the results into ``out_dir``.
 
-    ``job_options`` are :class:`Job` fields, for a job built on the spot.
+    ``job_options`` are :class:`Job` fields, for a job built on the spot. Without
+    ``write_back`` the scene is left as it is (a report only; no EEVEE preview then, as it
+    would show the scene without the new VPLs).
     """
     if job is None:
         job = Job(**job_options)
@@ -350,16 +356,17 @@ def run_main_job(
         quiet = StageTimer(log=lambda _line: None)
         other = compute(prepared, dataclasses.replace(job, method=method), quiet)
         compared[method] = {"metrics": other.metrics, "seconds": sum(quiet.seconds.values())}
-    with timer.stage("write back"):
-        apply.write_vpls(
-            bl_scene, computed.vpls, profile=job.profile, scene_diagonal=prepared.scene.diagonal
-        )
-        bpy.ops.wm.save_as_mainfile(filepath=str(out_dir / "scene.blend"), copy=True)
+    if write_back:
+        with timer.stage("write back"):
+            apply.write_vpls(
+                bl_scene, computed.vpls, profile=job.profile, scene_diagonal=prepared.scene.diagonal
+            )
+            bpy.ops.wm.save_as_mainfile(filepath=str(out_dir / "scene.blend"), copy=True)
     cap, vpls = prepared.capture, computed.vpls
     images.save_png(out_dir / "cycles_gi.png", cap.gi)
     images.save_png(out_dir / "direct.png", cap.direct)
     images.save_png(out_dir / "direct_plus_vpl.png", cap.direct + computed.indirect)
-    if eevee:
+    if eevee and write_back:
         with timer.stage("EEVEE preview"):
             render_eevee_preview(bl_scene, out_dir / "eevee_vpl.png", job.resolution)
     np.savetxt(

@@ -36,8 +36,12 @@ class VPLACE_PT_main(bpy.types.Panel):
         col.prop(settings, "resolution_y")
         col.prop(settings, "samples")
         row = layout.row(align=True)
+        row.operator("vplace.capture", icon="RENDER_STILL")
+        row.operator("vplace.fit", icon="GRAPH")
+        row = layout.row(align=True)
         row.operator("vplace.apply", icon="LIGHT")
         row.operator("vplace.clear_vpls", icon="X")
+        layout.operator("vplace.report", icon="TEXT")
         layout.operator("vplace.bake_par2d", icon="IMAGE_DATA")
         report = settings.report()
         if not report:

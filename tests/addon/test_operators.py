@@ -77,3 +77,20 @@ def test_apply_with_each_layout_method(registered, method):
     if method == "vplace":
         errors = report["evaluator"]["iteration_errors"]
         assert errors and report["evaluator"]["best_iteration"] == errors.index(min(errors))
+
+
+def test_capture_fit_and_report_operators_leave_the_scene_as_it_was(registered, tmp_path):
+    scene = small_cornell()
+    scene.render.image_settings.file_format = "PNG"  # see test_capture: a saved file has it set
+    before = data_snapshot()
+    assert bpy.ops.vplace.capture() == {"FINISHED"}
+    assert bpy.ops.vplace.fit() == {"FINISHED"}
+    fit = scene.vplace.report()["fit"]
+    assert fit["kept"] and abs(sum(fit["weights"].values()) - 1) < 1e-9
+    assert vplace.FitResult.from_json(scene.vplace.model_json).kept == fit["kept"]
+    assert bpy.ops.vplace.report(directory=str(tmp_path)) == {"FINISHED"}
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert set(report["baselines"]) == {"vplace", "rsm"}
+    assert not (tmp_path / "scene.blend").exists()  # a report does not write back
+    assert apply.find_collection() is None
+    assert diff(before, data_snapshot()) == []

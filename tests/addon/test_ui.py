@@ -67,7 +67,14 @@ def test_panel_shows_settings_buttons_and_last_results(scene):
         "feature_mode",
     } <= props
     ops = [name for kind, name in log if kind == "operator"]
-    assert ops == ["vplace.apply", "vplace.clear_vpls", "vplace.bake_par2d"]
+    assert ops == [
+        "vplace.capture",
+        "vplace.fit",
+        "vplace.apply",
+        "vplace.clear_vpls",
+        "vplace.report",
+        "vplace.bake_par2d",
+    ]
     assert not [t for kind, t in log if kind == "label"]  # no results yet
     assert bpy.ops.vplace.apply() == {"FINISHED"}
     labels = [t for kind, t in draw(scene) if kind == "label"]
