@@ -12,10 +12,10 @@
 use glam::Vec3;
 use std::f32::consts::PI;
 
-use crate::error::{Result, VplaceError};
+use crate::error::Result;
 use crate::layout::largest_remainder;
 use crate::scene::{LightKind, Scene};
-use crate::vpl::{emitted_power, Vpl, LUMINANCE};
+use crate::vpl::{light_powers, Vpl};
 
 /// The golden ratio's fractional part, the generator of the Fibonacci lattice.
 const GOLDEN: f64 = 0.618_033_988_749_894_8;
@@ -61,32 +61,8 @@ fn lattice_ray(light: &crate::scene::Light, scene: &Scene, u: f32, v: f32) -> (V
 
 /// The RSM layout with `n` rays in all (see the module docs). Deterministic (no random numbers).
 pub fn rsm_vpls(scene: &Scene, n: usize) -> Result<Vec<Vpl>> {
-    if n == 0 {
-        return Err(VplaceError::OutOfRange {
-            what: "n".into(),
-            value: "0".into(),
-            expected: ">= 1".into(),
-        });
-    }
-    if scene.lights.is_empty() {
-        return Err(VplaceError::Empty {
-            what: "scene lights".into(),
-            hint: "add a light (point, spot, area or sun) to the scene".into(),
-        });
-    }
-    let powers: Vec<Vec3> = scene
-        .lights
-        .iter()
-        .map(|l| emitted_power(l, scene))
-        .collect();
-    let weights: Vec<f64> = powers.iter().map(|p| f64::from(p.dot(LUMINANCE))).collect();
-    let total: f64 = weights.iter().sum();
-    if total.is_nan() || total <= 0.0 {
-        return Err(VplaceError::Invalid {
-            what: "scene lights".into(),
-            reason: "every light has zero power".into(),
-        });
-    }
+    let (powers, weights) = light_powers(scene, n)?;
+    let weights: Vec<f64> = weights.into_iter().map(f64::from).collect();
     let counts = largest_remainder(&weights, n);
     let eps = scene.ray_epsilon();
     let offset = Vpl::SURFACE_OFFSET * scene.diagonal();
@@ -121,6 +97,8 @@ mod tests {
     use super::*;
     use crate::scene::test_util::closed_box;
     use crate::scene::Light;
+    use crate::vpl::emitted_power;
+    use crate::VplaceError;
 
     #[test]
     fn closed_box_gets_n_vpls_reflecting_albedo_times_power() {

@@ -145,15 +145,9 @@ fn uniform_sphere(u1: f32, u2: f32) -> Vec3 {
     Vec3::new(r * phi.cos(), r * phi.sin(), z)
 }
 
-/// At most this many emission rays per requested VPL before giving up (rays that leave the
-/// scene make no VPL).
-pub const MAX_RAYS_PER_VPL: usize = 1000;
-
-/// Keller's instant radiosity: traces emission rays from the lights (chosen with probability
-/// proportional to their emitted luminance) until `n` rays have hit the geometry. Each hit becomes
-/// a VPL with flux `P_total / rays * albedo`, where `rays` counts every ray traced, including
-/// those that escaped: an unbiased estimate of the once-reflected flux. Deterministic for `seed`.
-pub fn uniform_vpls(scene: &Scene, n: usize, seed: u64) -> Result<Vec<Vpl>> {
+/// Checks a budget of `n` VPLs against the scene's lights and returns each light's emitted
+/// power with its luminance (the weight lights are chosen by); the weights sum to more than 0.
+pub(crate) fn light_powers(scene: &Scene, n: usize) -> Result<(Vec<Vec3>, Vec<f32>)> {
     if n == 0 {
         return Err(VplaceError::OutOfRange {
             what: "n".into(),
@@ -180,6 +174,20 @@ pub fn uniform_vpls(scene: &Scene, n: usize, seed: u64) -> Result<Vec<Vpl>> {
             reason: "every light has zero power".into(),
         });
     }
+    Ok((powers, weights))
+}
+
+/// At most this many emission rays per requested VPL before giving up (rays that leave the
+/// scene make no VPL).
+pub const MAX_RAYS_PER_VPL: usize = 1000;
+
+/// Keller's instant radiosity: traces emission rays from the lights (chosen with probability
+/// proportional to their emitted luminance) until `n` rays have hit the geometry. Each hit becomes
+/// a VPL with flux `P_total / rays * albedo`, where `rays` counts every ray traced, including
+/// those that escaped: an unbiased estimate of the once-reflected flux. Deterministic for `seed`.
+pub fn uniform_vpls(scene: &Scene, n: usize, seed: u64) -> Result<Vec<Vpl>> {
+    let (powers, weights) = light_powers(scene, n)?;
+    let total: f32 = weights.iter().sum();
     let mut cdf = Vec::with_capacity(weights.len());
     let mut acc = 0.0;
     for w in &weights {
