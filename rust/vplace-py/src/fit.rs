@@ -10,7 +10,7 @@ use vplace_core::{
     regression::{self, DropReason, Fit, FitParams},
 };
 
-use crate::arrays::{array, slice, Dim};
+use crate::arrays::{array, slice, Dim, GBufferArrays};
 use crate::errors::{input_error, run};
 
 /// The feature registry: a list of `(name, doc, origin)` with origin `"paper"` or `"ours"`, in
@@ -79,37 +79,28 @@ fn with_input<'py, T: Send>(
     light: Option<StrongestLight>,
     f: impl FnOnce(&FeatureInput<'_>) -> vplace_core::Result<T> + Send,
 ) -> PyResult<T> {
-    let pos = array::<f32>(
-        position,
-        "position",
-        &[Dim::Any, Dim::Any, Dim::Is(3)],
-        "float32",
-    )?;
-    let (h, w) = (pos.shape()[0], pos.shape()[1]);
-    let img3 = [Dim::Is(h), Dim::Is(w), Dim::Is(3)];
-    let img1 = [Dim::Is(h), Dim::Is(w)];
-    let nor = array::<f32>(normal, "normal", &img3, "float32")?;
-    let alb = array::<f32>(albedo, "albedo", &img3, "float32")?;
+    let arrays = GBufferArrays::read(position, normal, albedo, covered)?;
+    let (img3, img1) = (arrays.img3(), arrays.img1());
     let dep = array::<f32>(depth, "depth", &img1, "float32")?;
     let dir = array::<f32>(direct, "direct", &img3, "float32")?;
-    let cov = array::<bool>(covered, "covered", &img1, "bool")?;
     let gi = gi
         .map(|g| array::<f32>(g, "gi", &img3, "float32"))
         .transpose()?;
     let spec = specular
         .map(|s| array::<f32>(s, "specular", &img3, "float32"))
         .transpose()?;
+    let g = arrays.gbuffer()?;
     let input = FeatureInput {
-        width: w,
-        height: h,
-        position: slice(&pos, "position")?,
-        normal: slice(&nor, "normal")?,
-        albedo: slice(&alb, "albedo")?,
+        width: g.width,
+        height: g.height,
+        position: g.position,
+        normal: g.normal,
+        albedo: g.albedo,
         depth: slice(&dep, "depth")?,
         direct: slice(&dir, "direct")?,
         gi: gi.as_ref().map(|g| slice(g, "gi")).transpose()?,
         specular: spec.as_ref().map(|s| slice(s, "specular")).transpose()?,
-        covered: slice(&cov, "covered")?,
+        covered: g.covered,
         light,
     };
     run(py, move || f(&input))

@@ -6,12 +6,12 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::sync::Arc;
 use vplace_core::{
-    evaluator::{EvalParams, GBuffer},
+    evaluator::EvalParams,
     layout::{Allocation, LayoutParams, LayoutView, Strata},
     metrics, refine, rsm,
 };
 
-use crate::arrays::{array, slice, Dim};
+use crate::arrays::{array, slice, Dim, GBufferArrays};
 use crate::errors::run;
 use crate::scene::{parse_profile, vpls_to_dict, PyProgress, PyScene};
 
@@ -62,17 +62,9 @@ fn layout<'py>(
     progress: Option<&PyProgress>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let profile = parse_profile(profile)?;
-    let pos = array::<f32>(
-        position,
-        "position",
-        &[Dim::Any, Dim::Any, Dim::Is(3)],
-        "float32",
-    )?;
-    let (h, w) = (pos.shape()[0], pos.shape()[1]);
-    let img3 = [Dim::Is(h), Dim::Is(w), Dim::Is(3)];
-    let nor = array::<f32>(normal, "normal", &img3, "float32")?;
-    let alb = array::<f32>(albedo, "albedo", &img3, "float32")?;
-    let cov = array::<bool>(covered, "covered", &[Dim::Is(h), Dim::Is(w)], "bool")?;
+    let arrays = GBufferArrays::read(position, normal, albedo, covered)?;
+    let (h, w) = (arrays.height, arrays.width);
+    let img3 = arrays.img3();
     let dd = array::<f32>(diffuse_direct, "diffuse_direct", &img3, "float32")?;
     let ind = indirect
         .map(|a| array::<f32>(a, "indirect", &img3, "float32"))
@@ -85,14 +77,7 @@ fn layout<'py>(
         .map(|a| array::<f64>(a, "predicted", &cells, "float64"))
         .transpose()?;
     let view = LayoutView {
-        gbuffer: GBuffer {
-            width: w,
-            height: h,
-            position: slice(&pos, "position")?,
-            normal: slice(&nor, "normal")?,
-            albedo: slice(&alb, "albedo")?,
-            covered: slice(&cov, "covered")?,
-        },
+        gbuffer: arrays.gbuffer()?,
         diffuse_direct: slice(&dd, "diffuse_direct")?,
         camera_position: glam::Vec3::from_array(camera_position),
         // Rows as numpy and Blender write them.

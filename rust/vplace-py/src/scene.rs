@@ -7,13 +7,13 @@ use pyo3::types::PyDict;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use vplace_core::{
-    evaluator::{self, EvalParams, GBuffer},
+    evaluator::{self, EvalParams},
     metrics,
     scene::{Light, LightKind, Scene},
     vpl::{self, Profile, Vpl},
 };
 
-use crate::arrays::{array, slice, Dim};
+use crate::arrays::{array, slice, Dim, GBufferArrays};
 use crate::errors::{input_error, run};
 
 fn vec3(v: [f32; 3]) -> Vec3 {
@@ -318,26 +318,10 @@ fn evaluate<'py>(
     brute_force: bool,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyDict>)> {
     let profile = parse_profile(profile)?;
-    let pos = array::<f32>(
-        position,
-        "position",
-        &[Dim::Any, Dim::Any, Dim::Is(3)],
-        "float32",
-    )?;
-    let (h, w) = (pos.shape()[0], pos.shape()[1]);
-    let img3 = [Dim::Is(h), Dim::Is(w), Dim::Is(3)];
-    let nor = array::<f32>(normal, "normal", &img3, "float32")?;
-    let alb = array::<f32>(albedo, "albedo", &img3, "float32")?;
-    let cov = array::<bool>(covered, "covered", &[Dim::Is(h), Dim::Is(w)], "bool")?;
+    let arrays = GBufferArrays::read(position, normal, albedo, covered)?;
+    let (h, w) = (arrays.height, arrays.width);
     let vpls = read_vpls(vpl_position, vpl_normal, vpl_flux)?;
-    let g = GBuffer {
-        width: w,
-        height: h,
-        position: slice(&pos, "position")?,
-        normal: slice(&nor, "normal")?,
-        albedo: slice(&alb, "albedo")?,
-        covered: slice(&cov, "covered")?,
-    };
+    let g = arrays.gbuffer()?;
     let params = EvalParams {
         profile,
         r_min,
