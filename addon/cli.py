@@ -82,6 +82,29 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         "--r-min", type=float, default=None, help="distance clamp, m (default: 1%% of the scene)"
     )
     demo.add_argument("--no-eevee", action="store_true", help="skip the EEVEE preview render")
+    rep = sub.add_parser(
+        "report",
+        help="speed against error: scenes x views x methods x VPL budgets, with Cycles",
+    )
+    rep.add_argument("--scenes", nargs="+", default=["cornell", "sponza"])
+    rep.add_argument("--budgets", type=int, nargs="+", default=[16, 64, 256, 1024])
+    rep.add_argument("--methods", nargs="+", default=["uniform", "rsm", "vplace", "vplace+refit"])
+    rep.add_argument("--out", type=Path, default=Path("out/report"))
+    rep.add_argument(
+        "--resolution", type=int, nargs=2, default=None, metavar=("W", "H"),
+        help="override every view's size (default: each scene's preset)",
+    )  # fmt: skip
+    rep.add_argument("--capture-samples", type=int, default=None, help="the user's capture, spp")
+    rep.add_argument("--truth-samples", type=int, default=None, help="the ground truth, spp")
+    rep.add_argument(
+        "--cycles-samples", type=int, nargs="+", default=[16, 64, 256],
+        help="Cycles' own speed-against-error curve, spp",
+    )  # fmt: skip
+    rep.add_argument("--alpha", type=float, default=1.0, help="0 uniform .. 1 regression-guided")
+    rep.add_argument("--iterations", type=int, default=3)
+    rep.add_argument("--cache", type=Path, default=None, help="render cache (default OUT/cache)")
+    rep.add_argument("--no-eevee", action="store_true", help="skip the EEVEE preview renders")
+    rep.add_argument("--no-par2d", action="store_true", help="skip the PAR 2D plot")
     par = sub.add_parser("par2d", help="bake the PAR 2D demo scene and render it with EEVEE")
     par.add_argument("--out", type=Path, default=Path("out/par2d"))
     par.add_argument("--size", type=int, default=256, help="light map side, pixels")
@@ -114,6 +137,25 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     if args.command == "par2d":
         run_par2d_demo(args.out, args.size, args.method)
+        return 0
+    if args.command == "report":
+        from .report import ReportConfig, run_report
+
+        config = ReportConfig(
+            scenes=args.scenes,
+            budgets=args.budgets,
+            methods=args.methods,
+            resolution=tuple(args.resolution) if args.resolution else None,
+            capture_samples=args.capture_samples,
+            truth_samples=args.truth_samples,
+            cycles_samples=args.cycles_samples,
+            alpha=args.alpha,
+            iterations=args.iterations,
+            eevee=not args.no_eevee,
+            par2d=not args.no_par2d,
+            cache_dir=args.cache,
+        )
+        run_report(config, args.out)
         return 0
     from .pipeline import Job, run_main_job
 

@@ -19,6 +19,12 @@ import numpy as np
 CORNELL_CAMERA_LOCATION = (0.0, -3.894, 0.99)
 CORNELL_LENS_MM = 35.0
 CORNELL_SENSOR_MM = 25.0
+#: A second view for the held-out test of the report: inside the box, front right, looking at
+#: the back left corner (Blender axes, metres).
+CORNELL_HELD_OUT_CAMERA = "Cornell camera (held out)"
+CORNELL_HELD_OUT_LOCATION = (0.55, -0.95, 1.45)
+CORNELL_HELD_OUT_TARGET = (-0.55, 0.55, 0.45)
+CORNELL_HELD_OUT_LENS_MM = 20.0
 
 
 def parse_mtl(path: Path) -> dict[str, dict[str, tuple[float, ...]]]:
@@ -119,6 +125,13 @@ def build_cornell_box(obj_path: Path, scene: bpy.types.Scene | None = None) -> b
     cam.rotation_euler = (math.pi / 2, 0.0, 0.0)
     scene.collection.objects.link(cam)
     scene.camera = cam
+    _look_at_camera(
+        scene,
+        CORNELL_HELD_OUT_CAMERA,
+        CORNELL_HELD_OUT_LOCATION,
+        CORNELL_HELD_OUT_TARGET,
+        CORNELL_HELD_OUT_LENS_MM,
+    )
 
     world = bpy.data.worlds.new("Black")
     bg = world.node_tree.nodes.get("Background")
@@ -135,6 +148,27 @@ def build_cornell_box(obj_path: Path, scene: bpy.types.Scene | None = None) -> b
     scene.cycles.device = "CPU"
     scene.eevee.taa_render_samples = 16
     return scene
+
+
+def _look_at_camera(
+    scene: bpy.types.Scene,
+    name: str,
+    location: tuple[float, float, float],
+    target: tuple[float, float, float],
+    lens_mm: float,
+) -> bpy.types.Object:
+    """A perspective camera at ``location`` aimed at ``target`` (not the scene's camera)."""
+    from mathutils import Vector
+
+    data = bpy.data.cameras.new(name)
+    data.lens = lens_mm
+    data.sensor_width = CORNELL_SENSOR_MM
+    cam = bpy.data.objects.new(name, data)
+    cam.location = location
+    direction = Vector(target) - Vector(location)
+    cam.rotation_euler = direction.to_track_quat("-Z", "Y").to_euler()
+    scene.collection.objects.link(cam)
+    return cam
 
 
 def write_cornell_blend(obj_path: Path, blend_path: Path) -> Path:

@@ -242,7 +242,9 @@ def compute(
         layout_info = {"iteration_errors": list(laid.errors), "best_iteration": laid.best}
     elif job.method == "uniform":
         with timer.stage(f"uniform VPLs (n={job.n_vpls})"):
-            vpls = vpl_set(vplace.uniform_vpls(scene, job.n_vpls, job.seed))
+            vpls = vpl_set(
+                vplace.uniform_vpls(scene, job.n_vpls, job.seed, bounces=vplace.MAX_BOUNCES)
+            )
     elif job.method == "rsm":
         with timer.stage(f"RSM VPLs (n={job.n_vpls})"):
             vpls = vpl_set(vplace.rsm_vpls(scene, job.n_vpls))
@@ -271,7 +273,11 @@ def compute(
 def layout_input(prepared: Prepared) -> dict[str, Any]:
     """The capture as ``vplace.layout`` reads it (with the fit's passes)."""
     cap = prepared.capture
-    return {**fit_input(prepared), "diffuse_direct": cap.diffuse_direct}
+    return {
+        **fit_input(prepared),
+        "diffuse_direct": cap.diffuse_direct,
+        "diffuse_indirect": cap.diffuse_indirect,
+    }
 
 
 def fit_input(prepared: Prepared) -> dict[str, Any]:

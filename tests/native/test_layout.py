@@ -82,10 +82,8 @@ def setup():
 
 
 def run_layout(scene, view, **kw):
-    capture = {
-        k: view[k]
-        for k in ("position", "normal", "albedo", "covered", "diffuse_direct", "indirect")
-    }
+    keys = ("position", "normal", "albedo", "covered", "diffuse_direct", "indirect")
+    capture = {k: view[k] for k in (*keys, "diffuse_indirect") if k in view}
     return vplace.layout(
         scene,
         capture,
@@ -268,3 +266,52 @@ def test_layout_with_a_fit_on_the_benchmark_room():
     lit = (cap["diffuse_direct"] @ LUM > 0).sum()
     assert out.candidates >= lit
     assert out.strata_flux.shape == (4, 6, 3) and out.strata_flux.min() >= 0
+
+
+def test_multi_bounce_emitters_add_the_indirect_irradiance(setup):
+    scene, view = setup
+    kw = {"budget": 64, "cell_px": 8, "light_rays": 300, "iterate": False}
+    single = run_layout(scene, view, multi_bounce=False, **kw)
+    assert single.indirect_source == "none"
+    # Without an indirect pass or a fit, multi_bounce changes only the off-screen stratum.
+    plain = run_layout(scene, view, **kw)
+    assert plain.indirect_source == "none"
+    assert np.allclose(plain.strata_flux, single.strata_flux)
+    assert sum(plain.offscreen_flux) > sum(single.offscreen_flux)
+    # A captured DiffInd pass: every pixel emitter reflects DiffDir + DiffInd.
+    extra = np.full_like(view["diffuse_direct"], 0.05)
+    captured = {**view, "diffuse_indirect": extra}
+    out = run_layout(scene, captured, **kw)
+    assert out.indirect_source == "captured"
+    ratio = (out.strata_flux.astype(np.float64) @ LUM) / (single.strata_flux @ LUM)
+    dd = view["diffuse_direct"][..., 0].reshape(4, 8, 4, 8).mean((1, 3))
+    assert np.allclose(ratio, (dd + 0.05) / dd, rtol=2e-3)
+    with pytest.raises(vplace.InputError, match="diffuse_indirect"):
+        run_layout(scene, {**view, "diffuse_indirect": extra[:4]}, **kw)
+
+
+def test_multi_bounce_uniform_vpls_carry_every_bounce():
+    scene = box_scene()
+    one = vplace.uniform_vpls(scene, 4000, seed=2)
+    all_ = vplace.uniform_vpls(scene, 4000, seed=2, bounces=vplace.MAX_BOUNCES)
+    # A closed box of albedo 0.5: bounce k reflects P * 0.5^k, all bounces about P.
+    power = POWER
+    assert float(one["flux"][:, 1].sum()) == pytest.approx(0.5 * power, rel=1e-3)
+    assert float(all_["flux"][:, 1].sum()) == pytest.approx(power, rel=0.05)
+    with pytest.raises(vplace.InputError):
+        vplace.uniform_vpls(scene, 10, bounces=0)
+
+
+def test_predicted_indirect_irradiance_of_a_held_out_view(setup):
+    from vplace.layout import _emitter_irradiance
+
+    _, view = setup
+    predicted = np.arange(16, dtype=np.float64).reshape(4, 4) * 0.01
+    irr, source = _emitter_irradiance(view, predicted, 8, True)
+    assert source == "predicted" and irr.shape == view["diffuse_direct"].shape
+    albedo = (view["albedo"] @ LUM).reshape(4, 8, 4, 8).mean((1, 3))
+    added = (irr - view["diffuse_direct"])[..., 1].reshape(4, 8, 4, 8)
+    assert np.allclose(added, (predicted / albedo)[:, None, :, None], rtol=1e-5)
+    with pytest.raises(vplace.InputError, match="prediction has shape"):
+        _emitter_irradiance(view, predicted[:2], 8, True)
+    assert _emitter_irradiance(view, predicted, 8, False)[1] == "none"

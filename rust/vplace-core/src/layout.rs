@@ -27,7 +27,7 @@ use crate::error::{check_finite, Result, VplaceError};
 use crate::evaluator::GBuffer;
 use crate::rng::Rng;
 use crate::scene::Scene;
-use crate::vpl::{uniform_vpls, Vpl, LUMINANCE};
+use crate::vpl::{light_path_vpls, Vpl, LUMINANCE, MAX_BOUNCES};
 
 /// Smallest `|cos|` between a pixel's normal and its view ray used for its footprint: bounds
 /// the `1 / cos` of grazing pixels (about 87 degrees).
@@ -61,16 +61,20 @@ pub struct LayoutParams {
     pub light_rays: usize,
     /// Seed of the light rays and the draws.
     pub seed: u64,
+    /// Surface hits per light path for the off-screen stratum (1: first bounce only; see
+    /// [`light_path_vpls`]).
+    pub bounces: usize,
 }
 
 impl LayoutParams {
-    /// 256 VPLs, fully guided, 16-pixel cells, 4096 light rays.
+    /// 256 VPLs, fully guided, 16-pixel cells, 4096 light rays of every bounce.
     pub const DEFAULT: Self = Self {
         budget: 256,
         alpha: 1.0,
         cell_px: 16,
         light_rays: 4096,
         seed: 0,
+        bounces: MAX_BOUNCES,
     };
 }
 
@@ -249,7 +253,7 @@ pub fn build_strata(scene: &Scene, view: &LayoutView<'_>, params: &LayoutParams)
     }
     let mut light_hits_on_screen = 0;
     if params.light_rays > 0 && !scene.lights.is_empty() {
-        for v in uniform_vpls(scene, params.light_rays, params.seed)? {
+        for v in light_path_vpls(scene, params.light_rays, params.seed, params.bounces)? {
             let seen = to_pixel(&view.world_to_clip, v.position, w, h).is_some_and(|(px, py)| {
                 px >= 0.0
                     && py >= 0.0
@@ -749,6 +753,7 @@ mod tests {
         let params = LayoutParams {
             cell_px: 8,
             light_rays: 500,
+            bounces: 1,
             ..LayoutParams::DEFAULT
         };
         let s = build_strata(&scene, &fv.view(), &params).unwrap();
@@ -796,6 +801,7 @@ mod tests {
         let params = LayoutParams {
             cell_px: 8,
             light_rays: 2000,
+            bounces: 1,
             ..LayoutParams::DEFAULT
         };
         let s = build_strata(&scene, &fv.view(), &params).unwrap();
@@ -803,8 +809,20 @@ mod tests {
         let off = &s.emitters[s.start[k]..s.start[k + 1]];
         assert!(!off.is_empty());
         assert!(s.light_hits_on_screen > 0);
-        // The camera sees the whole floor: no off-screen emitter lies on it.
+        // The camera sees the whole floor: no first-bounce off-screen emitter lies on it.
         assert!(off.iter().all(|e| e.normal.z < 0.5));
+        // Later bounces add the light the walls and the ceiling pass on.
+        let all = build_strata(
+            &scene,
+            &fv.view(),
+            &LayoutParams {
+                bounces: MAX_BOUNCES,
+                ..params
+            },
+        )
+        .unwrap();
+        let lum = |s: &Strata| s.flux[s.offscreen()].dot(LUMINANCE);
+        assert!(lum(&all) > 1.2 * lum(&s), "{} {}", lum(&all), lum(&s));
     }
 
     #[test]

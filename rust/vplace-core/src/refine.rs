@@ -273,6 +273,7 @@ mod tests {
                     cell_px: 8,
                     light_rays: 400,
                     seed,
+                    ..LayoutParams::DEFAULT
                 },
                 stride,
                 max_iterations: 5,

@@ -1,6 +1,6 @@
 //! Virtual point lights and the uniform (instant radiosity) layout of Keller 1997.
 //!
-//! A VPL stands for light reflected once by a diffuse surface. It carries the flux `Phi` (RGB
+//! A VPL stands for light reflected by a diffuse surface (after one or more bounces). It carries the flux `Phi` (RGB
 //! watts) that its patch reflects. How it radiates is its [`Profile`].
 
 use glam::Vec3;
@@ -115,12 +115,8 @@ fn sample_emission(light: &Light, scene: &Scene, rng: &mut Rng) -> (Vec3, Vec3) 
                 light.tangent * ((v1 - 0.5) * size_x) + bitangent * ((v2 - 0.5) * size_y)
             };
             // Cosine-weighted direction about the emission axis.
-            let r = u1.sqrt();
-            let phi = 2.0 * PI * u2;
-            let (t, b) = basis(light.direction);
-            let d =
-                light.direction * (1.0 - u1).max(0.0).sqrt() + (t * phi.cos() + b * phi.sin()) * r;
-            (light.position + offset, d.normalize())
+            let d = cosine_direction(light.direction, u1, u2);
+            (light.position + offset, d)
         }
         LightKind::Sun => {
             // Parallel rays from a disk of radius R (half the scene diagonal) perpendicular to
@@ -181,12 +177,37 @@ pub(crate) fn light_powers(scene: &Scene, n: usize) -> Result<(Vec<Vec3>, Vec<f3
 /// scene make no VPL).
 pub const MAX_RAYS_PER_VPL: usize = 1000;
 
-/// Keller's instant radiosity: traces emission rays from the lights (chosen with probability
-/// proportional to their emitted luminance) until `n` rays have hit the geometry. Each hit becomes
-/// a VPL with flux `P_total / rays * albedo`, where `rays` counts every ray traced, including
-/// those that escaped: an unbiased estimate of the once-reflected flux. Deterministic for `seed`.
+/// Keller's instant radiosity, first bounce only: `light_path_vpls(scene, n, seed, 1)`.
 pub fn uniform_vpls(scene: &Scene, n: usize, seed: u64) -> Result<Vec<Vpl>> {
+    light_path_vpls(scene, n, seed, 1)
+}
+
+/// Bounce cap for [`light_path_vpls`] when all bounces are wanted; Russian roulette ends most
+/// paths long before it.
+pub const MAX_BOUNCES: usize = 16;
+
+/// Keller's instant radiosity: traces light paths from the lights (each light chosen with
+/// probability proportional to its emitted luminance) until `n` VPLs exist. A path leaves a VPL
+/// at each of its first `bounces` surface hits; the VPL carries the flux the surface reflects,
+/// `f * albedo / paths`, where `f` is the flux the path brings to that hit and `paths` counts
+/// every emission ray traced, including those that escaped. After a hit the path goes on in a
+/// cosine-distributed direction about the normal (the Lambertian reflection) with probability
+/// `q = min(1, luminance(albedo))`, carrying `f * albedo / q` (Russian roulette): an unbiased
+/// estimate of the flux reflected at each bounce. With `bounces = 1` these are the first hits
+/// only. The last path may be cut short when the `n`-th VPL is made (a bias of at most one
+/// path's later bounces). Deterministic for `seed`.
+///
+/// Errors: `n == 0` or `bounces == 0`, no lights or no power, or rays that miss the geometry
+/// (see [`MAX_RAYS_PER_VPL`]).
+pub fn light_path_vpls(scene: &Scene, n: usize, seed: u64, bounces: usize) -> Result<Vec<Vpl>> {
     let (powers, weights) = light_powers(scene, n)?;
+    if bounces == 0 {
+        return Err(VplaceError::OutOfRange {
+            what: "bounces".into(),
+            value: "0".into(),
+            expected: ">= 1".into(),
+        });
+    }
     let total: f32 = weights.iter().sum();
     let mut cdf = Vec::with_capacity(weights.len());
     let mut acc = 0.0;
@@ -197,7 +218,7 @@ pub fn uniform_vpls(scene: &Scene, n: usize, seed: u64) -> Result<Vec<Vpl>> {
     let eps = scene.ray_epsilon();
     let offset = Vpl::SURFACE_OFFSET * scene.diagonal();
     let mut rng = Rng::new(seed, 0x5eed);
-    // (position, normal, flux of the ray that made it / its light pick probability, albedo)
+    // (position, normal, reflected flux of one path before dividing by the path count)
     let mut hits: Vec<(Vec3, Vec3, Vec3)> = Vec::with_capacity(n);
     let mut rays = 0usize;
     while hits.len() < n {
@@ -214,15 +235,30 @@ pub fn uniform_vpls(scene: &Scene, n: usize, seed: u64) -> Result<Vec<Vpl>> {
         let u = rng.next_f32();
         let li = cdf.partition_point(|&c| c <= u).min(cdf.len() - 1);
         let light = &scene.lights[li];
-        let (origin, dir) = sample_emission(light, scene, &mut rng);
-        if let Some(h) = scene.closest_hit(origin, dir, eps, f32::INFINITY) {
+        let (mut origin, mut dir) = sample_emission(light, scene, &mut rng);
+        let mut carried = powers[li] / (weights[li] / total);
+        for bounce in 0..bounces {
+            let Some(h) = scene.closest_hit(origin, dir, eps, f32::INFINITY) else {
+                break;
+            };
             let mut normal = scene.normal(h.triangle);
             if normal.dot(dir) > 0.0 {
                 normal = -normal;
             }
             let p = origin + dir * h.t + normal * offset;
-            let carried = powers[li] / (weights[li] / total);
-            hits.push((p, normal, carried * scene.albedo(h.triangle)));
+            let reflected = carried * scene.albedo(h.triangle);
+            hits.push((p, normal, reflected));
+            if hits.len() == n || bounce + 1 == bounces {
+                break;
+            }
+            let q = reflected.dot(LUMINANCE) / carried.dot(LUMINANCE).max(f32::MIN_POSITIVE);
+            let q = q.clamp(0.0, 1.0);
+            if q.is_nan() || q <= 0.0 || rng.next_f32() >= q {
+                break;
+            }
+            carried = reflected / q;
+            origin = p;
+            dir = cosine_direction(normal, rng.next_f32(), rng.next_f32());
         }
     }
     let inv_rays = 1.0 / rays as f32;
@@ -234,6 +270,14 @@ pub fn uniform_vpls(scene: &Scene, n: usize, seed: u64) -> Result<Vec<Vpl>> {
             flux: f * inv_rays,
         })
         .collect())
+}
+
+/// A cosine-distributed unit direction about unit `n`.
+fn cosine_direction(n: Vec3, u1: f32, u2: f32) -> Vec3 {
+    let r = u1.sqrt();
+    let phi = 2.0 * PI * u2;
+    let (t, b) = basis(n);
+    (n * (1.0 - u1).max(0.0).sqrt() + (t * phi.cos() + b * phi.sin()) * r).normalize()
 }
 
 #[cfg(test)]
@@ -284,6 +328,50 @@ mod tests {
                 "{total} {expect}"
             );
         }
+    }
+
+    #[test]
+    fn light_paths_reflect_every_bounce() {
+        // A closed box of albedo 0.5: the expected flux reflected over bounces 1..=k is
+        // P * (0.5 + 0.25 + ... + 0.5^k).
+        let light = Light::point(Vec3::new(0.2, -0.1, 1.2), Vec3::new(10., 5., 1.));
+        let s = closed_box(vec![light]);
+        let p = emitted_power(&light, &s);
+        for (bounces, expect) in [(2, 0.75), (MAX_BOUNCES, 1.0 - 0.5f32.powi(16))] {
+            let v = light_path_vpls(&s, 20_000, 4, bounces).unwrap();
+            assert_eq!(v.len(), 20_000);
+            let total: Vec3 = v.iter().map(|v| v.flux).sum();
+            let ratio = total / p;
+            assert!(
+                (ratio - Vec3::splat(expect)).abs().max_element() < 0.03,
+                "{bounces}: {ratio}"
+            );
+        }
+        assert_eq!(
+            light_path_vpls(&s, 50, 2, 1).unwrap(),
+            uniform_vpls(&s, 50, 2).unwrap()
+        );
+        assert!(light_path_vpls(&s, 50, 2, 0).is_err());
+    }
+
+    #[test]
+    fn later_bounces_reach_what_the_light_does_not() {
+        // A downward area light never lights the ceiling directly; its second bounce does.
+        let s = closed_box(vec![Light::area(
+            Vec3::new(0., 0., 1.99),
+            Vec3::NEG_Z,
+            Vec3::X,
+            false,
+            0.4,
+            0.2,
+            Vec3::splat(4.),
+        )]);
+        let v = light_path_vpls(&s, 2000, 9, MAX_BOUNCES).unwrap();
+        let ceiling = v.iter().filter(|v| v.position.z > 1.98).count();
+        assert!(ceiling > 20, "{ceiling}");
+        assert!(v
+            .iter()
+            .all(|v| v.flux.min_element() >= 0.0 && v.flux.is_finite()));
     }
 
     #[test]

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use vplace_core::{
     evaluator::EvalParams,
     layout::{Allocation, LayoutParams, LayoutView, Strata},
-    metrics, refine, rsm,
+    metrics, refine, rsm, vpl,
 };
 
 use crate::arrays::{array, slice, Dim, GBufferArrays};
@@ -32,7 +32,7 @@ fn counts_grid<'py>(
 #[pyfunction]
 #[pyo3(signature = (scene, position, normal, albedo, covered, diffuse_direct, camera_position,
     world_to_clip, *, indirect = None, predicted = None, budget = 256, alpha = 1.0, cell_px = 16,
-    light_rays = 4096, seed = 0, stride = 4, iterations = 3, tolerance = 0.01, step = 0.5,
+    light_rays = 4096, bounces = vpl::MAX_BOUNCES, seed = 0, stride = 4, iterations = 3, tolerance = 0.01, step = 0.5,
     profile = "cosine", r_min = 0.01, tile = 16, progress = None))]
 #[allow(clippy::too_many_arguments)]
 fn layout<'py>(
@@ -51,6 +51,7 @@ fn layout<'py>(
     alpha: f32,
     cell_px: usize,
     light_rays: usize,
+    bounces: usize,
     seed: u64,
     stride: usize,
     iterations: usize,
@@ -92,6 +93,7 @@ fn layout<'py>(
             cell_px,
             light_rays,
             seed,
+            bounces,
         },
         eval: EvalParams {
             profile,

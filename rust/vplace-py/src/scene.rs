@@ -255,18 +255,20 @@ pub fn vpls_to_dict<'py>(py: Python<'py>, vpls: &[Vpl]) -> PyResult<Bound<'py, P
     Ok(d)
 }
 
-/// Keller's instant radiosity: `n` VPLs from emission rays of the scene's lights.
+/// Keller's instant radiosity: `n` VPLs from light paths of the scene's lights, a VPL at each
+/// of a path's first `bounces` surface hits (1: first hits only; Russian roulette ends paths).
 /// Returns a dict of float32 arrays `position`, `normal`, `flux`, each (n, 3).
 #[pyfunction]
-#[pyo3(signature = (scene, n, seed = 0))]
+#[pyo3(signature = (scene, n, seed = 0, bounces = 1))]
 fn uniform_vpls<'py>(
     py: Python<'py>,
     scene: &PyScene,
     n: usize,
     seed: u64,
+    bounces: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     let s = Arc::clone(&scene.inner);
-    let vpls = run(py, move || vpl::uniform_vpls(&s, n, seed))?;
+    let vpls = run(py, move || vpl::light_path_vpls(&s, n, seed, bounces))?;
     vpls_to_dict(py, &vpls)
 }
 
@@ -391,5 +393,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(rmse, m)?)?;
     m.add_function(wrap_pyfunction!(relative_mse, m)?)?;
     m.add("VPL_SURFACE_OFFSET", vpl::Vpl::SURFACE_OFFSET)?;
+    m.add("MAX_BOUNCES", vpl::MAX_BOUNCES)?;
     Ok(())
 }

@@ -6,6 +6,7 @@ this package re-exports them and adds the Python-level API.
 
 from vplace import par2d as par2d
 from vplace._native import (
+    MAX_BOUNCES,
     CancelledError,
     InputError,
     InternalError,
@@ -25,6 +26,7 @@ from vplace.fit import FitResult, extract_features, fit, fit_design
 from vplace.layout import Layout, layout
 
 __all__ = [
+    "MAX_BOUNCES",
     "CancelledError",
     "FitResult",
     "InputError",

@@ -73,7 +73,12 @@ class Progress:
     def cancelled(self) -> bool: ...
     def cancel(self) -> None: ...
 
-def uniform_vpls(scene: Scene, n: int, seed: int = 0) -> dict[str, npt.NDArray[np.float32]]: ...
+def uniform_vpls(
+    scene: Scene, n: int, seed: int = 0, bounces: int = 1
+) -> dict[str, npt.NDArray[np.float32]]: ...
+
+MAX_BOUNCES: int
+
 def evaluate(
     scene: Scene,
     position: npt.NDArray[np.float32],
@@ -193,6 +198,7 @@ def layout(
     alpha: float = 1.0,
     cell_px: int = 16,
     light_rays: int = 4096,
+    bounces: int = ...,
     seed: int = 0,
     stride: int = 4,
     iterations: int = 3,

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from vplace import _native
-from vplace.fit import FitResult
+from vplace.fit import _LUMINANCE, FitResult
 
 
 def _get(capture: Any, name: str) -> Any:
@@ -58,6 +58,9 @@ class Layout:
     offscreen_flux: list[float] = field(default_factory=list)
     candidates: int = 0
     light_hits_on_screen: int = 0
+    indirect_source: str = "none"
+    """Where the emitters' indirect irradiance came from: ``"captured"`` (the capture's
+    ``diffuse_indirect``), ``"predicted"`` (the fit's per-cell prediction) or ``"none"``."""
 
     def __len__(self) -> int:
         return int(self.position.shape[0])
@@ -87,6 +90,7 @@ def layout(
     step: float = 0.5,
     profile: str = "cosine",
     r_min: float = 0.01,
+    multi_bounce: bool = True,
     progress: _native.Progress | None = None,
 ) -> Layout:
     """Lays out ``budget`` VPLs for the captured view ``capture``.
@@ -102,6 +106,15 @@ def layout(
     resolution); ``iterations``: at most this many evaluations; ``tolerance``: stop when the RMSE
     improves by less than this fraction; ``step``: how far each iteration moves toward the
     residual. ``iterate=False`` (or no ``gi``) returns the one-shot layout.
+
+    ``multi_bounce``: a pixel emitter reflects all the light its surface receives, not only the
+    direct light: ``E_p = pi * (DiffDir_p + DiffInd_p)``, so the VPLs carry the second and later
+    bounces that Cycles measured at the surfaces the camera sees. ``DiffInd`` is the capture's
+    ``diffuse_indirect`` when it has one; otherwise (a held-out view, which has no GI render) the
+    fit's per-cell prediction of the indirect luminance ``dL_k`` stands in, as the grey
+    irradiance ``dL_k / albedo_k`` (``albedo_k`` the cell's mean albedo luminance). The
+    light-traced emitters of the off-screen stratum then come from every bounce of the light
+    paths, not only the first (:func:`vplace.uniform_vpls` with ``bounces=MAX_BOUNCES``).
     """
     cell = cell_px or (fit.cell_px if fit is not None and fit.cell_px else 16)
     predicted = None
@@ -118,6 +131,7 @@ def layout(
             indirect = np.ascontiguousarray(
                 np.nan_to_num(indirect, nan=0.0, posinf=0.0, neginf=0.0), dtype=np.float32
             )
+    irradiance, source = _emitter_irradiance(capture, predicted, cell, multi_bounce)
     m = np.asarray(world_to_clip, dtype=np.float32)
     d = _native.layout(
         scene,
@@ -125,7 +139,7 @@ def layout(
         _need(capture, "normal"),
         _need(capture, "albedo"),
         _need(capture, "covered"),
-        _need(capture, "diffuse_direct"),
+        irradiance,
         [float(v) for v in np.asarray(camera_position, dtype=np.float64).reshape(3)],
         [[float(v) for v in row] for row in m.reshape(4, 4)],
         indirect=indirect,
@@ -134,6 +148,7 @@ def layout(
         alpha=alpha,
         cell_px=cell,
         light_rays=light_rays,
+        bounces=_native.MAX_BOUNCES if multi_bounce else 1,
         seed=seed,
         stride=stride,
         iterations=iterations,
@@ -143,4 +158,40 @@ def layout(
         r_min=r_min,
         progress=progress,
     )
-    return Layout(**d)
+    return Layout(**d, indirect_source=source)
+
+
+def _emitter_irradiance(
+    capture: Any, predicted: np.ndarray | None, cell: int, multi_bounce: bool
+) -> tuple[Any, str]:
+    """The irradiance / pi the pixel emitters reflect, and where its indirect part came from."""
+    direct = _need(capture, "diffuse_direct")
+    if not multi_bounce:
+        return direct, "none"
+    direct = np.asarray(direct, dtype=np.float32)
+    captured = _get(capture, "diffuse_indirect")
+    if captured is not None:
+        captured = np.asarray(captured, dtype=np.float32)
+        if captured.shape != direct.shape:
+            raise _native.InputError(
+                f"diffuse_indirect has shape {captured.shape}, diffuse_direct {direct.shape}"
+            )
+        ind = np.nan_to_num(captured, nan=0.0, posinf=0.0, neginf=0.0)
+        return np.ascontiguousarray(direct + np.maximum(ind, 0.0)), "captured"
+    if predicted is None:
+        return direct, "none"
+    h, w = direct.shape[:2]
+    albedo = np.asarray(_need(capture, "albedo"), dtype=np.float64)[..., :3] @ _LUMINANCE
+    covered = np.asarray(_need(capture, "covered"), dtype=bool) & np.isfinite(albedo)
+    cy, cx = -(-h // cell), -(-w // cell)
+    if predicted.shape != (cy, cx):
+        raise _native.InputError(f"the prediction has shape {predicted.shape}, cells ({cy}, {cx})")
+    pad = ((0, cy * cell - h), (0, cx * cell - w))
+    a = np.pad(np.where(covered, albedo, 0.0), pad).reshape(cy, cell, cx, cell).sum((1, 3))
+    k = np.pad(covered, pad).reshape(cy, cell, cx, cell).sum((1, 3))
+    mean_albedo = np.where(k > 0, a / np.maximum(k, 1), 0.0)
+    cell_irr = np.where(
+        mean_albedo > 1e-3, np.maximum(predicted, 0.0) / np.maximum(mean_albedo, 1e-3), 0.0
+    )
+    per_pixel = np.repeat(np.repeat(cell_irr, cell, 0), cell, 1)[:h, :w]
+    return np.ascontiguousarray(direct + per_pixel[..., None].astype(np.float32)), "predicted"
