@@ -102,6 +102,10 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     )  # fmt: skip
     rep.add_argument("--alpha", type=float, default=1.0, help="0 uniform .. 1 regression-guided")
     rep.add_argument("--iterations", type=int, default=3)
+    rep.add_argument(
+        "--seeds", type=int, nargs="+", default=[0, 1, 2],
+        help="seeds of the stochastic layouts; tables show their mean",
+    )  # fmt: skip
     rep.add_argument("--cache", type=Path, default=None, help="render cache (default OUT/cache)")
     rep.add_argument("--no-eevee", action="store_true", help="skip the EEVEE preview renders")
     rep.add_argument("--no-par2d", action="store_true", help="skip the PAR 2D plot")
@@ -151,6 +155,7 @@ def main(argv: list[str] | None = None) -> int:
             cycles_samples=args.cycles_samples,
             alpha=args.alpha,
             iterations=args.iterations,
+            seeds=args.seeds,
             eevee=not args.no_eevee,
             par2d=not args.no_par2d,
             cache_dir=args.cache,

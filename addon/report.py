@@ -68,6 +68,9 @@ class ScenePreset:
     resolution: tuple[int, int]
     capture_samples: int
     truth_samples: int
+    #: EEVEE preview size relative to the capture (software OpenGL renders 256 shadowed lights
+    #: slowly: Sponza at 320x180 took over ten minutes on 2 cores).
+    eevee_scale: float = 1.0
 
 
 PRESETS = {
@@ -81,6 +84,7 @@ PRESETS = {
         (320, 180),
         128,
         1024,
+        eevee_scale=0.5,
     ),
 }
 
@@ -99,7 +103,8 @@ class ReportConfig:
     alpha: float = 1.0
     iterations: int = 3
     cell_px: int = 16
-    seed: int = 0
+    #: Seeds of the stochastic layouts (uniform, vplace); tables and plots show their mean.
+    seeds: Sequence[int] = (0, 1, 2)
     eevee: bool = True
     par2d: bool = True
     cache_dir: Path | None = None
@@ -118,6 +123,8 @@ class ReportConfig:
             raise ReportError(f"unknown scenes {bad}: choose from {sorted(PRESETS)}")
         if any(s < 1 for s in self.cycles_samples):
             raise ReportError("Cycles sample counts must be at least 1")
+        if not self.seeds:
+            raise ReportError("give at least one seed")
 
 
 @dataclass
@@ -137,6 +144,7 @@ class Row:
     evaluate_seconds: float
     seconds: float
     shadow_rays: int = 0
+    seed: int | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -256,85 +264,124 @@ def run_methods(
     rows: list[Row] = []
     images: dict[str, np.ndarray] = {}
     for n in config.budgets:
-        laid: vplace.Layout | None = None
-        laid_seconds = 0.0
-        for method in config.methods:
-            if method == "vplace+refit" and not fit_view:
-                continue  # the refit needs the view's indirect image
-            extra: dict[str, Any] = {}
-            if method == "uniform":
-                t, d = _timed(
-                    lambda n=n: vplace.uniform_vpls(
-                        scene, n, config.seed, bounces=vplace.MAX_BOUNCES
-                    )
-                )
-                vpls = pipeline.vpl_set(d)
-            elif method == "rsm":
-                t, d = _timed(lambda n=n: vplace.rsm_vpls(scene, n))
-                vpls = pipeline.vpl_set(d)
-            else:
-                if laid is None:
-                    laid_seconds, laid = _timed(
-                        lambda n=n: vplace.layout(
-                            scene,
-                            layout_in,
-                            camera_position=prepared.camera_position,
-                            world_to_clip=prepared.world_to_clip,
-                            fit=fitted,
-                            budget=n,
-                            alpha=config.alpha,
-                            cell_px=config.cell_px,
-                            iterate=fit_view and config.iterations > 0,
-                            iterations=max(config.iterations, 1),
-                            seed=config.seed,
-                            r_min=r_min,
+        for seed in config.seeds:
+            laid: vplace.Layout | None = None
+            laid_seconds = 0.0
+            for method in config.methods:
+                if method == "vplace+refit" and not fit_view:
+                    continue  # the refit needs the view's indirect image
+                if method == "rsm" and seed != config.seeds[0]:
+                    continue  # deterministic: one run
+                extra: dict[str, Any] = {}
+                if method == "uniform":
+                    t, d = _timed(
+                        lambda n=n, seed=seed: vplace.uniform_vpls(
+                            scene, n, seed, bounces=vplace.MAX_BOUNCES
                         )
                     )
-                    if fit_view:
-                        laid_seconds += fit_seconds
-                t = laid_seconds
-                extra = {
-                    "iteration_errors": list(laid.errors),
-                    "best_iteration": laid.best,
-                    "indirect_source": laid.indirect_source,
-                }
-                vpls = apply.VplSet(laid.position, laid.normal, laid.flux)
-                if method == "vplace+refit":
-                    refit_seconds, refitted = _timed(
-                        lambda laid=laid: vplace.refit(scene, layout_in, laid, r_min=r_min)
-                    )
-                    t += refit_seconds
-                    vpls = apply.VplSet(refitted.position, refitted.normal, refitted.flux)
-                    extra.update(
-                        refit_seconds=refit_seconds,
-                        refit_error_before=refitted.error_before,
-                        refit_error_after=refitted.error_after,
-                    )
-            indirect, stats = pipeline.evaluate_capture(scene, prepared.capture, vpls, r_min=r_min)
-            estimate = truth_direct + indirect
-            m = score(estimate, truth_gi)
-            row = Row(
-                scene_name,
-                view.name,
-                view.role,
-                method,
-                n,
-                None,
-                layout_seconds=t,
-                evaluate_seconds=float(stats["seconds"]),
-                seconds=t + float(stats["seconds"]),
-                shadow_rays=int(stats["shadow_rays"]),
-                extra=extra,
-                **m,
-            )
-            rows.append(row)
-            log(
-                f"[vplace]   {view.name} {method:<13} N={n:<5} SSIM {row.ssim:.4f} "
-                f"RMSE {row.rmse:.5f} {row.seconds:7.2f} s"
-            )
-            if n == grid_n:
-                images[method] = estimate
+                    vpls = pipeline.vpl_set(d)
+                elif method == "rsm":
+                    t, d = _timed(lambda n=n: vplace.rsm_vpls(scene, n))
+                    vpls = pipeline.vpl_set(d)
+                else:
+                    if laid is None:
+                        laid_seconds, laid = _timed(
+                            lambda n=n, seed=seed: vplace.layout(
+                                scene,
+                                layout_in,
+                                camera_position=prepared.camera_position,
+                                world_to_clip=prepared.world_to_clip,
+                                fit=fitted,
+                                budget=n,
+                                alpha=config.alpha,
+                                cell_px=config.cell_px,
+                                iterate=fit_view and config.iterations > 0,
+                                iterations=max(config.iterations, 1),
+                                seed=seed,
+                                r_min=r_min,
+                            )
+                        )
+                        if fit_view:
+                            laid_seconds += fit_seconds
+                    t = laid_seconds
+                    extra = {
+                        "iteration_errors": list(laid.errors),
+                        "best_iteration": laid.best,
+                        "indirect_source": laid.indirect_source,
+                    }
+                    vpls = apply.VplSet(laid.position, laid.normal, laid.flux)
+                    if method == "vplace+refit":
+                        refit_seconds, refitted = _timed(
+                            lambda laid=laid: vplace.refit(scene, layout_in, laid, r_min=r_min)
+                        )
+                        t += refit_seconds
+                        vpls = apply.VplSet(refitted.position, refitted.normal, refitted.flux)
+                        extra.update(
+                            refit_seconds=refit_seconds,
+                            refit_error_before=refitted.error_before,
+                            refit_error_after=refitted.error_after,
+                        )
+                indirect, stats = pipeline.evaluate_capture(
+                    scene, prepared.capture, vpls, r_min=r_min
+                )
+                estimate = truth_direct + indirect
+                row = Row(
+                    scene_name,
+                    view.name,
+                    view.role,
+                    method,
+                    n,
+                    None,
+                    layout_seconds=t,
+                    evaluate_seconds=float(stats["seconds"]),
+                    seconds=t + float(stats["seconds"]),
+                    shadow_rays=int(stats["shadow_rays"]),
+                    seed=seed if method != "rsm" else None,
+                    extra=extra,
+                    **score(estimate, truth_gi),
+                )
+                rows.append(row)
+                log(
+                    f"[vplace]   {view.name} {method:<13} N={n:<5} seed {seed} "
+                    f"SSIM {row.ssim:.4f} RMSE {row.rmse:.5f} {row.seconds:7.2f} s"
+                )
+                if n == grid_n and seed == config.seeds[0]:
+                    images[method] = estimate
     return rows, images
+
+
+def aggregate(rows: Sequence[Row]) -> list[Row]:
+    """One row per (scene, view, method, budget or samples): the mean over seeds of every
+    metric and time; ``extra`` holds ``seeds`` and ``ssim_std``, ``rmse_std`` (population)."""
+    groups: dict[tuple[Any, ...], list[Row]] = {}
+    for r in rows:
+        groups.setdefault((r.scene, r.view, r.method, r.n_vpls, r.samples), []).append(r)
+    out = []
+    for members in groups.values():
+        first = members[0]
+        mean = {
+            k: float(np.mean([getattr(r, k) for r in members]))
+            for k in ("rmse", "relative_mse", "ssim", "layout_seconds", "evaluate_seconds",
+                      "seconds")
+        }  # fmt: skip
+        out.append(
+            Row(
+                first.scene,
+                first.view,
+                first.role,
+                first.method,
+                first.n_vpls,
+                first.samples,
+                shadow_rays=int(np.mean([r.shadow_rays for r in members])),
+                extra={
+                    "seeds": len(members),
+                    "ssim_std": float(np.std([r.ssim for r in members])),
+                    "rmse_std": float(np.std([r.rmse for r in members])),
+                },
+                **mean,
+            )
+        )
+    return out
 
 
 def reference_rows(view: ViewData, scene_name: str) -> list[Row]:
@@ -358,20 +405,28 @@ def reference_rows(view: ViewData, scene_name: str) -> list[Row]:
     return rows
 
 
-def eevee_preview(
-    bl_scene: bpy.types.Scene, view: ViewData, vpls: apply.VplSet, path: Path
-) -> float:
-    """Renders the scene with ``vpls`` written back, then removes them again."""
+@dataclass
+class Preview:
+    """The VPLs of an EEVEE preview, laid out while the scene was loaded."""
+
+    scene: str
+    camera: str
+    vpls: apply.VplSet
+    diagonal: float
+    resolution: tuple[int, int]
+
+
+def eevee_preview(bl_scene: bpy.types.Scene, preview: Preview, path: Path) -> float:
+    """Renders the scene with the preview's VPLs written back, then removes them again."""
     if apply.find_collection() is not None:
         raise ReportError(
             f"the scene already has a {apply.COLLECTION_NAME!r} collection; the report does "
             "not replace the user's VPLs (run it with --no-eevee, or on a copy)"
         )
-    with camera_view(bl_scene, view.name):
-        apply.write_vpls(bl_scene, vpls, scene_diagonal=view.prepared.scene.diagonal)
+    with camera_view(bl_scene, preview.camera):
+        apply.write_vpls(bl_scene, preview.vpls, scene_diagonal=preview.diagonal)
         try:
-            cap = view.prepared.capture
-            return pipeline.render_eevee_preview(bl_scene, path, (cap.width, cap.height))
+            return pipeline.render_eevee_preview(bl_scene, path, preview.resolution)
         finally:
             apply.clear_vpls()
 
@@ -435,14 +490,18 @@ def run_scene(
             cell_px=config.cell_px,
             iterations=max(config.iterations, 1),
             iterate=config.iterations > 0,
-            seed=config.seed,
+            seed=config.seeds[0],
             r_min=pipeline.R_MIN_FRACTION * fit_view.prepared.scene.diagonal,
         )
-        path = out / f"eevee_{preset.name}.png"
-        vpls = apply.VplSet(laid.position, laid.normal, laid.flux)
-        seconds = eevee_preview(bl_scene, fit_view, vpls, path)
-        log(f"[vplace] EEVEE preview with {grid_n} VPLs: {seconds:.1f} s -> {path}")
-        info["eevee"] = {"file": path.name, "seconds": seconds, "n_vpls": grid_n}
+        cap = fit_view.prepared.capture
+        scale = preset.eevee_scale
+        info["preview"] = Preview(
+            preset.name,
+            fit_view.name,
+            apply.VplSet(laid.position, laid.normal, laid.flux),
+            fit_view.prepared.scene.diagonal,
+            (max(1, round(cap.width * scale)), max(1, round(cap.height * scale))),
+        )
     return rows, info
 
 
@@ -526,7 +585,9 @@ def run_report(
 
         par_rows, _ = bench_par2d.measure(size=256, rays=(4, 16, 64, 256, 1024))
         report_plots.par2d_plot(out / "par2d_speed_error.png", par_rows)
-    checks = targets(rows)
+    previews = [info.pop("preview") for info in scenes.values() if "preview" in info]
+    means = aggregate(rows)
+    checks = targets(means)
     result = {
         "config": {
             **{k: v for k, v in asdict(config).items() if k != "cache_dir"},
@@ -535,17 +596,39 @@ def run_report(
         "seconds": time.perf_counter() - start,
         "scenes": scenes,
         "rows": [row_dict(r) for r in rows],
+        "means": [row_dict(r) for r in means],
         "targets": checks,
         "par2d": par_rows,
     }
     write_csv(out / "results.csv", rows)
-    report_plots.error_vs_time(out, rows)
-    report_plots.error_vs_budget(out / "error_vs_vpls.png", rows)
-    result["files"] = sorted(p.name for p in out.iterdir() if p.is_file())
-    (out / "results.json").write_text(json.dumps(result, indent=2, default=_json_default))
-    (out / "report.md").write_text(markdown(result, rows))
+    report_plots.error_vs_time(out, means)
+    report_plots.error_vs_budget(out / "error_vs_vpls.png", means)
+    _write(out, result, means)
+    # EEVEE last: the slowest step, and the tables are on disk before it starts.
+    for preview in previews:
+        blend = cli.builtin_scene(preview.scene)
+        bpy.ops.wm.open_mainfile(filepath=str(blend))
+        path = out / f"eevee_{preview.scene}.png"
+        log(f"[vplace] EEVEE preview of {preview.scene} ({len(preview.vpls)} VPLs) ...")
+        seconds = eevee_preview(bpy.context.scene, preview, path)
+        log(f"[vplace] EEVEE preview: {seconds:.1f} s -> {path}")
+        scenes[preview.scene]["eevee"] = {
+            "file": path.name,
+            "seconds": seconds,
+            "n_vpls": len(preview.vpls),
+            "resolution": list(preview.resolution),
+        }
+    if previews:
+        result["seconds"] = time.perf_counter() - start
+        _write(out, result, means)
     log(f"[vplace] report written to {out} in {result['seconds']:.0f} s")
     return result
+
+
+def _write(out: Path, result: dict[str, Any], means: list[Row]) -> None:
+    result["files"] = sorted(p.name for p in out.iterdir() if p.is_file())
+    (out / "results.json").write_text(json.dumps(result, indent=2, default=_json_default))
+    (out / "report.md").write_text(markdown(result, means))
 
 
 def _json_default(value: Any) -> Any:
@@ -567,7 +650,7 @@ def row_dict(row: Row) -> dict[str, Any]:
 
 CSV_FIELDS = (
     "scene", "view", "role", "method", "n_vpls", "samples", "rmse", "relative_mse", "ssim",
-    "one_minus_ssim", "layout_seconds", "evaluate_seconds", "seconds", "shadow_rays",
+    "one_minus_ssim", "layout_seconds", "evaluate_seconds", "seconds", "shadow_rays", "seed",
 )  # fmt: skip
 
 
@@ -588,6 +671,11 @@ def _fmt(value: float | None, spec: str) -> str:
     )
 
 
+def _sd(row: Row) -> str:
+    seeds = row.extra.get("seeds", 1)
+    return f" ({row.extra['ssim_std']:.4f})" if seeds > 1 else ""
+
+
 def markdown(result: dict[str, Any], rows: list[Row]) -> str:
     """The human-readable report."""
     lines = ["# vplace report", ""]
@@ -596,7 +684,10 @@ def markdown(result: dict[str, Any], rows: list[Row]) -> str:
         "a high-sample Cycles render of the same view. SSIM on display luminance (DESIGN: "
         "Metrics), RMSE and relative MSE on linear HDR. Time = layout (vplace on the fit view: "
         "with the regression fit) + evaluator; the Cycles capture vplace needs is listed per view. "
-        "Cycles rows: its render time at that sample count, scored against the ground truth.",
+        "Cycles rows: its render time at that sample count, scored against the ground truth. "
+        f"Stochastic layouts (uniform, vplace) run with seeds {list(result['config']['seeds'])}: "
+        "each row is their mean (SSIM standard deviation in brackets); `results.csv` has every "
+        "run.",
         "",
         f"Total report time: {result['seconds']:.0f} s.",
         "",
@@ -613,7 +704,8 @@ def markdown(result: dict[str, Any], rows: list[Row]) -> str:
                 f"truth {v['truth_samples']} spp in {v['truth_seconds']:.1f} s. "
                 f"Image grid: `{v['grid']}`.",
                 "",
-                "| method | N / spp | SSIM | 1 - SSIM | RMSE | rel. MSE | seconds | shadow rays |",
+                "| method | N / spp | SSIM (sd over seeds) | 1 - SSIM | RMSE | rel. MSE | seconds "
+                "| shadow rays |",
                 "|---|---|---|---|---|---|---|---|",
             ]
             for r in rows:
@@ -623,7 +715,7 @@ def markdown(result: dict[str, Any], rows: list[Row]) -> str:
                     r.n_vpls if r.n_vpls is not None else (f"{r.samples} spp" if r.samples else "-")
                 )
                 lines.append(
-                    f"| {r.method} | {count} | {_fmt(r.ssim, '.4f')} "
+                    f"| {r.method} | {count} | {_fmt(r.ssim, '.4f')}{_sd(r)} "
                     f"| {_fmt(r.one_minus_ssim, '.4f')} | {r.rmse:.5f} | {r.relative_mse:.5f} "
                     f"| {r.seconds:.2f} | {r.shadow_rays} |"
                 )
@@ -631,7 +723,8 @@ def markdown(result: dict[str, Any], rows: list[Row]) -> str:
         if "eevee" in info:
             e = info["eevee"]
             lines += [
-                f"EEVEE preview ({e['n_vpls']} VPLs): `{e['file']}`, {e['seconds']:.1f} s.",
+                f"EEVEE preview ({e['n_vpls']} vplace VPLs, {e['resolution'][0]}x"
+                f"{e['resolution'][1]} px): `{e['file']}`, {e['seconds']:.1f} s.",
                 "",
             ]
     if result["targets"]:

@@ -18,7 +18,8 @@ TINY = {
     "capture_samples": 8,
     "truth_samples": 32,
     "cycles_samples": [4],
-    "eevee": False,
+    "seeds": [0, 1],
+    "eevee": True,
     "par2d": False,
 }
 
@@ -65,6 +66,15 @@ def test_tiny_report_scores_every_method_on_both_views(tiny_report):
     held = [r for r in rows if r["role"] == "held-out" and r["method"] == "vplace"]
     assert all(r["extra"]["iteration_errors"] == [] for r in held)
     assert any("report written" in line for line in lines)
+    # Two seeds for the stochastic layouts, one run of the deterministic RSM; means per group.
+    fit_rows = [r for r in rows if r["role"] == "fit" and r["n_vpls"] == 8]
+    assert sorted(r["seed"] for r in fit_rows if r["method"] == "uniform") == [0, 1]
+    assert [r["seed"] for r in fit_rows if r["method"] == "rsm"] == [None]
+    means = {(m["view"], m["method"], m["n_vpls"]): m for m in result["means"]}
+    mean = means[("Cornell camera", "uniform", 8)]
+    runs = [r["ssim"] for r in fit_rows if r["method"] == "uniform"]
+    assert mean["ssim"] == pytest.approx(np.mean(runs)) and mean["extra"]["seeds"] == 2
+    assert mean["extra"]["ssim_std"] == pytest.approx(np.std(runs))
 
 
 @pytest.mark.slow
@@ -80,6 +90,7 @@ def test_tiny_report_writes_csv_json_plots_and_markdown(tiny_report):
     assert sum(n.startswith("grid_cornell") for n in pngs) == 2
     for name in pngs:
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "eevee_cornell.png" in pngs  # the preview of the fit view's vplace layout
     md = (out / "report.md").read_text()
     assert "| vplace | 16 |" in md and "ground truth 32 spp" in md
 

@@ -6,13 +6,23 @@
 //!   `A_p = r^2 * omega_p / |cos|` its world-space footprint (`r` the radial distance from the
 //!   camera, `omega_p` the pixel's solid angle from the camera matrix, `cos` between the normal
 //!   and the view ray, clamped at [`MIN_VIEW_COSINE`]);
-//! - first hits of light rays (Keller's [`uniform_vpls`]) that the camera does not see: they
-//!   stand for the light reflected off screen.
+//! - hits of light paths (Keller's [`light_path_vpls`], every bounce by default) that the camera
+//!   does not see: they stand for the light reflected off screen.
 //!
-//! Strata are the image cells (`cell_px` square, row-major, row 0 at the top) plus one off-screen
-//! stratum (index `cells_x * cells_y`). Stratum `k` holds the flux `F_k`. The budget `N` is split
-//! `n_k = N * lerp(u_k, m_k, alpha)` by largest remainder, with `u_k = lum(F_k) / sum lum(F)`
-//! and `m_k` proportional to `lum(F_k) * max(0, predicted dL_k)`. Strata that hold flux but
+//! Strata are the image cells (`cell_px` square, row-major, row 0 at the top) plus the off-screen
+//! strata (from index `cells_x * cells_y` on). Off-screen emitters differ wildly in how much of
+//! their light reaches what the camera sees (in Sponza most of the sun's reflected flux leaves
+//! the roofs toward the sky), so they are grouped by their *view efficiency* `eta_e`: the mean
+//! unshadowed irradiance-times-albedo they give a sparse grid of the view's covered pixels per
+//! unit flux ([`view_efficiency`]). Emitters with `eta_e = 0` form a dark stratum (the last);
+//! the others [`OFFSCREEN_BINS`] strata of equal view contribution `lum(Phi_e) * eta_e`, by
+//! increasing `eta_e`. Each
+//! off-screen stratum gets the view weight `v_k = mean eta / mean eta of the on-screen
+//! emitters` (flux-weighted means; cells have `v_k = 1`). Stratum `k` holds the flux `F_k`. The
+//! budget `N` is split `n_k = N * lerp(u_k, m_k, alpha)` by largest remainder, with
+//! `u_k = lum(F_k) / sum lum(F)` and `m_k` proportional to `lum(F_k) * max(0, predicted dL_k) *
+//! v_k` (off-screen strata take the flux-weighted mean prediction of the cells). A dark stratum
+//! with flux always keeps one VPL of its own, so its flux never joins another stratum's draw. Strata that hold flux but
 //! receive no VPL are pooled into one group drawn jointly (so no flux is ever lost). Inside a
 //! group, `n` emitters are drawn by luminance flux with systematic sampling; each VPL carries the
 //! luminance `lum(F_group) / n` with its emitter's chromaticity, so the total reflected
@@ -28,6 +38,13 @@ use crate::evaluator::GBuffer;
 use crate::rng::Rng;
 use crate::scene::Scene;
 use crate::vpl::{light_path_vpls, Vpl, LUMINANCE, MAX_BOUNCES};
+
+/// Off-screen strata with a non-zero view efficiency (plus the dark one).
+pub const OFFSCREEN_BINS: usize = 8;
+/// About this many covered pixels sample the view for [`view_efficiency`].
+pub const VIEW_SAMPLES: usize = 1024;
+/// Distance clamp of the view efficiency, as a fraction of the scene diagonal.
+pub const VIEW_R_MIN_FRACTION: f32 = 0.01;
 
 /// Smallest `|cos|` between a pixel's normal and its view ray used for its footprint: bounds
 /// the `1 / cos` of grazing pixels (about 87 degrees).
@@ -99,7 +116,8 @@ pub struct Emitter {
 ///
 /// Invariants: `start.len() == strata() + 1`, non-decreasing, `start[strata()] ==
 /// emitters.len()`; stratum `k` holds `emitters[start[k]..start[k + 1]]` and `flux[k]` is their
-/// sum; the last stratum is the off-screen one.
+/// sum; the strata from [`Strata::offscreen`] on are the off-screen ones (the last one dark);
+/// `view_weight.len() == strata()`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Strata {
     /// Cell size, pixels.
@@ -116,6 +134,9 @@ pub struct Strata {
     pub flux: Vec<Vec3>,
     /// Light-ray hits dropped because the camera sees them (their pixels stand for them).
     pub light_hits_on_screen: usize,
+    /// `v_k`: how efficiently stratum `k` lights the view relative to the on-screen emitters
+    /// (1 for cells, 0 for the dark stratum).
+    pub view_weight: Vec<f64>,
 }
 
 impl Strata {
@@ -125,10 +146,16 @@ impl Strata {
         self.flux.len()
     }
 
-    /// Index of the off-screen stratum.
+    /// Index of the first off-screen stratum (= the number of cells).
     #[must_use]
     pub fn offscreen(&self) -> usize {
         self.cells_x * self.cells_y
+    }
+
+    /// Total flux of the off-screen strata.
+    #[must_use]
+    pub fn offscreen_flux(&self) -> Vec3 {
+        self.flux[self.offscreen()..].iter().copied().sum()
     }
 
     /// Luminance of each `F_k`.
@@ -214,8 +241,9 @@ pub fn build_strata(scene: &Scene, view: &LayoutView<'_>, params: &LayoutParams)
     let cam = view.camera_position;
     let inv = view.world_to_clip.inverse();
     let offset = Vpl::SURFACE_OFFSET * scene.diagonal();
-    let strata_n = cells_x * cells_y + 1;
-    let mut per: Vec<Vec<Emitter>> = vec![Vec::new(); strata_n];
+    let cells = cells_x * cells_y;
+    let mut per: Vec<Vec<Emitter>> = vec![Vec::new(); cells];
+    let mut off: Vec<Emitter> = Vec::new();
     for y in 0..h {
         for x in 0..w {
             let p = y * w + x;
@@ -265,7 +293,7 @@ pub fn build_strata(scene: &Scene, view: &LayoutView<'_>, params: &LayoutParams)
             if seen {
                 light_hits_on_screen += 1;
             } else if v.flux.dot(LUMINANCE) > 0.0 {
-                per[strata_n - 1].push(Emitter {
+                off.push(Emitter {
                     position: v.position,
                     normal: v.normal,
                     flux: v.flux,
@@ -273,9 +301,44 @@ pub fn build_strata(scene: &Scene, view: &LayoutView<'_>, params: &LayoutParams)
             }
         }
     }
-    let mut start = Vec::with_capacity(strata_n + 1);
+    let samples = view_samples(view);
+    let r_min = VIEW_R_MIN_FRACTION * scene.diagonal();
+    let on_screen: Vec<&Emitter> = per.iter().flatten().collect();
+    let step = on_screen.len().div_ceil(VIEW_SAMPLES).max(1);
+    let on_sample: Vec<&Emitter> = on_screen.iter().step_by(step).copied().collect();
+    let on_eta = view_efficiency(&on_sample, &samples, r_min);
+    let on_mean = flux_weighted_mean(&on_sample, &on_eta);
+    let off_eta = view_efficiency(&off.iter().collect::<Vec<_>>(), &samples, r_min);
+    let mut order: Vec<usize> = (0..off.len()).collect();
+    order.sort_by(|&a, &b| off_eta[a].total_cmp(&off_eta[b]).then(a.cmp(&b)));
+    let dark = order.partition_point(|&i| off_eta[i] <= 0.0);
+    // Bins of equal view contribution `lum(flux) * eta`: the efficient emitters, few but bright
+    // in the view, get bins of their own.
+    let contribution = |i: usize| f64::from(off[i].flux.dot(LUMINANCE)) * off_eta[i];
+    let total: f64 = order[dark..].iter().map(|&i| contribution(i)).sum();
+    let mut bins: Vec<Vec<usize>> = vec![Vec::new(); OFFSCREEN_BINS + 1];
+    let mut acc = 0.0;
+    for &i in &order[dark..] {
+        let mid = acc + 0.5 * contribution(i);
+        acc += contribution(i);
+        let b = (mid / total * OFFSCREEN_BINS as f64) as usize;
+        bins[b.min(OFFSCREEN_BINS - 1)].push(i);
+    }
+    bins[OFFSCREEN_BINS] = order[..dark].to_vec();
+    let mut view_weight = vec![1.0; cells];
+    for (b, members) in bins.iter().enumerate() {
+        let group: Vec<&Emitter> = members.iter().map(|&i| &off[i]).collect();
+        let eta: Vec<f64> = members.iter().map(|&i| off_eta[i]).collect();
+        view_weight.push(match (b == OFFSCREEN_BINS, on_mean > 0.0) {
+            (true, _) => 0.0,
+            (false, true) => flux_weighted_mean(&group, &eta) / on_mean,
+            (false, false) => 1.0,
+        });
+        per.push(group.into_iter().cloned().collect());
+    }
+    let mut start = Vec::with_capacity(per.len() + 1);
     let mut emitters = Vec::new();
-    let mut flux = Vec::with_capacity(strata_n);
+    let mut flux = Vec::with_capacity(per.len());
     for s in per {
         start.push(emitters.len());
         flux.push(s.iter().map(|e| e.flux).sum());
@@ -290,7 +353,86 @@ pub fn build_strata(scene: &Scene, view: &LayoutView<'_>, params: &LayoutParams)
         start,
         flux,
         light_hits_on_screen,
+        view_weight,
     })
+}
+
+/// About [`VIEW_SAMPLES`] covered pixels of the view on a regular grid: (position, unit
+/// normal facing the camera, albedo luminance).
+fn view_samples(view: &LayoutView<'_>) -> Vec<(Vec3, Vec3, f32)> {
+    let g = &view.gbuffer;
+    let covered = g.covered.iter().filter(|&&c| c).count();
+    let stride = ((covered as f64 / VIEW_SAMPLES as f64).sqrt().floor() as usize).max(1);
+    let mut out = Vec::new();
+    for y in (stride / 2..g.height).step_by(stride) {
+        for x in (stride / 2..g.width).step_by(stride) {
+            let p = y * g.width + x;
+            if !g.covered[p] {
+                continue;
+            }
+            let pos = vec3(g.position, p);
+            let mut n = vec3(g.normal, p).normalize_or_zero();
+            let albedo = vec3(g.albedo, p).dot(LUMINANCE);
+            if n == Vec3::ZERO || !pos.is_finite() || !albedo.is_finite() {
+                continue;
+            }
+            if n.dot(view.camera_position - pos) < 0.0 {
+                n = -n;
+            }
+            out.push((pos, n, albedo.max(0.0)));
+        }
+    }
+    out
+}
+
+/// The view efficiency `eta_e` of each emitter: the mean over `samples` of
+/// `albedo * max(0, n_e . l) * max(0, -n_p . l) / (pi^2 * max(r^2, r_min^2))` (the radiance an
+/// emitter of unit flux sends back from each sample pixel, no shadow rays). Parallel.
+pub fn view_efficiency(
+    emitters: &[&Emitter],
+    samples: &[(Vec3, Vec3, f32)],
+    r_min: f32,
+) -> Vec<f64> {
+    use rayon::prelude::*;
+    if samples.is_empty() {
+        return vec![0.0; emitters.len()];
+    }
+    let r2_min = r_min * r_min;
+    emitters
+        .par_iter()
+        .map(|e| {
+            let mut sum = 0.0f64;
+            for &(p, n, albedo) in samples {
+                let d = p - e.position;
+                let r2 = d.length_squared();
+                if r2 <= 0.0 {
+                    continue;
+                }
+                let l = d / r2.sqrt();
+                let ce = e.normal.dot(l);
+                let cp = -n.dot(l);
+                if ce > 0.0 && cp > 0.0 {
+                    sum += f64::from(albedo * ce * cp / r2.max(r2_min));
+                }
+            }
+            sum / (samples.len() as f64 * f64::from(PI * PI))
+        })
+        .collect()
+}
+
+/// `sum lum(flux_e) * eta_e / sum lum(flux_e)`, 0 for no flux.
+fn flux_weighted_mean(emitters: &[&Emitter], eta: &[f64]) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for (e, &v) in emitters.iter().zip(eta) {
+        let l = f64::from(e.flux.dot(LUMINANCE));
+        num += l * v;
+        den += l;
+    }
+    if den > 0.0 {
+        num / den
+    } else {
+        0.0
+    }
 }
 
 /// Largest-remainder rounding of `budget * w_k / sum w`: non-negative integers summing to
@@ -321,8 +463,9 @@ pub fn largest_remainder(weights: &[f64], budget: usize) -> Vec<usize> {
 /// The share of each stratum: `lerp(u_k, m_k, alpha)`, summing to 1.
 ///
 /// `predicted` is the predicted `dL` per cell (`cells_y x cells_x`, row-major) or `None`
-/// (uniform); negative predictions count as 0 and the off-screen stratum gets the flux-weighted
-/// mean prediction of the cells. When every `m_k` is 0 the uniform share is used.
+/// (uniform); negative predictions count as 0 and the off-screen strata get the flux-weighted
+/// mean prediction of the cells times their view weight. When every `m_k` is 0 the uniform
+/// share is used.
 pub fn shares(strata: &Strata, predicted: Option<&[f64]>, alpha: f32) -> Result<Vec<f64>> {
     if !(0.0..=1.0).contains(&alpha) {
         return Err(VplaceError::OutOfRange {
@@ -358,12 +501,16 @@ pub fn shares(strata: &Strata, predicted: Option<&[f64]>, alpha: f32) -> Result<
             index,
         });
     }
-    Ok(blend(&u, &importance(&lum, pred), f64::from(alpha)))
+    Ok(blend(
+        &u,
+        &importance(&lum, pred, &strata.view_weight),
+        f64::from(alpha),
+    ))
 }
 
-/// `lum_k * max(0, d_k)` normalized, with the off-screen stratum (last) given the flux-weighted
-/// mean of `d` over the cells; all zeros when nothing is positive.
-pub(crate) fn importance(lum: &[f64], per_cell: &[f64]) -> Vec<f64> {
+/// `lum_k * max(0, d_k) * v_k` normalized, with the off-screen strata (after the cells) given
+/// the flux-weighted mean of `d` over the cells; all zeros when nothing is positive.
+pub(crate) fn importance(lum: &[f64], per_cell: &[f64], view_weight: &[f64]) -> Vec<f64> {
     let cells = per_cell.len();
     let cell_lum: f64 = lum[..cells].iter().sum();
     let mean = if cell_lum > 0.0 {
@@ -376,11 +523,11 @@ pub(crate) fn importance(lum: &[f64], per_cell: &[f64]) -> Vec<f64> {
     } else {
         0.0
     };
-    let mut m: Vec<f64> = per_cell
-        .iter()
-        .chain(std::iter::once(&mean))
-        .zip(lum)
-        .map(|(d, l)| d.max(0.0) * l)
+    let mut m: Vec<f64> = (0..lum.len())
+        .map(|k| {
+            let d = if k < cells { per_cell[k] } else { mean };
+            d.max(0.0) * lum[k] * view_weight[k]
+        })
         .collect();
     let total: f64 = m.iter().sum();
     if total > 0.0 {
@@ -437,6 +584,21 @@ pub fn allocate(strata: &Strata, shares: &[f64], budget: usize) -> Result<Alloca
         .map(|(&s, &l)| if l > 0.0 { s } else { 0.0 })
         .collect();
     let mut counts = largest_remainder(&w, budget);
+    // A dark stratum (view weight 0) with flux keeps one VPL of its own: pooled, its large flux
+    // would swamp the draw of the cells it is pooled with.
+    for k in 0..counts.len() {
+        if lum[k] > 0.0 && counts[k] == 0 && strata.view_weight[k] == 0.0 {
+            let (most, &c) = counts
+                .iter()
+                .enumerate()
+                .max_by(|a, b| a.1.cmp(b.1).then(b.0.cmp(&a.0)))
+                .expect("at least one stratum");
+            if c >= 2 {
+                counts[most] -= 1;
+                counts[k] = 1;
+            }
+        }
+    }
     let pool: Vec<usize> = (0..counts.len())
         .filter(|&k| lum[k] > 0.0 && counts[k] == 0)
         .collect();
@@ -685,7 +847,7 @@ mod tests {
             ..LayoutParams::DEFAULT
         };
         let s = build_strata(&scene, &fv.view(), &params).unwrap();
-        assert_eq!(s.strata(), 4 * 4 + 1);
+        assert_eq!(s.strata(), 4 * 4 + OFFSCREEN_BINS + 1);
         assert_eq!(s.emitters.len(), 32 * 32);
         // Reference by fine numerical integration over the floor.
         let m = 400;
@@ -823,6 +985,58 @@ mod tests {
         .unwrap();
         let lum = |s: &Strata| s.flux[s.offscreen()].dot(LUMINANCE);
         assert!(lum(&all) > 1.2 * lum(&s), "{} {}", lum(&all), lum(&s));
+    }
+
+    #[test]
+    fn view_efficiency_sees_only_what_faces_the_view() {
+        let samples = [(Vec3::ZERO, Vec3::Z, 0.5)];
+        let e = |z: f32, nz: f32| Emitter {
+            position: Vec3::new(0.0, 0.0, z),
+            normal: Vec3::new(0.0, 0.0, nz),
+            flux: Vec3::ONE,
+        };
+        let (down1, down2, up) = (e(1.0, -1.0), e(2.0, -1.0), e(1.0, 1.0));
+        let eta = view_efficiency(&[&down1, &down2, &up], &samples, 0.01);
+        assert!((eta[0] - 0.5 / (PI * PI) as f64).abs() < 1e-6, "{eta:?}");
+        assert!((eta[0] / eta[1] - 4.0).abs() < 1e-4); // inverse square
+        assert_eq!(eta[2], 0.0); // faces away: dark
+        assert!(view_efficiency(&[&down1], &[], 0.01) == vec![0.0]);
+    }
+
+    #[test]
+    fn offscreen_strata_by_view_efficiency_and_the_dark_one_keeps_a_vpl() {
+        let (scene, fv) = setup();
+        let params = LayoutParams {
+            cell_px: 8,
+            light_rays: 2000,
+            ..LayoutParams::DEFAULT
+        };
+        let mut s = build_strata(&scene, &fv.view(), &params).unwrap();
+        let k0 = s.offscreen();
+        assert_eq!(s.view_weight.len(), s.strata());
+        assert!(s.view_weight[..k0].iter().all(|&v| v == 1.0));
+        // Bins by increasing efficiency; the last (dark) one has weight 0.
+        let lit = &s.view_weight[k0..k0 + OFFSCREEN_BINS];
+        assert!(lit.windows(2).all(|w| w[0] <= w[1]), "{lit:?}");
+        assert_eq!(s.view_weight[s.strata() - 1], 0.0);
+        // Make a dark stratum with flux: fully guided, it still gets one VPL of its own and
+        // the total flux does not change.
+        let last = s.strata() - 1;
+        let moved = s.start[last] - s.start[k0 + OFFSCREEN_BINS - 1];
+        assert!(moved > 0);
+        s.start[last] = s.start[k0 + OFFSCREEN_BINS - 1];
+        s.flux[last] = s.emitters[s.start[last]..s.start[last + 1]]
+            .iter()
+            .map(|e| e.flux)
+            .sum();
+        s.flux[last - 1] = Vec3::ZERO;
+        let pred = vec![1.0; k0];
+        let a = allocate(&s, &shares(&s, Some(&pred), 1.0).unwrap(), 64).unwrap();
+        assert_eq!(a.counts[last], 1);
+        let v = draw(&s, &a, 3);
+        let total: f64 = v.iter().map(|v| f64::from(v.flux.dot(LUMINANCE))).sum();
+        let expect: f64 = s.luminance().iter().sum();
+        assert!((total - expect).abs() < 1e-4 * expect, "{total} {expect}");
     }
 
     #[test]

@@ -232,7 +232,7 @@ pub fn refine(
                 *r /= f64::from(c);
             }
         }
-        let target = importance(&lum, &residual);
+        let target = importance(&lum, &residual, &strata.view_weight);
         q = blend(&q, &target, params.step);
     }
     Ok(Refined {

@@ -27,6 +27,11 @@ fn counts_grid<'py>(
         .into_any())
 }
 
+/// VPLs the allocation gives the off-screen strata.
+fn offscreen_count(strata: &Strata, a: &Allocation) -> usize {
+    a.counts[strata.offscreen()..].iter().sum()
+}
+
 /// Lays out `budget` VPLs for one view (DESIGN, Layout) and, when `indirect` is given, refines
 /// the allocation against it. See `vplace.layout` for the arguments and the returned dict.
 #[pyfunction]
@@ -117,7 +122,7 @@ fn layout<'py>(
             let vd = vpls_to_dict(py, &r.vpls)?;
             d.update(vd.as_mapping())?;
             d.set_item("counts", counts_grid(py, &r.strata, best)?)?;
-            d.set_item("offscreen_count", best.counts[r.strata.offscreen()])?;
+            d.set_item("offscreen_count", offscreen_count(&r.strata, best))?;
             d.set_item("pool_count", best.pool_count)?;
             d.set_item(
                 "errors",
@@ -145,7 +150,7 @@ fn layout<'py>(
             let vd = vpls_to_dict(py, &vpls)?;
             d.update(vd.as_mapping())?;
             d.set_item("counts", counts_grid(py, &strata, &a)?)?;
-            d.set_item("offscreen_count", a.counts[strata.offscreen()])?;
+            d.set_item("offscreen_count", offscreen_count(&strata, &a))?;
             d.set_item("pool_count", a.pool_count)?;
             d.set_item("errors", Vec::<f64>::new())?;
             d.set_item("shadow_rays", Vec::<u64>::new())?;
@@ -164,7 +169,8 @@ fn set_strata(py: Python<'_>, d: &Bound<'_, PyDict>, s: &Strata) -> PyResult<()>
         "strata_flux",
         PyArray1::from_vec(py, flux).reshape([s.cells_y, s.cells_x, 3])?,
     )?;
-    d.set_item("offscreen_flux", s.flux[cells].to_array())?;
+    d.set_item("offscreen_flux", s.offscreen_flux().to_array())?;
+    d.set_item("offscreen_view_weight", s.view_weight[cells..].to_vec())?;
     d.set_item("candidates", s.emitters.len())?;
     d.set_item("light_hits_on_screen", s.light_hits_on_screen)?;
     Ok(())

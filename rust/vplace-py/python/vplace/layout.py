@@ -44,7 +44,7 @@ class Layout:
     counts: np.ndarray
     """VPLs drawn from each cell, int64 (cells_y, cells_x)."""
     offscreen_count: int
-    """VPLs drawn from the off-screen stratum."""
+    """VPLs drawn from the off-screen strata."""
     pool_count: int
     """VPLs drawn jointly from the cells that hold flux but got no VPL of their own."""
     errors: list[float] = field(default_factory=list)
@@ -56,6 +56,10 @@ class Layout:
     strata_flux: np.ndarray | None = None
     """Reflected flux of each cell's candidates, float32 (cells_y, cells_x, 3)."""
     offscreen_flux: list[float] = field(default_factory=list)
+    """Total RGB flux of the off-screen strata."""
+    offscreen_view_weight: list[float] = field(default_factory=list)
+    """View weight of each off-screen stratum, by increasing view efficiency, then the dark one
+    (0): how well its emitters light what the camera sees, relative to the on-screen ones."""
     candidates: int = 0
     light_hits_on_screen: int = 0
     indirect_source: str = "none"
