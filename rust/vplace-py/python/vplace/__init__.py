@@ -23,6 +23,7 @@ from vplace._native import (
 )
 from vplace.fit import FitResult, extract_features, fit, fit_design
 from vplace.layout import Layout, layout
+from vplace.refit import Refit, refit
 
 __all__ = [
     "CancelledError",
@@ -32,6 +33,7 @@ __all__ = [
     "Layout",
     "Light",
     "Progress",
+    "Refit",
     "Scene",
     "VplaceError",
     "__version__",
@@ -40,6 +42,7 @@ __all__ = [
     "fit",
     "fit_design",
     "layout",
+    "refit",
     "relative_mse",
     "rmse",
     "rsm_vpls",
