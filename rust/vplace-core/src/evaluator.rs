@@ -168,6 +168,86 @@ pub fn validate_vpls(vpls: &[Vpl]) -> Result<()> {
     Ok(())
 }
 
+/// Checks the distance clamp `r_min`: finite and `>= 0`.
+pub(crate) fn check_r_min(r_min: f32) -> Result<()> {
+    if r_min >= 0.0 && r_min.is_finite() {
+        Ok(())
+    } else {
+        Err(VplaceError::OutOfRange {
+            what: "r_min".into(),
+            value: r_min.to_string(),
+            expected: ">= 0 and finite".into(),
+        })
+    }
+}
+
+/// A covered pixel ready to receive VPL light: the one place where the shading of one VPL at one
+/// pixel is written (the evaluator sums it over VPLs, the refit keeps it per VPL).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Receiver {
+    /// World position.
+    pub position: Vec3,
+    /// Unit shading normal (zero where the G-buffer normal is zero).
+    pub normal: Vec3,
+    /// Diffuse BRDF `albedo / pi`.
+    pub brdf: Vec3,
+    /// Start of the shadow rays: the position pushed off the surface by the ray epsilon.
+    pub origin: Vec3,
+}
+
+impl Receiver {
+    /// The receiver at pixel `p` of `gbuffer`; `eps` is [`Scene::ray_epsilon`].
+    #[must_use]
+    pub fn new(gbuffer: &GBuffer, p: usize, eps: f32) -> Self {
+        let position = GBuffer::vec3(gbuffer.position, p);
+        let normal = GBuffer::vec3(gbuffer.normal, p).normalize_or_zero();
+        Self {
+            position,
+            normal,
+            brdf: GBuffer::vec3(gbuffer.albedo, p) / PI,
+            origin: position + normal * eps,
+        }
+    }
+
+    /// The irradiance-like term of VPL `v` here, before the BRDF:
+    /// `Phi * I(-l) * max(0, n.l) / max(r^2, r_min_sq) * V`, `V` from one shadow ray
+    /// `occluded(origin, v.position)`. `None` when the term is zero without a ray (the VPL is
+    /// behind the receiver, the receiver behind a cosine VPL, or they coincide): then no ray is
+    /// traced. `Some` means exactly one ray was traced (the value is zero when it was blocked).
+    #[inline]
+    pub fn incident(
+        &self,
+        v: &Vpl,
+        profile: Profile,
+        r_min_sq: f32,
+        occluded: impl Fn(Vec3, Vec3) -> bool,
+    ) -> Option<Vec3> {
+        let d = v.position - self.position;
+        let r2 = d.length_squared();
+        if r2 <= 0.0 {
+            return None;
+        }
+        let l = d / r2.sqrt();
+        let cos_r = self.normal.dot(l);
+        if cos_r <= 0.0 {
+            return None;
+        }
+        let i = profile.intensity_per_flux(-v.normal.dot(l));
+        if i <= 0.0 {
+            return None;
+        }
+        let c = v.flux * (i * cos_r / r2.max(r_min_sq));
+        if c == Vec3::ZERO {
+            return None;
+        }
+        Some(if occluded(self.origin, v.position) {
+            Vec3::ZERO
+        } else {
+            c
+        })
+    }
+}
+
 /// Renders the indirect radiance of `vpls` at every covered pixel of `gbuffer` (`H x W x 3`).
 pub fn evaluate(
     scene: &Scene,
@@ -205,13 +285,7 @@ fn evaluate_with(
 ) -> Result<(Vec<f32>, EvalStats)> {
     gbuffer.validate()?;
     validate_vpls(vpls)?;
-    if !(params.r_min >= 0.0 && params.r_min.is_finite()) {
-        return Err(VplaceError::OutOfRange {
-            what: "r_min".into(),
-            value: params.r_min.to_string(),
-            expected: ">= 0 and finite".into(),
-        });
-    }
+    check_r_min(params.r_min)?;
     if params.tile == 0 {
         return Err(VplaceError::OutOfRange {
             what: "tile".into(),
@@ -246,36 +320,15 @@ fn evaluate_with(
                     if !gbuffer.covered[p] {
                         continue;
                     }
-                    let pos = GBuffer::vec3(gbuffer.position, p);
-                    let n = GBuffer::vec3(gbuffer.normal, p).normalize_or_zero();
-                    let rho = GBuffer::vec3(gbuffer.albedo, p);
-                    let origin = pos + n * eps;
+                    let recv = Receiver::new(gbuffer, p, eps);
                     let mut sum = Vec3::ZERO;
                     for v in vpls {
-                        let d = v.position - pos;
-                        let r2 = d.length_squared();
-                        if r2 <= 0.0 {
-                            continue;
-                        }
-                        let l = d / r2.sqrt();
-                        let cos_r = n.dot(l);
-                        if cos_r <= 0.0 {
-                            continue;
-                        }
-                        let i = params.profile.intensity_per_flux(-v.normal.dot(l));
-                        if i <= 0.0 {
-                            continue;
-                        }
-                        let c = v.flux * (i * cos_r / r2.max(r_min2));
-                        if c == Vec3::ZERO {
-                            continue;
-                        }
-                        tile_rays += 1;
-                        if !occluded(origin, v.position) {
+                        if let Some(c) = recv.incident(v, params.profile, r_min2, &occluded) {
+                            tile_rays += 1;
                             sum += c;
                         }
                     }
-                    out.push((p, rho / PI * sum));
+                    out.push((p, recv.brdf * sum));
                 }
             }
             rays.fetch_add(tile_rays, Ordering::Relaxed);

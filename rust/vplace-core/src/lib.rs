@@ -40,6 +40,7 @@ pub mod layout;
 pub mod metrics;
 pub mod par2d;
 pub mod refine;
+pub mod refit;
 pub mod regression;
 pub mod rng;
 pub mod rsm;

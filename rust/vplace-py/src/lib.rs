@@ -11,6 +11,7 @@ mod errors;
 mod fit;
 mod layout;
 mod par2d;
+mod refit;
 mod scene;
 
 #[pymodule]
@@ -21,5 +22,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     fit::register(m)?;
     layout::register(m)?;
     par2d::register(m)?;
+    refit::register(m)?;
     Ok(())
 }

@@ -24,6 +24,7 @@ from vplace._native import (
 )
 from vplace.fit import FitResult, extract_features, fit, fit_design
 from vplace.layout import Layout, layout
+from vplace.refit import Refit, refit
 
 __all__ = [
     "MAX_BOUNCES",
@@ -34,6 +35,7 @@ __all__ = [
     "Layout",
     "Light",
     "Progress",
+    "Refit",
     "Scene",
     "VplaceError",
     "__version__",
@@ -42,6 +44,7 @@ __all__ = [
     "fit",
     "fit_design",
     "layout",
+    "refit",
     "relative_mse",
     "rmse",
     "rsm_vpls",

@@ -211,3 +211,22 @@ def layout(
 ) -> dict[str, Any]: ...
 def rsm_vpls(scene: Scene, n: int) -> dict[str, npt.NDArray[np.float32]]: ...
 def ssim(image: npt.NDArray[np.float32], reference: npt.NDArray[np.float32]) -> float: ...
+
+# --- refit of VPL powers (refit.rs) -------------------------------------------------------
+def refit(
+    scene: Scene,
+    position: npt.NDArray[np.float32],
+    normal: npt.NDArray[np.float32],
+    albedo: npt.NDArray[np.float32],
+    covered: npt.NDArray[np.bool_],
+    vpl_position: npt.NDArray[np.float32],
+    vpl_normal: npt.NDArray[np.float32],
+    vpl_flux: npt.NDArray[np.float32],
+    indirect: npt.NDArray[np.float32],
+    *,
+    stride: int = 4,
+    ridge: float = 0.001,
+    profile: str = "cosine",
+    r_min: float = 0.01,
+    progress: Progress | None = None,
+) -> dict[str, Any]: ...
