@@ -25,8 +25,13 @@ import numpy as np
 from vplace import _native
 from vplace.layout import _get, _need
 
-DEFAULT_RIDGE = 1e-3
-"""The default ``ridge``: the pull toward scale 1, relative to the mean diagonal of ``A^T A``."""
+DEFAULT_RIDGE = 0.1
+"""The default ``ridge``: the pull toward scale 1, relative to the mean diagonal of ``A^T A``.
+
+Measured on the report's fit views (256 vplace VPLs, stride 4): with 1e-3 the refit zeroes
+about half the VPLs and overfits the strided pixels (Cornell: full-resolution RMSE 0.0088 ->
+0.0183 on one seed while the strided error fell); 0.1 keeps almost every VPL and improves the
+full-resolution image on both scenes (Sponza SSIM 0.80 -> 0.87, Cornell 0.962 -> 0.977)."""
 
 
 @dataclass(frozen=True)
