@@ -59,9 +59,13 @@ def test_recovers_known_scales(setup):
     assert np.array_equal(out.position, base["position"])
     assert np.array_equal(out.normal, base["normal"])
     assert out.shadow_rays == 6 * out.pixels and out.seconds > 0
-    # The default ridge pulls a little toward 1; still close.
+    # The default ridge pulls toward 1 (a trade: less error reduction on this tiny case, no
+    # overfitting on real views), and a weaker one lands closer to the truth.
     near = vplace.refit(scene, capture, base, indirect=target, stride=2)
-    np.testing.assert_allclose(near.scales[:6], truth[:6], atol=0.05)
+    weak = vplace.refit(scene, capture, base, indirect=target, stride=2, ridge=1e-3)
+    assert weak.error_after < near.error_after < near.error_before
+    np.testing.assert_allclose(weak.scales[:6], truth[:6], atol=0.05)
+    assert np.abs(near.scales[:6] - 1).sum() < np.abs(weak.scales[:6] - 1).sum()
 
 
 def test_never_worse_and_deterministic(setup):
