@@ -73,8 +73,11 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     demo.add_argument("--samples", type=int, default=256, help="Cycles samples of the capture")
     demo.add_argument("--seed", type=int, default=0)
     demo.add_argument("--cell-px", type=int, default=16, help="regression grid cell, pixels")
-    demo.add_argument("--method", choices=("uniform", "vplace", "rsm"), default="uniform")
-    demo.add_argument("--alpha", type=float, default=0.5, help="0 uniform .. 1 regression-guided")
+    demo.add_argument("--method", choices=("uniform", "vplace", "rsm"), default="vplace")
+    demo.add_argument("--alpha", type=float, default=1.0, help="0 uniform .. 1 regression-guided")
+    demo.add_argument(
+        "--no-refit", action="store_true", help="vplace: keep the layout's VPL powers"
+    )
     demo.add_argument("--iterations", type=int, default=3, help="layout iterations (cap)")
     demo.add_argument("--feature-mode", choices=("auto", "all"), default="auto")
     demo.add_argument("--profile", choices=("cosine", "omni"), default="cosine")
@@ -176,6 +179,7 @@ def main(argv: list[str] | None = None) -> int:
         cell_px=args.cell_px,
         method=args.method,
         alpha=args.alpha,
+        refit=not args.no_refit,
         iterations=args.iterations,
         feature_mode=args.feature_mode,
     )

@@ -114,10 +114,12 @@ class Job:
     #: Distance clamp (m); None: 1% of the scene's diagonal (VPL spacing grows with the scene).
     r_min: float | None = None
     cell_px: int = 16
-    #: "uniform" (Keller), "vplace" (regression-guided layout) or "rsm". Uniform is the default
-    #: while the guided layout does not yet beat it in the measured reports (issue 4).
-    method: str = "uniform"
-    alpha: float = 0.5
+    #: "vplace" (regression-guided layout; the default: it beats the others in the report at
+    #: equal N), "uniform" (Keller's light paths) or "rsm".
+    method: str = "vplace"
+    alpha: float = 1.0
+    #: vplace only: refit the VPL powers to the captured indirect image (non-negative LS).
+    refit: bool = True
     iterations: int = 3
     #: "auto": drop features that do not raise CV R^2; "all": keep every usable feature.
     feature_mode: str = "auto"
@@ -135,6 +137,7 @@ class Job:
             cell_px=settings.cell_px,
             method=settings.method,
             alpha=settings.alpha,
+            refit=settings.refit,
             iterations=settings.iterations,
             feature_mode=settings.feature_mode,
             cache_dir=cache_dir,
@@ -240,6 +243,13 @@ def compute(
             )
         vpls = apply.VplSet(laid.position, laid.normal, laid.flux)
         layout_info = {"iteration_errors": list(laid.errors), "best_iteration": laid.best}
+        if job.refit:
+            with timer.stage("refit VPL powers"):
+                refitted = vplace.refit(
+                    scene, layout_input(prepared), laid, profile=job.profile, r_min=r_min
+                )
+            vpls = apply.VplSet(refitted.position, refitted.normal, refitted.flux)
+            layout_info["refit_error"] = [refitted.error_before, refitted.error_after]
     elif job.method == "uniform":
         with timer.stage(f"uniform VPLs (n={job.n_vpls})"):
             vpls = vpl_set(

@@ -7,6 +7,7 @@ from typing import Any
 
 import bpy
 from bpy.props import (
+    BoolProperty,
     EnumProperty,
     FloatProperty,
     IntProperty,
@@ -20,7 +21,7 @@ PROFILE_ITEMS = [
 ]
 METHOD_ITEMS = [
     ("vplace", "Regression-guided", "The paper's layout: more VPLs where indirect light is strong"),
-    ("uniform", "Uniform", "Keller's instant radiosity: first hits of light rays"),
+    ("uniform", "Uniform", "Keller's instant radiosity: light paths, every bounce"),
     ("rsm", "RSM", "A regular grid over each light's view (reflective shadow maps)"),
 ]
 FEATURE_MODE_ITEMS = [
@@ -41,7 +42,7 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
     alpha: FloatProperty(  # type: ignore[valid-type]
         name="Alpha",
         description="0: uniform layout, 1: fully regression-guided",
-        default=0.5,
+        default=1.0,
         min=0.0,
         max=1.0,
     )
@@ -63,7 +64,13 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
     feature_mode: EnumProperty(  # type: ignore[valid-type]
         name="Features", items=FEATURE_MODE_ITEMS, default="auto"
     )
-    method: EnumProperty(name="Layout", items=METHOD_ITEMS, default="uniform")  # type: ignore[valid-type]
+    method: EnumProperty(name="Layout", items=METHOD_ITEMS, default="vplace")  # type: ignore[valid-type]
+    refit: BoolProperty(  # type: ignore[valid-type]
+        name="Refit powers",
+        description="Regression-guided layout: fit the VPL powers to the captured indirect light "
+        "(non-negative least squares)",
+        default=True,
+    )
     seed: IntProperty(name="Seed", default=0, min=0)  # type: ignore[valid-type]
     # Results of the last run, as JSON (kept in the .blend).
     last_report: StringProperty(name="Last report", default="")  # type: ignore[valid-type]

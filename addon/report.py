@@ -583,7 +583,8 @@ def run_report(
     if config.par2d:
         from vplace import bench_par2d
 
-        par_rows, _ = bench_par2d.measure(size=256, rays=(4, 16, 64, 256, 1024))
+        # The benchmark scene of vplace.bench_par2d: 512x512, 8 lights, 64 occluders.
+        par_rows, _ = bench_par2d.measure(size=512, rays=(4, 16, 64, 256))
         report_plots.par2d_plot(out / "par2d_speed_error.png", par_rows)
     previews = [info.pop("preview") for info in scenes.values() if "preview" in info]
     means = aggregate(rows)

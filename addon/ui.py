@@ -29,6 +29,7 @@ class VPLACE_PT_main(bpy.types.Panel):
         col.prop(settings, "profile")
         col.prop(settings, "cell_px")
         col.prop(settings, "alpha")
+        col.prop(settings, "refit")
         col.prop(settings, "iterations")
         col.prop(settings, "feature_mode")
         col = layout.column(align=True)

@@ -77,6 +77,8 @@ def test_apply_with_each_layout_method(registered, method):
     if method == "vplace":
         errors = report["evaluator"]["iteration_errors"]
         assert errors and report["evaluator"]["best_iteration"] == errors.index(min(errors))
+        before, after = report["evaluator"]["refit_error"]  # the refit is on by default
+        assert after <= before
 
 
 def test_capture_fit_and_report_operators_leave_the_scene_as_it_was(registered, tmp_path):
@@ -90,7 +92,7 @@ def test_capture_fit_and_report_operators_leave_the_scene_as_it_was(registered, 
     assert vplace.FitResult.from_json(scene.vplace.model_json).kept == fit["kept"]
     assert bpy.ops.vplace.report(directory=str(tmp_path)) == {"FINISHED"}
     report = json.loads((tmp_path / "report.json").read_text())
-    assert set(report["baselines"]) == {"vplace", "rsm"}
+    assert report["method"] == "vplace" and set(report["baselines"]) == {"uniform", "rsm"}
     assert not (tmp_path / "scene.blend").exists()  # a report does not write back
     assert apply.find_collection() is None
     assert diff(before, data_snapshot()) == []

@@ -59,6 +59,7 @@ def test_panel_shows_settings_buttons_and_last_results(scene):
         "vpl_budget",
         "cell_px",
         "alpha",
+        "refit",
         "iterations",
         "resolution_x",
         "resolution_y",

@@ -48,8 +48,8 @@ def test_main_job_writes_everything_and_vpls_bring_eevee_close_to_cycles(tmp_pat
     assert coll is not None and len(coll.objects) == 64
     assert all(o.get(VPL_MARKER) for o in coll.objects)
     # EEVEE with the VPLs is as bright as the evaluator's direct + VPL image, and clearly
-    # brighter than direct light alone. (Both stay below Cycles GI: first-hit VPLs carry one
-    # bounce; the Cornell box's further bounces are missing by design of the uniform layout.)
+    # brighter than direct light alone; with every bounce (pixel emitters reflect DiffDir +
+    # DiffInd) and the power refit, the evaluator's image is as bright as Cycles GI.
     gi = luminance(load_png_linear(tmp_path / "cycles_gi.png")).mean()
     eevee = luminance(load_png_linear(tmp_path / "eevee_vpl.png")).mean()
     direct = luminance(load_png_linear(tmp_path / "direct.png")).mean()
@@ -60,4 +60,4 @@ def test_main_job_writes_everything_and_vpls_bring_eevee_close_to_cycles(tmp_pat
     )
     assert abs(eevee / ours - 1) < 0.15
     assert eevee > 1.15 * direct
-    assert direct < ours < gi
+    assert direct < ours and abs(ours / gi - 1) < 0.1
