@@ -78,6 +78,10 @@ pub const MIN_RIDGE: f64 = 1e-9;
 /// At most this many block exchanges before the solver falls back to coordinate descent.
 pub const MAX_EXCHANGES: usize = 64;
 
+/// The most VPLs one refit takes: its `n x n` matrices (three of them at once, f64) stay below
+/// about 1.6 GB.
+pub const MAX_VPLS: usize = 8192;
+
 /// The result of [`refit`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct Refitted {
@@ -317,9 +321,10 @@ fn nnls_bpp(
 /// Refits the flux of `vpls` against the indirect image `indirect` (`I = G - D`, `H x W x 3`,
 /// finite on covered pixels) over the covered pixels of the strided grid of `gbuffer`.
 ///
-/// Errors: shape mismatches, non-finite values on covered pixels, no VPLs, `stride == 0`, a
-/// negative or non-finite `ridge` or `r_min`, [`VplaceError::Cancelled`]. A grid without a
-/// covered pixel leaves every scale at 1 with both errors 0.
+/// Errors: shape mismatches, non-finite values on covered pixels, no VPLs or more than
+/// [`MAX_VPLS`], `stride == 0`, a negative or non-finite `ridge` or `r_min`,
+/// [`VplaceError::Cancelled`]. A grid without a covered pixel leaves every scale at 1 with both
+/// errors 0.
 pub fn refit(
     scene: &Scene,
     gbuffer: &GBuffer,
@@ -336,6 +341,13 @@ pub fn refit(
         return Err(VplaceError::Empty {
             what: "VPLs".into(),
             hint: "the refit needs at least one VPL".into(),
+        });
+    }
+    if vpls.len() > MAX_VPLS {
+        return Err(VplaceError::OutOfRange {
+            what: "number of VPLs".into(),
+            value: vpls.len().to_string(),
+            expected: format!("<= {MAX_VPLS} for the refit"),
         });
     }
     if params.stride == 0 {
@@ -686,6 +698,10 @@ mod tests {
         assert!(matches!(
             refit(&scene, &g, &[], &target, &ok, None),
             Err(VplaceError::Empty { .. })
+        ));
+        assert!(matches!(
+            refit(&scene, &g, &vec![base[0]; MAX_VPLS + 1], &target, &ok, None),
+            Err(VplaceError::OutOfRange { .. })
         ));
         for p in [
             RefitParams { stride: 0, ..ok },
