@@ -16,8 +16,8 @@
 //! **How.** `A` is never stored: the strided pixels are traced in blocks (rayon over the block's
 //! pixels), and each block's rows are added to the Gram matrix `A^T A` (f64, blocked GEMM,
 //! rayon over column panels of the upper triangle), to `A^T b` and `b^T b`. Memory is
-//! `O(n^2 + block * n)`, the time one shadow ray per (pixel, VPL) pair plus `1.5 * rows * n^2`
-//! multiply-adds. The errors come from the same quadratic form:
+//! `O(n^2 + block * n)`, the time one shadow ray per (pixel, VPL) pair plus `rows * n^2 / 2`
+//! multiply-adds (`rows` = 3 x pixels). The errors come from the same quadratic form:
 //! `||A s - b||^2 = s^T A^T A s - 2 s^T A^T b + b^T b`.
 //!
 //! **Solver.** Block principal pivoting (Kim and Park 2011) on the KKT conditions of the
@@ -126,7 +126,7 @@ fn normal_equations(
     progress: Option<&Progress>,
 ) -> Result<Normal> {
     let n = vpls.len();
-    // About 8 MB of rows per block, 128..1024 pixels.
+    // About 24 MB of rows per block (3 rows of n f64 per pixel), 128..1024 pixels.
     let block = ((1usize << 20) / n).clamp(128, 1024);
     let blocks = pixels.len().div_ceil(block);
     if let Some(p) = progress {
