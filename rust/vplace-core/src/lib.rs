@@ -18,6 +18,8 @@
 //!    remainder, flux-proportional draws that keep the total flux; [`refine`]: the iteration that
 //!    evaluates the layout, compares it per cell with the indirect image and moves budget toward
 //!    high residuals, returning the best layout; [`rsm`]: the reflective-shadow-map baseline.
+//! 6. [`refit`]: the optional non-negative least-squares refit of the VPL powers against the
+//!    indirect image.
 //!
 //! ```
 //! use vplace_core::{scene::{Scene, Light}, vpl::{uniform_vpls, Profile}};

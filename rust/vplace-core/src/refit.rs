@@ -16,8 +16,8 @@
 //! **How.** `A` is never stored: the strided pixels are traced in blocks (rayon over the block's
 //! pixels), and each block's rows are added to the Gram matrix `A^T A` (f64, blocked GEMM,
 //! rayon over column panels of the upper triangle), to `A^T b` and `b^T b`. Memory is
-//! `O(n^2 + block * n)`, the time one shadow ray per (pixel, VPL) pair plus `1.5 * rows * n^2`
-//! multiply-adds. The errors come from the same quadratic form:
+//! `O(n^2 + block * n)`, the time one shadow ray per (pixel, VPL) pair plus `rows * n^2 / 2`
+//! multiply-adds (`rows` = 3 x pixels). The errors come from the same quadratic form:
 //! `||A s - b||^2 = s^T A^T A s - 2 s^T A^T b + b^T b`.
 //!
 //! **Solver.** Block principal pivoting (Kim and Park 2011) on the KKT conditions of the
@@ -78,6 +78,10 @@ pub const MIN_RIDGE: f64 = 1e-9;
 /// At most this many block exchanges before the solver falls back to coordinate descent.
 pub const MAX_EXCHANGES: usize = 64;
 
+/// The most VPLs one refit takes: its `n x n` matrices (three of them at once, f64) stay below
+/// about 1.6 GB.
+pub const MAX_VPLS: usize = 8192;
+
 /// The result of [`refit`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct Refitted {
@@ -122,7 +126,7 @@ fn normal_equations(
     progress: Option<&Progress>,
 ) -> Result<Normal> {
     let n = vpls.len();
-    // About 8 MB of rows per block, 128..1024 pixels.
+    // About 24 MB of rows per block (3 rows of n f64 per pixel), 128..1024 pixels.
     let block = ((1usize << 20) / n).clamp(128, 1024);
     let blocks = pixels.len().div_ceil(block);
     if let Some(p) = progress {
@@ -317,9 +321,10 @@ fn nnls_bpp(
 /// Refits the flux of `vpls` against the indirect image `indirect` (`I = G - D`, `H x W x 3`,
 /// finite on covered pixels) over the covered pixels of the strided grid of `gbuffer`.
 ///
-/// Errors: shape mismatches, non-finite values on covered pixels, no VPLs, `stride == 0`, a
-/// negative or non-finite `ridge` or `r_min`, [`VplaceError::Cancelled`]. A grid without a
-/// covered pixel leaves every scale at 1 with both errors 0.
+/// Errors: shape mismatches, non-finite values on covered pixels, no VPLs or more than
+/// [`MAX_VPLS`], `stride == 0`, a negative or non-finite `ridge` or `r_min`,
+/// [`VplaceError::Cancelled`]. A grid without a covered pixel leaves every scale at 1 with both
+/// errors 0.
 pub fn refit(
     scene: &Scene,
     gbuffer: &GBuffer,
@@ -336,6 +341,13 @@ pub fn refit(
         return Err(VplaceError::Empty {
             what: "VPLs".into(),
             hint: "the refit needs at least one VPL".into(),
+        });
+    }
+    if vpls.len() > MAX_VPLS {
+        return Err(VplaceError::OutOfRange {
+            what: "number of VPLs".into(),
+            value: vpls.len().to_string(),
+            expected: format!("<= {MAX_VPLS} for the refit"),
         });
     }
     if params.stride == 0 {
@@ -686,6 +698,10 @@ mod tests {
         assert!(matches!(
             refit(&scene, &g, &[], &target, &ok, None),
             Err(VplaceError::Empty { .. })
+        ));
+        assert!(matches!(
+            refit(&scene, &g, &vec![base[0]; MAX_VPLS + 1], &target, &ok, None),
+            Err(VplaceError::OutOfRange { .. })
         ));
         for p in [
             RefitParams { stride: 0, ..ok },
