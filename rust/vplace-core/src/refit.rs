@@ -57,12 +57,12 @@ pub struct RefitParams {
 }
 
 impl RefitParams {
-    /// Cosine profile, 1 cm clamp, quarter resolution, ridge `1e-3`.
+    /// Cosine profile, 1 cm clamp, quarter resolution, ridge `0.1`.
     pub const DEFAULT: Self = Self {
         profile: Profile::Cosine,
         r_min: 0.01,
         stride: 4,
-        ridge: 1e-3,
+        ridge: 0.1,
     };
 }
 

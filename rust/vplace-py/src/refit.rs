@@ -19,7 +19,7 @@ use crate::scene::{parse_profile, read_vpls, vpls_to_dict, PyProgress, PyScene};
 /// `shadow_rays`, `exchanges`, `seconds`.
 #[pyfunction]
 #[pyo3(signature = (scene, position, normal, albedo, covered, vpl_position, vpl_normal, vpl_flux,
-    indirect, *, stride = 4, ridge = 1e-3, profile = "cosine",
+    indirect, *, stride = 4, ridge = 0.1, profile = "cosine",
     r_min = 0.01, progress = None))]
 #[allow(clippy::too_many_arguments)]
 fn refit<'py>(

@@ -225,7 +225,7 @@ def refit(
     indirect: npt.NDArray[np.float32],
     *,
     stride: int = 4,
-    ridge: float = 0.001,
+    ridge: float = 0.1,
     profile: str = "cosine",
     r_min: float = 0.01,
     progress: Progress | None = None,
