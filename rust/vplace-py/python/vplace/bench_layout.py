@@ -173,7 +173,7 @@ def main(argv: list[str] | None = None) -> None:
     scene, triangles = build_scene(args.grid)
     cap = synthetic_capture(args.width, args.height)
     g = (cap["position"], cap["normal"], cap["albedo"], cap["covered"])
-    ref = _native.uniform_vpls(scene, 1024, seed=11)
+    ref = _native.uniform_vpls(scene, 1024, seed=11, bounces=_native.MAX_BOUNCES)
     ind, _ = _native.evaluate(scene, *g, ref["position"], ref["normal"], ref["flux"])
     cap["gi"] = (cap["direct"] + ind).astype(np.float32)
     kw = {"camera_position": cap["camera_position"], "world_to_clip": cap["world_to_clip"]}
