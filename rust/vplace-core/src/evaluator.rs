@@ -7,7 +7,8 @@
 //! square pixel tiles run in parallel with rayon; each tile polls the cancel flag of
 //! [`Progress`].
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
+use obvhs::{cwbvh::Traversal, ray::Ray};
 use rayon::prelude::*;
 use std::f32::consts::PI;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
@@ -176,8 +177,8 @@ pub fn evaluate(
     params: &EvalParams,
     progress: Option<&Progress>,
 ) -> Result<(Vec<f32>, EvalStats)> {
-    evaluate_with(scene, gbuffer, vpls, params, progress, |a, b| {
-        scene.occluded(a, b)
+    evaluate_with(scene, gbuffer, vpls, params, progress, |state, ray| {
+        scene.occluded_ray(state, ray)
     })
 }
 
@@ -190,9 +191,156 @@ pub fn evaluate_brute_force(
     params: &EvalParams,
     progress: Option<&Progress>,
 ) -> Result<(Vec<f32>, EvalStats)> {
-    evaluate_with(scene, gbuffer, vpls, params, progress, |a, b| {
-        scene.occluded_brute_force(a, b)
+    evaluate_with(scene, gbuffer, vpls, params, progress, |_, ray| {
+        scene.occluded_ray_brute_force(ray)
     })
+}
+
+/// The VPLs in structure-of-arrays form for the per-pixel batch of [`Pairs::prepare`].
+struct VplSoa {
+    px: Vec<f32>,
+    py: Vec<f32>,
+    pz: Vec<f32>,
+    mx: Vec<f32>,
+    my: Vec<f32>,
+    mz: Vec<f32>,
+    flux: Vec<Vec3>,
+}
+
+impl VplSoa {
+    fn new(vpls: &[Vpl]) -> Self {
+        let col = |f: fn(&Vpl) -> f32| vpls.iter().map(f).collect::<Vec<f32>>();
+        Self {
+            px: col(|v| v.position.x),
+            py: col(|v| v.position.y),
+            pz: col(|v| v.position.z),
+            mx: col(|v| v.normal.x),
+            my: col(|v| v.normal.y),
+            mz: col(|v| v.normal.z),
+            flux: vpls.iter().map(|v| v.flux).collect(),
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.flux.len()
+    }
+}
+
+/// One pixel against every VPL, computed in a batch the compiler vectorizes: the unshadowed
+/// scale `G = I(cos_e) * cos_r / max(r^2, r_min^2)` of each pair (0 when the pair gives
+/// nothing: behind the receiver or the VPL) and its shadow ray, with the operations of the
+/// scalar formula in the same order so that every value is bit for bit the same.
+struct Pairs {
+    scale: Vec<f32>,
+    len: Vec<f32>,
+    dx: Vec<f32>,
+    dy: Vec<f32>,
+    dz: Vec<f32>,
+    ix: Vec<f32>,
+    iy: Vec<f32>,
+    iz: Vec<f32>,
+}
+
+/// `obvhs::ray::safe_inverse`, as `Ray::new` computes it.
+#[inline(always)]
+fn safe_inverse(x: f32) -> f32 {
+    if x.abs() <= f32::EPSILON {
+        x.signum() / f32::EPSILON
+    } else {
+        1.0 / x
+    }
+}
+
+impl Pairs {
+    fn new(n: usize) -> Self {
+        let z = || vec![0.0f32; n];
+        Self {
+            scale: z(),
+            len: z(),
+            dx: z(),
+            dy: z(),
+            dz: z(),
+            ix: z(),
+            iy: z(),
+            iz: z(),
+        }
+    }
+
+    fn prepare(
+        &mut self,
+        v: &VplSoa,
+        pos: Vec3,
+        n: Vec3,
+        origin: Vec3,
+        profile: Profile,
+        r_min2: f32,
+    ) {
+        match profile {
+            Profile::Cosine => self.prepare_with::<true>(v, pos, n, origin, r_min2),
+            Profile::Omni => self.prepare_with::<false>(v, pos, n, origin, r_min2),
+        }
+    }
+
+    #[inline(always)]
+    fn prepare_with<const COSINE: bool>(
+        &mut self,
+        v: &VplSoa,
+        pos: Vec3,
+        n: Vec3,
+        origin: Vec3,
+        r_min2: f32,
+    ) {
+        let m = v.len();
+        let (px, py, pz) = (&v.px[..m], &v.py[..m], &v.pz[..m]);
+        let (mx, my, mz) = (&v.mx[..m], &v.my[..m], &v.mz[..m]);
+        let scale = &mut self.scale[..m];
+        let len = &mut self.len[..m];
+        let (dx, dy, dz) = (&mut self.dx[..m], &mut self.dy[..m], &mut self.dz[..m]);
+        let (ix, iy, iz) = (&mut self.ix[..m], &mut self.iy[..m], &mut self.iz[..m]);
+        for j in 0..m {
+            // Shading, as `evaluate` wrote it per pair.
+            let (ex, ey, ez) = (px[j] - pos.x, py[j] - pos.y, pz[j] - pos.z);
+            let r2 = (ex * ex) + (ey * ey) + (ez * ez);
+            let r = r2.sqrt();
+            let (lx, ly, lz) = (ex / r, ey / r, ez / r);
+            let cos_r = (n.x * lx) + (n.y * ly) + (n.z * lz);
+            let i = if COSINE {
+                let cos_e = -((mx[j] * lx) + (my[j] * ly) + (mz[j] * lz));
+                Profile::Cosine.intensity_per_flux(cos_e)
+            } else {
+                Profile::Omni.intensity_per_flux(0.0)
+            };
+            let s = i * cos_r / r2.max(r_min2);
+            scale[j] = if r2 > 0.0 && cos_r > 0.0 && i > 0.0 {
+                s
+            } else {
+                0.0
+            };
+            // The shadow ray from `origin`, as `Scene::occluded` and `Ray::new` make it.
+            let (ox, oy, oz) = (px[j] - origin.x, py[j] - origin.y, pz[j] - origin.z);
+            let l = ((ox * ox) + (oy * oy) + (oz * oz)).sqrt();
+            let (ux, uy, uz) = (ox / l, oy / l, oz / l);
+            len[j] = l;
+            (dx[j], dy[j], dz[j]) = (ux, uy, uz);
+            (ix[j], iy[j], iz[j]) = (safe_inverse(ux), safe_inverse(uy), safe_inverse(uz));
+        }
+    }
+
+    /// Whether the shadow ray of pair `j` is blocked, by `occluded`; a zero-length ray is not.
+    #[inline(always)]
+    fn ray_occluded(&self, j: usize, origin: Vec3, occluded: impl FnOnce(&Ray) -> bool) -> bool {
+        let len = self.len[j];
+        if len <= 0.0 {
+            return false;
+        }
+        occluded(&Ray {
+            origin: Vec3A::from(origin),
+            direction: Vec3A::new(self.dx[j], self.dy[j], self.dz[j]),
+            inv_direction: Vec3A::new(self.ix[j], self.iy[j], self.iz[j]),
+            tmin: 0.0,
+            tmax: len,
+        })
+    }
 }
 
 fn evaluate_with(
@@ -201,7 +349,7 @@ fn evaluate_with(
     vpls: &[Vpl],
     params: &EvalParams,
     progress: Option<&Progress>,
-    occluded: impl Fn(Vec3, Vec3) -> bool + Sync,
+    occluded: impl Fn(&mut Traversal, &Ray) -> bool + Sync,
 ) -> Result<(Vec<f32>, EvalStats)> {
     gbuffer.validate()?;
     validate_vpls(vpls)?;
@@ -228,6 +376,7 @@ fn evaluate_with(
         p.total.store(tiles.len(), Ordering::Relaxed);
         p.done.store(0, Ordering::Relaxed);
     }
+    let soa = VplSoa::new(vpls);
     let rays = AtomicU64::new(0);
     let eps = scene.ray_epsilon();
     let r_min2 = params.r_min * params.r_min;
@@ -240,6 +389,8 @@ fn evaluate_with(
             }
             let mut out = Vec::with_capacity(t * t);
             let mut tile_rays = 0u64;
+            let mut state = scene.shadow_state();
+            let mut pairs = Pairs::new(soa.len());
             for y in y0..(y0 + t).min(h) {
                 for x in x0..(x0 + t).min(w) {
                     let p = y * w + x;
@@ -250,28 +401,19 @@ fn evaluate_with(
                     let n = GBuffer::vec3(gbuffer.normal, p).normalize_or_zero();
                     let rho = GBuffer::vec3(gbuffer.albedo, p);
                     let origin = pos + n * eps;
+                    pairs.prepare(&soa, pos, n, origin, params.profile, r_min2);
                     let mut sum = Vec3::ZERO;
-                    for v in vpls {
-                        let d = v.position - pos;
-                        let r2 = d.length_squared();
-                        if r2 <= 0.0 {
+                    for (j, &flux) in soa.flux.iter().enumerate() {
+                        let s = pairs.scale[j];
+                        if s == 0.0 {
                             continue;
                         }
-                        let l = d / r2.sqrt();
-                        let cos_r = n.dot(l);
-                        if cos_r <= 0.0 {
-                            continue;
-                        }
-                        let i = params.profile.intensity_per_flux(-v.normal.dot(l));
-                        if i <= 0.0 {
-                            continue;
-                        }
-                        let c = v.flux * (i * cos_r / r2.max(r_min2));
+                        let c = flux * s;
                         if c == Vec3::ZERO {
                             continue;
                         }
                         tile_rays += 1;
-                        if !occluded(origin, v.position) {
+                        if !pairs.ray_occluded(j, origin, |ray| occluded(&mut state, ray)) {
                             sum += c;
                         }
                     }

@@ -1,9 +1,9 @@
 //! The scene model: world-space triangles with per-triangle albedo, the scene's lights, and an
 //! obvhs compressed-wide BVH for closest-hit and shadow rays.
 
-use glam::{Vec3, Vec3A};
+use glam::{UVec2, Vec3, Vec3A};
 use obvhs::{
-    cwbvh::{builder::build_cwbvh_from_tris, CwBvh},
+    cwbvh::{builder::build_cwbvh_from_tris, CwBvh, Traversal},
     ray::{Ray, RayHit},
     triangle::Triangle,
     BvhBuildParams,
@@ -395,6 +395,45 @@ impl Scene {
             .ray_traverse_miss(ray, |r, id| self.bvh_triangles[id].intersect(r))
     }
 
+    /// A traversal state for [`Scene::occluded_with`], reused from ray to ray (a fresh one per
+    /// ray zeroes its stack every time).
+    pub(crate) fn shadow_state(&self) -> Traversal {
+        self.bvh.new_traversal(Vec3A::X)
+    }
+
+    /// [`Scene::occluded`] for a prepared shadow ray (unit direction, `tmin` 0, `tmax` the
+    /// segment's length), with a reused traversal state: the same answer as `occluded`.
+    #[inline]
+    pub(crate) fn occluded_ray(&self, state: &mut Traversal, ray: &Ray) -> bool {
+        state.reinit(ray.direction);
+        let mut node;
+        let mut hit = false;
+        'any: {
+            obvhs::traverse!(
+                self.bvh,
+                node,
+                *state,
+                node.intersect_ray(ray, state.oct_inv4),
+                {
+                    let t = self.bvh_triangles[state.primitive_id as usize].intersect(ray);
+                    if t < ray.tmax {
+                        hit = true;
+                        break 'any;
+                    }
+                }
+            );
+        }
+        hit
+    }
+
+    /// [`Scene::occluded_ray`] testing every triangle (see [`Scene::occluded_brute_force`]).
+    pub(crate) fn occluded_ray_brute_force(&self, ray: &Ray) -> bool {
+        self.bvh_triangles.iter().any(|t| {
+            let h = t.intersect(ray);
+            h > ray.tmin && h < ray.tmax
+        })
+    }
+
     /// [`Scene::occluded`] without the BVH: tests every triangle. A baseline for benchmarks.
     #[must_use]
     pub fn occluded_brute_force(&self, from: Vec3, to: Vec3) -> bool {
@@ -404,10 +443,7 @@ impl Scene {
             return false;
         }
         let ray = Ray::new(Vec3A::from(from), Vec3A::from(d / len), 0.0, len);
-        self.bvh_triangles.iter().any(|t| {
-            let h = t.intersect(&ray);
-            h > ray.tmin && h < ray.tmax
-        })
+        self.occluded_ray_brute_force(&ray)
     }
 }
 
