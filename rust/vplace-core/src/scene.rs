@@ -455,6 +455,19 @@ pub(crate) mod test_util {
     /// An open box `[-1, 1]^2 x [0, 2]` (floor, four walls, ceiling) with inward-facing
     /// triangles, albedo 0.5, and `lights`.
     pub fn closed_box(lights: Vec<Light>) -> Scene {
+        box_with(lights, &[])
+    }
+
+    /// A horizontal quad over the middle of the floor of [`closed_box`], 0.5 above it.
+    pub const BLOCKER: [Vec3; 4] = [
+        Vec3::new(-0.4, -0.3, 0.5),
+        Vec3::new(0.3, -0.3, 0.5),
+        Vec3::new(0.3, 0.4, 0.5),
+        Vec3::new(-0.4, 0.4, 0.5),
+    ];
+
+    /// [`closed_box`] with extra quads (corners in order) inside it, e.g. occluders.
+    pub fn box_with(lights: Vec<Light>, extra: &[[Vec3; 4]]) -> Scene {
         let mut v = Vec::new();
         let mut t = Vec::new();
         let mut quad = |a: Vec3, b: Vec3, c: Vec3, d: Vec3| {
@@ -490,6 +503,9 @@ pub(crate) mod test_util {
             p(1., -1., 2.),
             p(1., -1., 0.),
         ); // y = -1
+        for &[a, b, c, d] in extra {
+            quad(a, b, c, d);
+        }
         let ids = vec![0; t.len()];
         Scene::build(&v, &t, &ids, &[Vec3::splat(0.5)], lights).unwrap()
     }
