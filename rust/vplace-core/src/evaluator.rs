@@ -7,8 +7,10 @@
 //! square pixel tiles run in parallel with rayon; each tile polls the cancel flag of
 //! [`Progress`].
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
+use obvhs::{cwbvh::Traversal, ray::Ray};
 use rayon::prelude::*;
+use std::collections::HashMap;
 use std::f32::consts::PI;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::time::Instant;
@@ -256,9 +258,15 @@ pub fn evaluate(
     params: &EvalParams,
     progress: Option<&Progress>,
 ) -> Result<(Vec<f32>, EvalStats)> {
-    evaluate_with(scene, gbuffer, vpls, params, progress, |a, b| {
-        scene.occluded(a, b)
-    })
+    evaluate_with(
+        scene,
+        gbuffer,
+        vpls,
+        params,
+        progress,
+        None,
+        |state, ray| scene.occluded_ray(state, ray),
+    )
 }
 
 /// [`evaluate`] with shadow rays that test every triangle instead of the BVH
@@ -270,9 +278,212 @@ pub fn evaluate_brute_force(
     params: &EvalParams,
     progress: Option<&Progress>,
 ) -> Result<(Vec<f32>, EvalStats)> {
-    evaluate_with(scene, gbuffer, vpls, params, progress, |a, b| {
-        scene.occluded_brute_force(a, b)
+    evaluate_with(scene, gbuffer, vpls, params, progress, None, |_, ray| {
+        scene.occluded_ray_brute_force(ray)
     })
+}
+
+/// The shadow-ray answers of one evaluation, kept for the next evaluation of the same G-buffer
+/// in the same scene (the layout iterations): a VPL of the next set at the same position (bit
+/// for bit) as one of this set gets its answers from here instead of new rays. Visibility depends
+/// only on the two ends of the ray, so the image is bit for bit the one [`evaluate`] renders; only
+/// the number of rays traced changes.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct ShadowCache {
+    width: usize,
+    height: usize,
+    /// The positions of the VPLs the bits are indexed by, bit patterns, first occurrence.
+    keys: HashMap<[u32; 3], usize>,
+    /// `u64` words per pixel in `known` and `visible`.
+    words: usize,
+    /// Per pixel, bit `j`: the pair (pixel, VPL `j`) was traced.
+    known: Vec<u64>,
+    /// Per pixel, bit `j`: its shadow ray was not blocked.
+    visible: Vec<u64>,
+    /// Pairs answered from the cache in the last evaluation instead of a ray.
+    pub reused: u64,
+}
+
+impl ShadowCache {
+    /// The cached answer for pixel `p` and VPL `k` of the cached set, if it was traced.
+    #[inline]
+    fn lookup(&self, p: usize, k: usize) -> Option<bool> {
+        let (word, bit) = (self.words * p + k / 64, k % 64);
+        (self.known[word] >> bit & 1 == 1).then(|| self.visible[word] >> bit & 1 == 1)
+    }
+}
+
+fn position_key(v: &Vpl) -> [u32; 3] {
+    v.position.to_array().map(f32::to_bits)
+}
+
+/// [`evaluate`] that answers the shadow rays of VPLs already evaluated at the same positions from
+/// `cache` and stores this evaluation's answers there. `stats.shadow_rays` counts the rays traced;
+/// `cache.reused` the pairs answered from the cache.
+pub(crate) fn evaluate_cached(
+    scene: &Scene,
+    gbuffer: &GBuffer,
+    vpls: &[Vpl],
+    params: &EvalParams,
+    progress: Option<&Progress>,
+    cache: &mut ShadowCache,
+) -> Result<(Vec<f32>, EvalStats)> {
+    evaluate_with(
+        scene,
+        gbuffer,
+        vpls,
+        params,
+        progress,
+        Some(cache),
+        |state, ray| scene.occluded_ray(state, ray),
+    )
+}
+
+/// The VPLs in structure-of-arrays form for the per-pixel batch of [`Pairs::prepare`].
+struct VplSoa {
+    px: Vec<f32>,
+    py: Vec<f32>,
+    pz: Vec<f32>,
+    mx: Vec<f32>,
+    my: Vec<f32>,
+    mz: Vec<f32>,
+    flux: Vec<Vec3>,
+}
+
+impl VplSoa {
+    fn new(vpls: &[Vpl]) -> Self {
+        let col = |f: fn(&Vpl) -> f32| vpls.iter().map(f).collect::<Vec<f32>>();
+        Self {
+            px: col(|v| v.position.x),
+            py: col(|v| v.position.y),
+            pz: col(|v| v.position.z),
+            mx: col(|v| v.normal.x),
+            my: col(|v| v.normal.y),
+            mz: col(|v| v.normal.z),
+            flux: vpls.iter().map(|v| v.flux).collect(),
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.flux.len()
+    }
+}
+
+/// One pixel against every VPL, computed in a batch the compiler vectorizes: the unshadowed
+/// scale `G = I(cos_e) * cos_r / max(r^2, r_min^2)` of each pair (0 when the pair gives
+/// nothing: behind the receiver or the VPL) and its shadow ray, with the operations of the
+/// scalar formula in the same order so that every value is bit for bit the same.
+struct Pairs {
+    scale: Vec<f32>,
+    len: Vec<f32>,
+    dx: Vec<f32>,
+    dy: Vec<f32>,
+    dz: Vec<f32>,
+    ix: Vec<f32>,
+    iy: Vec<f32>,
+    iz: Vec<f32>,
+}
+
+/// `obvhs::ray::safe_inverse`, as `Ray::new` computes it.
+#[inline(always)]
+fn safe_inverse(x: f32) -> f32 {
+    if x.abs() <= f32::EPSILON {
+        x.signum() / f32::EPSILON
+    } else {
+        1.0 / x
+    }
+}
+
+impl Pairs {
+    fn new(n: usize) -> Self {
+        let z = || vec![0.0f32; n];
+        Self {
+            scale: z(),
+            len: z(),
+            dx: z(),
+            dy: z(),
+            dz: z(),
+            ix: z(),
+            iy: z(),
+            iz: z(),
+        }
+    }
+
+    fn prepare(
+        &mut self,
+        v: &VplSoa,
+        pos: Vec3,
+        n: Vec3,
+        origin: Vec3,
+        profile: Profile,
+        r_min2: f32,
+    ) {
+        match profile {
+            Profile::Cosine => self.prepare_with::<true>(v, pos, n, origin, r_min2),
+            Profile::Omni => self.prepare_with::<false>(v, pos, n, origin, r_min2),
+        }
+    }
+
+    #[inline(always)]
+    fn prepare_with<const COSINE: bool>(
+        &mut self,
+        v: &VplSoa,
+        pos: Vec3,
+        n: Vec3,
+        origin: Vec3,
+        r_min2: f32,
+    ) {
+        let m = v.len();
+        let (px, py, pz) = (&v.px[..m], &v.py[..m], &v.pz[..m]);
+        let (mx, my, mz) = (&v.mx[..m], &v.my[..m], &v.mz[..m]);
+        let scale = &mut self.scale[..m];
+        let len = &mut self.len[..m];
+        let (dx, dy, dz) = (&mut self.dx[..m], &mut self.dy[..m], &mut self.dz[..m]);
+        let (ix, iy, iz) = (&mut self.ix[..m], &mut self.iy[..m], &mut self.iz[..m]);
+        for j in 0..m {
+            // Shading, as `evaluate` wrote it per pair.
+            let (ex, ey, ez) = (px[j] - pos.x, py[j] - pos.y, pz[j] - pos.z);
+            let r2 = (ex * ex) + (ey * ey) + (ez * ez);
+            let r = r2.sqrt();
+            let (lx, ly, lz) = (ex / r, ey / r, ez / r);
+            let cos_r = (n.x * lx) + (n.y * ly) + (n.z * lz);
+            let i = if COSINE {
+                let cos_e = -((mx[j] * lx) + (my[j] * ly) + (mz[j] * lz));
+                Profile::Cosine.intensity_per_flux(cos_e)
+            } else {
+                Profile::Omni.intensity_per_flux(0.0)
+            };
+            let s = i * cos_r / r2.max(r_min2);
+            scale[j] = if r2 > 0.0 && cos_r > 0.0 && i > 0.0 {
+                s
+            } else {
+                0.0
+            };
+            // The shadow ray from `origin`, as `Scene::occluded` and `Ray::new` make it.
+            let (ox, oy, oz) = (px[j] - origin.x, py[j] - origin.y, pz[j] - origin.z);
+            let l = ((ox * ox) + (oy * oy) + (oz * oz)).sqrt();
+            let (ux, uy, uz) = (ox / l, oy / l, oz / l);
+            len[j] = l;
+            (dx[j], dy[j], dz[j]) = (ux, uy, uz);
+            (ix[j], iy[j], iz[j]) = (safe_inverse(ux), safe_inverse(uy), safe_inverse(uz));
+        }
+    }
+
+    /// Whether the shadow ray of pair `j` is blocked, by `occluded`; a zero-length ray is not.
+    #[inline(always)]
+    fn ray_occluded(&self, j: usize, origin: Vec3, occluded: impl FnOnce(&Ray) -> bool) -> bool {
+        let len = self.len[j];
+        if len <= 0.0 {
+            return false;
+        }
+        occluded(&Ray {
+            origin: Vec3A::from(origin),
+            direction: Vec3A::new(self.dx[j], self.dy[j], self.dz[j]),
+            inv_direction: Vec3A::new(self.ix[j], self.iy[j], self.iz[j]),
+            tmin: 0.0,
+            tmax: len,
+        })
+    }
 }
 
 fn evaluate_with(
@@ -281,7 +492,8 @@ fn evaluate_with(
     vpls: &[Vpl],
     params: &EvalParams,
     progress: Option<&Progress>,
-    occluded: impl Fn(Vec3, Vec3) -> bool + Sync,
+    cache: Option<&mut ShadowCache>,
+    occluded: impl Fn(&mut Traversal, &Ray) -> bool + Sync,
 ) -> Result<(Vec<f32>, EvalStats)> {
     gbuffer.validate()?;
     validate_vpls(vpls)?;
@@ -302,50 +514,126 @@ fn evaluate_with(
         p.total.store(tiles.len(), Ordering::Relaxed);
         p.done.store(0, Ordering::Relaxed);
     }
+    let soa = VplSoa::new(vpls);
+    // With a cache: the index of each VPL in the cached set (if there), the cache's bits, and
+    // the size of this evaluation's bit rows.
+    let old = cache
+        .as_deref()
+        .filter(|c| c.width == w && c.height == h && c.words > 0);
+    let previous: Vec<Option<usize>> = match old {
+        Some(c) => vpls
+            .iter()
+            .map(|v| c.keys.get(&position_key(v)).copied())
+            .collect(),
+        None => vec![None; vpls.len()],
+    };
+    let words = if cache.is_some() {
+        vpls.len().div_ceil(64)
+    } else {
+        0
+    };
     let rays = AtomicU64::new(0);
+    let reused = AtomicU64::new(0);
     let eps = scene.ray_epsilon();
     let r_min2 = params.r_min * params.r_min;
     let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
-    let results: Vec<Option<Vec<(usize, Vec3)>>> = tiles
+    type Tile = (Vec<(usize, Vec3)>, Vec<u64>);
+    let results: Vec<Option<Tile>> = tiles
         .par_iter()
         .map(|&(x0, y0)| {
             if cancelled() {
                 return None;
             }
             let mut out = Vec::with_capacity(t * t);
+            // Per pixel of `out`: its `known` then its `visible` words.
+            let mut bits = Vec::with_capacity(2 * words * t * t);
             let mut tile_rays = 0u64;
+            let mut tile_reused = 0u64;
+            let mut state = scene.shadow_state();
+            let mut pairs = Pairs::new(soa.len());
             for y in y0..(y0 + t).min(h) {
                 for x in x0..(x0 + t).min(w) {
                     let p = y * w + x;
                     if !gbuffer.covered[p] {
                         continue;
                     }
-                    let recv = Receiver::new(gbuffer, p, eps);
+                    let pos = GBuffer::vec3(gbuffer.position, p);
+                    let n = GBuffer::vec3(gbuffer.normal, p).normalize_or_zero();
+                    let rho = GBuffer::vec3(gbuffer.albedo, p);
+                    let origin = pos + n * eps;
+                    pairs.prepare(&soa, pos, n, origin, params.profile, r_min2);
+                    let row = bits.len();
+                    bits.resize(row + 2 * words, 0);
+                    let (known, visible) = bits[row..].split_at_mut(words);
                     let mut sum = Vec3::ZERO;
-                    for v in vpls {
-                        if let Some(c) = recv.incident(v, params.profile, r_min2, &occluded) {
+                    for (j, &flux) in soa.flux.iter().enumerate() {
+                        let s = pairs.scale[j];
+                        if s == 0.0 {
+                            continue;
+                        }
+                        let c = flux * s;
+                        if c == Vec3::ZERO {
+                            continue;
+                        }
+                        let cached = match (old, previous[j]) {
+                            (Some(cache), Some(k)) => cache.lookup(p, k),
+                            _ => None,
+                        };
+                        let lit = if let Some(lit) = cached {
+                            tile_reused += 1;
+                            lit
+                        } else {
                             tile_rays += 1;
+                            !pairs.ray_occluded(j, origin, |ray| occluded(&mut state, ray))
+                        };
+                        if words > 0 {
+                            known[j / 64] |= 1 << (j % 64);
+                            visible[j / 64] |= u64::from(lit) << (j % 64);
+                        }
+                        if lit {
                             sum += c;
                         }
                     }
-                    out.push((p, recv.brdf * sum));
+                    out.push((p, rho / PI * sum));
                 }
             }
             rays.fetch_add(tile_rays, Ordering::Relaxed);
+            reused.fetch_add(tile_reused, Ordering::Relaxed);
             if let Some(pr) = progress {
                 pr.done.fetch_add(1, Ordering::Relaxed);
             }
-            Some(out)
+            Some((out, bits))
         })
         .collect();
     if cancelled() {
         return Err(VplaceError::Cancelled);
     }
     let mut image = vec![0.0f32; w * h * 3];
-    for tile in results.into_iter().flatten() {
-        for (p, c) in tile {
+    let (mut known, mut visible) = (vec![0u64; w * h * words], vec![0u64; w * h * words]);
+    for (tile, bits) in results.into_iter().flatten() {
+        for (i, (p, c)) in tile.into_iter().enumerate() {
             image[3 * p..3 * p + 3].copy_from_slice(&c.to_array());
+            if words > 0 {
+                let row = &bits[2 * words * i..2 * words * (i + 1)];
+                known[words * p..words * (p + 1)].copy_from_slice(&row[..words]);
+                visible[words * p..words * (p + 1)].copy_from_slice(&row[words..]);
+            }
         }
+    }
+    if let Some(cache) = cache {
+        let mut keys = HashMap::with_capacity(vpls.len());
+        for (j, v) in vpls.iter().enumerate() {
+            keys.entry(position_key(v)).or_insert(j);
+        }
+        *cache = ShadowCache {
+            width: w,
+            height: h,
+            keys,
+            words,
+            known,
+            visible,
+            reused: reused.into_inner(),
+        };
     }
     let covered = gbuffer.covered.iter().filter(|&&c| c).count() as u64;
     Ok((
@@ -361,7 +649,7 @@ fn evaluate_with(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::test_util::closed_box;
+    use crate::scene::test_util::{box_with, closed_box, BLOCKER};
 
     /// A `w x w` G-buffer of the floor of the test box, z = 0, normal +Z.
     fn floor_gbuffer(w: usize) -> (Vec<f32>, Vec<f32>, Vec<f32>, Vec<bool>) {
@@ -525,5 +813,82 @@ mod tests {
             flux: Vec3::ONE,
         };
         assert!(evaluate(&scene, &g, &[bad], &EvalParams::PREVIEW, None).is_err());
+    }
+
+    #[test]
+    fn cached_shadow_rays_give_the_same_image() {
+        let scene = box_with(vec![], &[BLOCKER]);
+        let (pos, normal, albedo, mut covered) = floor_gbuffer(12);
+        covered[5] = false;
+        let g = GBuffer {
+            width: 12,
+            height: 12,
+            position: &pos,
+            normal: &normal,
+            albedo: &albedo,
+            covered: &covered,
+        };
+        let mut rng = crate::rng::Rng::new(4, 0);
+        let mut r = || rng.next_f32();
+        // VPLs on the ceiling and walls, all facing into the box.
+        let mut vpl = || {
+            let (a, b, c) = (2.0 * r() - 1.0, 2.0 * r() - 1.0, r());
+            let (position, normal) = match (3.0 * c) as u32 {
+                0 => (Vec3::new(a, b, 1.99), Vec3::NEG_Z),
+                1 => (Vec3::new(0.99, a, 1.0 + b), Vec3::NEG_X),
+                _ => (Vec3::new(a, -0.99, 1.0 + b), Vec3::Y),
+            };
+            Vpl {
+                position,
+                normal,
+                flux: Vec3::new(1.0 + r(), 0.5, 2.0 * r()),
+            }
+        };
+        let first: Vec<Vpl> = (0..150).map(|_| vpl()).collect();
+        // The next set: some VPLs kept (other flux, other order, duplicated), some new.
+        let mut second: Vec<Vpl> = (0..40).map(|_| vpl()).collect();
+        for (i, v) in first.iter().enumerate().step_by(3) {
+            second.push(Vpl {
+                flux: v.flux * (0.5 + i as f32 / 100.0),
+                ..*v
+            });
+        }
+        second.push(second[45]);
+        second.swap(3, 60);
+        let kept = second.len() - 40;
+        for profile in [Profile::Cosine, Profile::Omni] {
+            let params = EvalParams {
+                profile,
+                r_min: 0.05,
+                tile: 5,
+            };
+            let mut cache = ShadowCache::default();
+            let (a, sa) = evaluate_cached(&scene, &g, &first, &params, None, &mut cache).unwrap();
+            let (a0, sa0) = evaluate(&scene, &g, &first, &params, None).unwrap();
+            assert_eq!(a, a0);
+            assert_eq!(sa.shadow_rays, sa0.shadow_rays);
+            assert_eq!(cache.reused, 0);
+            let (b, sb) = evaluate_cached(&scene, &g, &second, &params, None, &mut cache).unwrap();
+            let (b0, sb0) = evaluate(&scene, &g, &second, &params, None).unwrap();
+            assert_eq!(b, b0);
+            assert_eq!(sb.shadow_rays + cache.reused, sb0.shadow_rays);
+            // Every ray of a kept VPL is reused, and the blocker makes some of them dark.
+            assert!(cache.reused > (kept as u64) * 100, "{}", cache.reused);
+            assert!(sb.shadow_rays > 0);
+            let (lit, _) = evaluate(&scene, &g, &second, &params, None).unwrap();
+            let open = closed_box(vec![]);
+            let (unblocked, _) = evaluate(&open, &g, &second, &params, None).unwrap();
+            assert!(lit.iter().zip(&unblocked).any(|(a, b)| a < b));
+            // A cache of another G-buffer size is ignored.
+            let sub = GBuffer {
+                width: 6,
+                height: 24,
+                ..g
+            };
+            let (c, sc) =
+                evaluate_cached(&scene, &sub, &second, &params, None, &mut cache).unwrap();
+            let (c0, sc0) = evaluate(&scene, &sub, &second, &params, None).unwrap();
+            assert_eq!((c, sc.shadow_rays, cache.reused), (c0, sc0.shadow_rays, 0));
+        }
     }
 }

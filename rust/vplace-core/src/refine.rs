@@ -8,12 +8,18 @@
 //! flux-weighted mean residual): `q <- lerp(q, t, step)`. The loop stops when the error improves
 //! by less than `tolerance` (relative to the best so far) or after `max_iterations` evaluations,
 //! and returns the best layout seen: its error never exceeds the first one.
+//!
+//! A VPL drawn again at the same position (a stratum whose count did not change draws the same
+//! emitters) gets its shadow-ray answers from the previous iteration instead of new rays
+//! ([`crate::evaluator`]'s shadow cache): the images and errors are bit for bit those of fresh
+//! evaluations. On the layout benchmark about a third of the rays of iterations 2 and 3 are
+//! reused.
 
 use glam::Vec3;
 use std::time::Instant;
 
 use crate::error::{check_finite, Result, VplaceError};
-use crate::evaluator::{evaluate, EvalParams, GBuffer, Progress};
+use crate::evaluator::{evaluate_cached, EvalParams, GBuffer, Progress, ShadowCache};
 use crate::layout::{
     allocate, blend, build_strata, draw, importance, shares, Allocation, LayoutParams, LayoutView,
     Strata,
@@ -63,6 +69,9 @@ pub struct Iteration {
     pub error: f64,
     /// Shadow rays the evaluation traced.
     pub shadow_rays: u64,
+    /// Pixel-VPL pairs whose visibility was reused from the previous iteration (a VPL at the
+    /// same position) instead of a new shadow ray; the image is the same either way.
+    pub reused_rays: u64,
     /// Seconds the evaluation took.
     pub seconds: f64,
     /// The allocation that was evaluated.
@@ -141,6 +150,19 @@ pub fn refine(
     params: &RefineParams,
     progress: Option<&Progress>,
 ) -> Result<Refined> {
+    refine_with(scene, view, indirect, predicted, params, progress, true)
+}
+
+/// [`refine`], with (`reuse`) or without the reuse of shadow rays between iterations.
+fn refine_with(
+    scene: &Scene,
+    view: &LayoutView<'_>,
+    indirect: &[f32],
+    predicted: Option<&[f64]>,
+    params: &RefineParams,
+    progress: Option<&Progress>,
+    reuse: bool,
+) -> Result<Refined> {
     let g = &view.gbuffer;
     if indirect.len() != 3 * g.width * g.height {
         return Err(VplaceError::Shape {
@@ -188,11 +210,16 @@ pub fn refine(
     let mut iterations: Vec<Iteration> = Vec::new();
     let mut best_vpls = Vec::new();
     let mut best = 0;
+    let mut cache = ShadowCache::default();
     loop {
         let allocation = allocate(&strata, &q, lp.budget)?;
         let vpls = draw(&strata, &allocation, lp.seed);
         let start = Instant::now();
-        let (image, stats) = evaluate(scene, &sub_g, &vpls, &params.eval, progress)?;
+        if !reuse {
+            cache = ShadowCache::default();
+        }
+        let (image, stats) =
+            evaluate_cached(scene, &sub_g, &vpls, &params.eval, progress, &mut cache)?;
         let mut sq = 0.0f64;
         let mut residual = vec![0.0f64; cells];
         let mut pixels = vec![0u32; cells];
@@ -215,6 +242,7 @@ pub fn refine(
         iterations.push(Iteration {
             error,
             shadow_rays: stats.shadow_rays,
+            reused_rays: cache.reused,
             seconds: start.elapsed().as_secs_f64(),
             allocation,
         });
@@ -246,6 +274,7 @@ pub fn refine(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::evaluator::evaluate;
     use crate::layout::test_util::FloorView;
     use crate::scene::test_util::closed_box;
     use crate::scene::Light;
@@ -374,5 +403,79 @@ mod tests {
             refine(&scene, &fv.view(), &bad, None, &ok, None),
             Err(VplaceError::NonFinite { .. })
         ));
+    }
+
+    #[test]
+    fn reused_shadow_rays_give_the_same_layout() {
+        use crate::scene::test_util::{box_with, BLOCKER};
+        let scene = box_with(vec![Light::point(LIGHT, Vec3::splat(20.0))], &[BLOCKER]);
+        let fv = FloorView::new(32, LIGHT, 20.0);
+        let indirect = reference(&scene, &fv);
+        let (mut reused, mut partial) = (0, false);
+        for (alpha, stride, seed, budget) in [(1.0, 2, 1, 40), (0.5, 1, 7, 64), (0.0, 3, 3, 17)] {
+            let params = RefineParams {
+                layout: LayoutParams {
+                    budget,
+                    alpha,
+                    cell_px: 8,
+                    light_rays: 400,
+                    seed,
+                    ..LayoutParams::DEFAULT
+                },
+                stride,
+                max_iterations: 4,
+                tolerance: 0.0,
+                step: 0.7,
+                ..RefineParams::DEFAULT
+            };
+            let pred: Vec<f64> = (0..16).map(|c| ((c * 7) % 5) as f64).collect();
+            let run = |reuse| {
+                refine_with(
+                    &scene,
+                    &fv.view(),
+                    &indirect,
+                    Some(&pred),
+                    &params,
+                    None,
+                    reuse,
+                )
+                .unwrap()
+            };
+            let (a, b) = (run(true), run(false));
+            assert_eq!(a.vpls, b.vpls);
+            assert_eq!(a.best, b.best);
+            assert_eq!(a.iterations.len(), b.iterations.len());
+            for (x, y) in a.iterations.iter().zip(&b.iterations) {
+                assert_eq!(x.error.to_bits(), y.error.to_bits());
+                assert_eq!(x.allocation, y.allocation);
+                assert_eq!(x.shadow_rays + x.reused_rays, y.shadow_rays);
+                assert_eq!(y.reused_rays, 0);
+            }
+            assert_eq!(a.iterations[0].reused_rays, 0);
+            reused += a.iterations.iter().map(|i| i.reused_rays).sum::<u64>();
+            partial |= a
+                .iterations
+                .iter()
+                .any(|i| i.reused_rays > 0 && i.shadow_rays > 0);
+            // Deterministic for a seed (all but the timings).
+            let again = run(true);
+            assert_eq!(
+                (&again.vpls, again.best, &again.strata),
+                (&a.vpls, a.best, &a.strata)
+            );
+            for (x, y) in again.iterations.iter().zip(&a.iterations) {
+                assert_eq!(
+                    Iteration {
+                        seconds: 0.0,
+                        ..x.clone()
+                    },
+                    Iteration {
+                        seconds: 0.0,
+                        ..y.clone()
+                    }
+                );
+            }
+        }
+        assert!(reused > 0 && partial);
     }
 }

@@ -136,6 +136,13 @@ fn layout<'py>(
                     .collect::<Vec<_>>(),
             )?;
             d.set_item(
+                "reused_rays",
+                r.iterations
+                    .iter()
+                    .map(|i| i.reused_rays)
+                    .collect::<Vec<_>>(),
+            )?;
+            d.set_item(
                 "seconds",
                 r.iterations.iter().map(|i| i.seconds).collect::<Vec<_>>(),
             )?;
@@ -154,6 +161,7 @@ fn layout<'py>(
             d.set_item("pool_count", a.pool_count)?;
             d.set_item("errors", Vec::<f64>::new())?;
             d.set_item("shadow_rays", Vec::<u64>::new())?;
+            d.set_item("reused_rays", Vec::<u64>::new())?;
             d.set_item("seconds", Vec::<f64>::new())?;
             d.set_item("best", py.None())?;
             set_strata(py, &d, &strata)?;

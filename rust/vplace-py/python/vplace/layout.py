@@ -53,6 +53,10 @@ class Layout:
     """The iteration the VPLs come from (the minimum of ``errors``)."""
     seconds: list[float] = field(default_factory=list)
     shadow_rays: list[int] = field(default_factory=list)
+    """Shadow rays traced at each iteration."""
+    reused_rays: list[int] = field(default_factory=list)
+    """Pixel-VPL pairs at each iteration whose visibility came from the previous iteration (a VPL
+    at the same position) instead of a shadow ray; the result is the same either way."""
     strata_flux: np.ndarray | None = None
     """Reflected flux of each cell's candidates, float32 (cells_y, cells_x, 3)."""
     offscreen_flux: list[float] = field(default_factory=list)
