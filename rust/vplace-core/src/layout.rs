@@ -31,6 +31,7 @@
 //! The iteration that moves budget toward cells with a high residual is [`crate::refine`].
 
 use glam::{Mat4, Vec3};
+use rayon::prelude::*;
 use std::f32::consts::PI;
 
 use crate::error::{check_finite, Result, VplaceError};
@@ -206,20 +207,19 @@ fn to_pixel(m: &Mat4, p: Vec3, w: usize, h: usize) -> Option<(f32, f32)> {
     Some(((x + 1.0) * 0.5 * w as f32, (1.0 - y) * 0.5 * h as f32))
 }
 
-/// The solid angle of the pixel whose top-left corner is `(x, y)`, from the view directions of
-/// three of its corners (each the line through two unprojected depths, so the camera position
-/// and the depth range do not enter).
-fn pixel_solid_angle(inv: &Mat4, x: f32, y: f32, w: usize, h: usize) -> f32 {
-    let dir = |px: f32, py: f32| {
-        let (nx, ny) = (px / w as f32 * 2.0 - 1.0, 1.0 - py / h as f32 * 2.0);
-        let near = inv.project_point3(Vec3::new(nx, ny, -0.5));
-        let far = inv.project_point3(Vec3::new(nx, ny, 0.5));
-        (far - near).normalize_or_zero()
-    };
-    let d00 = dir(x, y);
-    (dir(x + 1.0, y) - d00)
-        .cross(dir(x, y + 1.0) - d00)
-        .length()
+/// The unit view direction through the image point `(x, y)` (pixels, y down), as the line
+/// through two unprojected depths (so the camera position and the depth range do not enter).
+fn corner_direction(inv: &Mat4, x: f32, y: f32, w: usize, h: usize) -> Vec3 {
+    let (nx, ny) = (x / w as f32 * 2.0 - 1.0, 1.0 - y / h as f32 * 2.0);
+    let near = inv.project_point3(Vec3::new(nx, ny, -0.5));
+    let far = inv.project_point3(Vec3::new(nx, ny, 0.5));
+    (far - near).normalize_or_zero()
+}
+
+/// The solid angle of a pixel from the view directions of its top-left, top-right and
+/// bottom-left corners.
+fn solid_angle(d00: Vec3, d10: Vec3, d01: Vec3) -> f32 {
+    (d10 - d00).cross(d01 - d00).length()
 }
 
 /// Gathers the candidate emitters of `view` into strata.
@@ -242,42 +242,66 @@ pub fn build_strata(scene: &Scene, view: &LayoutView<'_>, params: &LayoutParams)
     let inv = view.world_to_clip.inverse();
     let offset = Vpl::SURFACE_OFFSET * scene.diagonal();
     let cells = cells_x * cells_y;
-    let mut per: Vec<Vec<Emitter>> = vec![Vec::new(); cells];
     let mut off: Vec<Emitter> = Vec::new();
-    for y in 0..h {
-        for x in 0..w {
-            let p = y * w + x;
-            if !g.covered[p] {
-                continue;
+    // Rows in parallel, in bands that share the view directions of their pixel corners; the
+    // emitters are then appended in pixel order, as a plain row-major loop would.
+    let band = 8;
+    let found: Vec<Vec<(usize, Emitter)>> = (0..h.div_ceil(band))
+        .into_par_iter()
+        .map(|b| {
+            let (y0, y1) = (b * band, ((b + 1) * band).min(h));
+            let corners: Vec<Vec<Vec3>> = (y0..=y1)
+                .map(|y| {
+                    (0..=w)
+                        .map(|x| corner_direction(&inv, x as f32, y as f32, w, h))
+                        .collect()
+                })
+                .collect();
+            let mut out = Vec::new();
+            for y in y0..y1 {
+                let (top, below) = (&corners[y - y0], &corners[y - y0 + 1]);
+                for x in 0..w {
+                    let p = y * w + x;
+                    if !g.covered[p] {
+                        continue;
+                    }
+                    let dd = vec3(view.diffuse_direct, p);
+                    if !dd.is_finite() {
+                        continue;
+                    }
+                    let pos = vec3(g.position, p);
+                    let mut n = vec3(g.normal, p).normalize_or_zero();
+                    let to_cam = cam - pos;
+                    let r = to_cam.length();
+                    if n == Vec3::ZERO || r <= 0.0 {
+                        continue;
+                    }
+                    let mut cos = n.dot(to_cam) / r;
+                    if cos < 0.0 {
+                        n = -n;
+                        cos = -cos;
+                    }
+                    let omega = solid_angle(top[x], top[x + 1], below[x]);
+                    let area = r * r * omega / cos.max(MIN_VIEW_COSINE);
+                    let flux = vec3(g.albedo, p) * (PI * dd.max(Vec3::ZERO)) * area;
+                    let lum = flux.dot(LUMINANCE);
+                    if lum.is_nan() || lum <= 0.0 || !flux.is_finite() {
+                        continue;
+                    }
+                    let emitter = Emitter {
+                        position: pos + n * offset,
+                        normal: n,
+                        flux,
+                    };
+                    out.push(((y / c) * cells_x + x / c, emitter));
+                }
             }
-            let dd = vec3(view.diffuse_direct, p);
-            if !dd.is_finite() {
-                continue;
-            }
-            let pos = vec3(g.position, p);
-            let mut n = vec3(g.normal, p).normalize_or_zero();
-            let to_cam = cam - pos;
-            let r = to_cam.length();
-            if n == Vec3::ZERO || r <= 0.0 {
-                continue;
-            }
-            let mut cos = n.dot(to_cam) / r;
-            if cos < 0.0 {
-                n = -n;
-                cos = -cos;
-            }
-            let omega = pixel_solid_angle(&inv, x as f32, y as f32, w, h);
-            let area = r * r * omega / cos.max(MIN_VIEW_COSINE);
-            let flux = vec3(g.albedo, p) * (PI * dd.max(Vec3::ZERO)) * area;
-            if flux.dot(LUMINANCE).is_nan() || flux.dot(LUMINANCE) <= 0.0 || !flux.is_finite() {
-                continue;
-            }
-            per[(y / c) * cells_x + x / c].push(Emitter {
-                position: pos + n * offset,
-                normal: n,
-                flux,
-            });
-        }
+            out
+        })
+        .collect();
+    let mut per: Vec<Vec<Emitter>> = vec![Vec::new(); cells];
+    for (k, e) in found.into_iter().flatten() {
+        per[k].push(e);
     }
     let mut light_hits_on_screen = 0;
     if params.light_rays > 0 && !scene.lights.is_empty() {

@@ -209,11 +209,14 @@ def main(argv: list[str] | None = None) -> None:
     )
     print(f"{'step':<52} {'seconds':>10}")
     print(f"{'features + fit (vplace.fit)':<52} {t_fit:>10.3f}")
-    print(f"{'features + fit + strata + allocation (no iteration)':<52} {t_alloc:>10.3f}")
+    print(f"{'predict + strata + allocation (no iteration)':<52} {t_alloc:>10.3f}")
     print(f"{'whole layout (fit + allocation + 3 iterations @ 1/4)':<52} {t_whole:>10.3f}")
     print(
         f"  iteration errors (RMSE): {', '.join(f'{e:.4g}' for e in out.errors)}; best {out.best}"
     )
+    pairs = zip(out.shadow_rays, out.reused_rays, strict=True)
+    traced = [f"{t} (+{r} reused)" if r else str(t) for t, r in pairs]
+    print(f"  iteration shadow rays: {', '.join(traced)}")
     print(f"  iteration seconds: {', '.join(f'{x:.3f}' for x in out.seconds)}")
     print(f"{f'refit of {args.budget} uniform VPLs (NNLS @ 1/4)':<52} {t_refit:>10.3f}")
     print(
