@@ -253,18 +253,19 @@ def run_methods(
     config: ReportConfig,
     scene_name: str,
     log: Callable[[str], None],
-) -> tuple[list[Row], dict[str, np.ndarray]]:
-    """Every method at every budget on one view; returns the rows and the images at the grid
-    budget (keyed by method)."""
+) -> tuple[list[Row], dict[str, np.ndarray], dict[str, apply.VplSet]]:
+    """Every method at every budget on one view; returns the rows, and the images and VPLs of
+    the first seed at the grid budget (keyed by method)."""
     prepared = view.prepared
     scene = prepared.scene
     r_min = pipeline.R_MIN_FRACTION * scene.diagonal
     truth_gi, truth_direct = view.truth.gi, view.truth.direct
-    grid_n = min(config.budgets, key=lambda n: (abs(n - GRID_BUDGET), n))
+    grid_n = grid_budget(config.budgets)
     fit_view = view.role == "fit"
     layout_in = pipeline.layout_input(prepared) if fit_view else held_out_input(prepared)
     rows: list[Row] = []
     images: dict[str, np.ndarray] = {}
+    grid_vpls: dict[str, apply.VplSet] = {}
     for n in config.budgets:
         for seed in config.seeds:
             laid: vplace.Layout | None = None
@@ -349,7 +350,13 @@ def run_methods(
                 )
                 if n == grid_n and seed == config.seeds[0]:
                     images[method] = estimate
-    return rows, images
+                    grid_vpls[method] = vpls
+    return rows, images, grid_vpls
+
+
+def grid_budget(budgets: Sequence[int]) -> int:
+    """The budget nearest GRID_BUDGET (the lower one on ties): image grids, preview, targets."""
+    return min(budgets, key=lambda n: (abs(n - GRID_BUDGET), n))
 
 
 def aggregate(rows: Sequence[Row]) -> list[Row]:
@@ -454,11 +461,16 @@ def run_scene(
         "views": {},
     }
     rows: list[Row] = []
+    preview_vpls: apply.VplSet | None = None
     from . import report_plots
 
     for view in (fit_view, held_out):
         rows += reference_rows(view, preset.name)
-        method_rows, images = run_methods(view, fitted, fit_seconds, config, preset.name, log)
+        method_rows, images, grid_vpls = run_methods(
+            view, fitted, fit_seconds, config, preset.name, log
+        )
+        if view is fit_view and "vplace" in grid_vpls:
+            preview_vpls = grid_vpls["vplace"]
         rows += method_rows
         cap = view.prepared.capture
         info["views"][view.name] = {
@@ -479,28 +491,13 @@ def run_scene(
             title=f"{preset.name}, {view.name} ({view.role} view)",
         )
         info["views"][view.name]["grid"] = grid.name
-    if config.eevee and "vplace" in config.methods and preset.eevee_scale > 0:
-        grid_n = min(config.budgets, key=lambda n: (abs(n - GRID_BUDGET), n))
-        laid = vplace.layout(
-            fit_view.prepared.scene,
-            pipeline.layout_input(fit_view.prepared),
-            camera_position=fit_view.prepared.camera_position,
-            world_to_clip=fit_view.prepared.world_to_clip,
-            fit=fitted,
-            budget=grid_n,
-            alpha=config.alpha,
-            cell_px=config.cell_px,
-            iterations=max(config.iterations, 1),
-            iterate=config.iterations > 0,
-            seed=config.seeds[0],
-            r_min=pipeline.R_MIN_FRACTION * fit_view.prepared.scene.diagonal,
-        )
+    if config.eevee and preview_vpls is not None and preset.eevee_scale > 0:
         cap = fit_view.prepared.capture
         scale = preset.eevee_scale
         info["preview"] = Preview(
             preset.name,
             fit_view.name,
-            apply.VplSet(laid.position, laid.normal, laid.flux),
+            preview_vpls,
             fit_view.prepared.scene.diagonal,
             (max(1, round(cap.width * scale)), max(1, round(cap.height * scale))),
         )
@@ -515,7 +512,7 @@ def targets(rows: list[Row], scene: str = "sponza") -> list[dict[str, Any]]:
     budgets = sorted({r.n_vpls for r in rows if r.scene == scene and r.n_vpls is not None})
     if not budgets:
         return checks
-    grid_n = min(budgets, key=lambda n: (abs(n - GRID_BUDGET), n))
+    grid_n = grid_budget(budgets)
     for view, role in views:
         at = {
             r.method: r for r in rows if r.scene == scene and r.view == view and r.n_vpls == grid_n
