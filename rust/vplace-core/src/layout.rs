@@ -582,6 +582,16 @@ pub struct Allocation {
     pub pool_count: usize,
 }
 
+/// The stratum with the most VPLs (the lowest index on ties) and its count.
+fn largest(counts: &[usize]) -> (usize, usize) {
+    let (k, &most) = counts
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.cmp(b.1).then(b.0.cmp(&a.0)))
+        .expect("at least one stratum");
+    (k, most)
+}
+
 /// Splits `budget` over the strata by largest remainder of `budget * shares`, then pools the
 /// strata that hold flux but got no VPL: the pool gets `max(1, round(budget * their shares))`
 /// VPLs, taken one by one from the stratum with the most (the lowest index on ties).
@@ -612,11 +622,7 @@ pub fn allocate(strata: &Strata, shares: &[f64], budget: usize) -> Result<Alloca
     // would swamp the draw of the cells it is pooled with.
     for k in 0..counts.len() {
         if lum[k] > 0.0 && counts[k] == 0 && strata.view_weight[k] == 0.0 {
-            let (most, &c) = counts
-                .iter()
-                .enumerate()
-                .max_by(|a, b| a.1.cmp(b.1).then(b.0.cmp(&a.0)))
-                .expect("at least one stratum");
+            let (most, c) = largest(&counts);
             if c >= 2 {
                 counts[most] -= 1;
                 counts[k] = 1;
@@ -638,11 +644,7 @@ pub fn allocate(strata: &Strata, shares: &[f64], budget: usize) -> Result<Alloca
     let want = pool.iter().map(|&k| w[k]).sum::<f64>() / total * budget as f64;
     let want = (want.round() as usize).max(1);
     while pool_count < want {
-        let (k, &most) = counts
-            .iter()
-            .enumerate()
-            .max_by(|a, b| a.1.cmp(b.1).then(b.0.cmp(&a.0)))
-            .expect("at least one stratum");
+        let (k, most) = largest(&counts);
         if most >= 2 {
             counts[k] -= 1;
             pool_count += 1;
