@@ -157,17 +157,8 @@ def test_iteration_reuses_shadow_rays_without_changing_the_result(setup):
     # shadow rays were traced or reused from the previous iteration.
     scene, view = setup
     stride = 2
-    out = run_layout(
-        scene,
-        view,
-        budget=48,
-        cell_px=8,
-        light_rays=300,
-        stride=stride,
-        iterations=4,
-        tolerance=0.0,
-        seed=2,
-    )
+    kw = {"budget": 48, "cell_px": 8, "light_rays": 300, "stride": stride, "iterations": 4}
+    out = run_layout(scene, view, tolerance=0.0, seed=2, **kw)
     assert out.reused_rays[0] == 0
     assert sum(out.reused_rays[1:]) > 0
     sub = [
@@ -179,17 +170,7 @@ def test_iteration_reuses_shadow_rays_without_changing_the_result(setup):
     assert out.shadow_rays[b] + out.reused_rays[b] == stats["shadow_rays"]
     diff = img.astype(np.float64) - view["indirect"][::stride, ::stride]
     assert out.errors[b] == pytest.approx(math.sqrt(np.mean(diff**2)), rel=1e-6)  # f32 residuals
-    again = run_layout(
-        scene,
-        view,
-        budget=48,
-        cell_px=8,
-        light_rays=300,
-        stride=stride,
-        iterations=4,
-        tolerance=0.0,
-        seed=2,
-    )
+    again = run_layout(scene, view, tolerance=0.0, seed=2, **kw)
     assert again.errors == out.errors and again.reused_rays == out.reused_rays
     assert np.array_equal(again.position, out.position) and np.array_equal(again.flux, out.flux)
 
