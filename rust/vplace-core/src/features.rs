@@ -5,7 +5,7 @@
 //! each per-pixel feature of [`FEATURES`] is averaged; the cell-level features (coverage, normal
 //! and depth variance) are computed from the same pixels. The label of a cell is
 //! `dL = mean |L(G) - L(D)|` over its usable pixels, `L` the Rec. 709 luminance
-//! ([`crate::vpl::LUMINANCE`]).
+//! ([`crate::color::luminance`]).
 //!
 //! Decisions recorded here:
 //! - Cells without a usable pixel are excluded and counted ([`CellFeatures::empty_cells`]).
@@ -19,9 +19,9 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::color::luminance;
 use crate::error::{Result, VplaceError};
 use crate::regression::{self, DropReason, Fit, FitParams};
-use crate::vpl::LUMINANCE;
 
 /// Where a feature comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -220,7 +220,7 @@ fn check_len(what: &str, arr: &[f32], h: usize, w: usize, c: usize) -> Result<()
 
 #[inline]
 fn lum(v: &[f32]) -> f32 {
-    LUMINANCE.x * v[0] + LUMINANCE.y * v[1] + LUMINANCE.z * v[2]
+    luminance(Vec3::from_slice(v))
 }
 
 #[inline]

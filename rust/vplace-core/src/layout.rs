@@ -34,11 +34,12 @@ use glam::{Mat4, Vec3};
 use rayon::prelude::*;
 use std::f32::consts::PI;
 
+use crate::color::luminance;
 use crate::error::{check_finite, Result, VplaceError};
 use crate::evaluator::GBuffer;
 use crate::rng::Rng;
 use crate::scene::Scene;
-use crate::vpl::{light_path_vpls, Vpl, LUMINANCE, MAX_BOUNCES};
+use crate::vpl::{light_path_vpls, Vpl, MAX_BOUNCES};
 
 /// Off-screen strata with a non-zero view efficiency (plus the dark one).
 pub const OFFSCREEN_BINS: usize = 8;
@@ -162,10 +163,7 @@ impl Strata {
     /// Luminance of each `F_k`.
     #[must_use]
     pub fn luminance(&self) -> Vec<f64> {
-        self.flux
-            .iter()
-            .map(|f| f64::from(f.dot(LUMINANCE)))
-            .collect()
+        self.flux.iter().map(|&f| f64::from(luminance(f))).collect()
     }
 }
 
@@ -284,7 +282,7 @@ pub fn build_strata(scene: &Scene, view: &LayoutView<'_>, params: &LayoutParams)
                     let omega = solid_angle(top[x], top[x + 1], below[x]);
                     let area = r * r * omega / cos.max(MIN_VIEW_COSINE);
                     let flux = vec3(g.albedo, p) * (PI * dd.max(Vec3::ZERO)) * area;
-                    let lum = flux.dot(LUMINANCE);
+                    let lum = luminance(flux);
                     if lum.is_nan() || lum <= 0.0 || !flux.is_finite() {
                         continue;
                     }
@@ -316,7 +314,7 @@ pub fn build_strata(scene: &Scene, view: &LayoutView<'_>, params: &LayoutParams)
             });
             if seen {
                 light_hits_on_screen += 1;
-            } else if v.flux.dot(LUMINANCE) > 0.0 {
+            } else if luminance(v.flux) > 0.0 {
                 off.push(Emitter {
                     position: v.position,
                     normal: v.normal,
@@ -338,7 +336,7 @@ pub fn build_strata(scene: &Scene, view: &LayoutView<'_>, params: &LayoutParams)
     let dark = order.partition_point(|&i| off_eta[i] <= 0.0);
     // Bins of equal view contribution `lum(flux) * eta`: the efficient emitters, few but bright
     // in the view, get bins of their own.
-    let contribution = |i: usize| f64::from(off[i].flux.dot(LUMINANCE)) * off_eta[i];
+    let contribution = |i: usize| f64::from(luminance(off[i].flux)) * off_eta[i];
     let total: f64 = order[dark..].iter().map(|&i| contribution(i)).sum();
     let mut bins: Vec<Vec<usize>> = vec![Vec::new(); OFFSCREEN_BINS + 1];
     let mut acc = 0.0;
@@ -396,7 +394,7 @@ fn view_samples(view: &LayoutView<'_>) -> Vec<(Vec3, Vec3, f32)> {
             }
             let pos = vec3(g.position, p);
             let mut n = vec3(g.normal, p).normalize_or_zero();
-            let albedo = vec3(g.albedo, p).dot(LUMINANCE);
+            let albedo = luminance(vec3(g.albedo, p));
             if n == Vec3::ZERO || !pos.is_finite() || !albedo.is_finite() {
                 continue;
             }
@@ -448,7 +446,7 @@ pub fn view_efficiency(
 fn flux_weighted_mean(emitters: &[&Emitter], eta: &[f64]) -> f64 {
     let (mut num, mut den) = (0.0, 0.0);
     for (e, &v) in emitters.iter().zip(eta) {
-        let l = f64::from(e.flux.dot(LUMINANCE));
+        let l = f64::from(luminance(e.flux));
         num += l * v;
         den += l;
     }
@@ -678,7 +676,7 @@ fn draw_group(strata: &Strata, group: &[usize], n: usize, rng: &mut Rng, out: &m
             .iter()
             .flat_map(|&k| &strata.emitters[strata.start[k]..strata.start[k + 1]])
     };
-    let total: f64 = items().map(|e| f64::from(e.flux.dot(LUMINANCE))).sum();
+    let total: f64 = items().map(|e| f64::from(luminance(e.flux))).sum();
     if total.is_nan() || total <= 0.0 {
         return;
     }
@@ -688,7 +686,7 @@ fn draw_group(strata: &Strata, group: &[usize], n: usize, rng: &mut Rng, out: &m
     let mut i = 0usize;
     let mut last = None;
     for e in items() {
-        let l = f64::from(e.flux.dot(LUMINANCE));
+        let l = f64::from(luminance(e.flux));
         acc += l;
         last = Some(e);
         while i < n && (i as f64 + r) * per < acc {
@@ -702,7 +700,7 @@ fn draw_group(strata: &Strata, group: &[usize], n: usize, rng: &mut Rng, out: &m
     }
     // Rounding can leave the last target just past the end of the sum.
     if let Some(e) = last {
-        let l = f64::from(e.flux.dot(LUMINANCE));
+        let l = f64::from(luminance(e.flux));
         while i < n {
             out.push(Vpl {
                 position: e.position,
@@ -850,7 +848,7 @@ mod tests {
     }
 
     fn lum_total(v: &[Vpl]) -> f64 {
-        v.iter().map(|v| f64::from(v.flux.dot(LUMINANCE))).sum()
+        v.iter().map(|v| f64::from(luminance(v.flux))).sum()
     }
 
     /// A prediction favouring the top-left cells.
@@ -1009,7 +1007,7 @@ mod tests {
             },
         )
         .unwrap();
-        let lum = |s: &Strata| s.flux[s.offscreen()].dot(LUMINANCE);
+        let lum = |s: &Strata| luminance(s.flux[s.offscreen()]);
         assert!(lum(&all) > 1.2 * lum(&s), "{} {}", lum(&all), lum(&s));
     }
 
@@ -1060,7 +1058,7 @@ mod tests {
         let a = allocate(&s, &shares(&s, Some(&pred), 1.0).unwrap(), 64).unwrap();
         assert_eq!(a.counts[last], 1);
         let v = draw(&s, &a, 3);
-        let total: f64 = v.iter().map(|v| f64::from(v.flux.dot(LUMINANCE))).sum();
+        let total: f64 = v.iter().map(|v| f64::from(luminance(v.flux))).sum();
         let expect: f64 = s.luminance().iter().sum();
         assert!((total - expect).abs() < 1e-4 * expect, "{total} {expect}");
     }

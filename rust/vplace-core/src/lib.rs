@@ -35,6 +35,7 @@
 //! # let _ = Profile::Cosine;
 //! ```
 
+pub mod color;
 pub mod error;
 pub mod evaluator;
 pub mod features;
@@ -49,4 +50,5 @@ pub mod rsm;
 pub mod scene;
 pub mod vpl;
 
+pub use color::{luminance, LUMINANCE};
 pub use error::{Result, VplaceError};

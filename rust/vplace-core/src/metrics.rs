@@ -1,6 +1,7 @@
 //! Error metrics: RMSE and relative MSE on linear HDR images, and SSIM (Wang et al. 2004) on
 //! the luminance of the display image.
 
+use crate::color::luminance_f64;
 use crate::error::{check_finite, Result, VplaceError};
 
 /// The `epsilon` of [`relative_mse`]: keeps dark reference pixels from dominating.
@@ -97,14 +98,15 @@ pub fn srgb_encode(v: f64) -> f64 {
 }
 
 /// The display luminance of a linear RGB image (`H x W x 3`): exposure 1, each channel clamped to
-/// `[0, 1]` and sRGB-encoded, then `0.2126 R + 0.7152 G + 0.0722 B`.
+/// `[0, 1]` and sRGB-encoded, then weighted by the Rec. 709 luminance weights
+/// ([`luminance_f64`]).
 #[must_use]
 pub fn display_luminance(image: &[f32]) -> Vec<f64> {
     image
         .chunks_exact(3)
         .map(|c| {
             let e = |v: f32| srgb_encode(f64::from(v).clamp(0.0, 1.0));
-            0.2126 * e(c[0]) + 0.7152 * e(c[1]) + 0.0722 * e(c[2])
+            luminance_f64([e(c[0]), e(c[1]), e(c[2])])
         })
         .collect()
 }

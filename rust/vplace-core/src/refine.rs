@@ -18,6 +18,7 @@
 use glam::Vec3;
 use std::time::Instant;
 
+use crate::color::luminance;
 use crate::error::{check_finite, Result, VplaceError};
 use crate::evaluator::{evaluate_cached, EvalParams, GBuffer, Progress, ShadowCache};
 use crate::layout::{
@@ -25,7 +26,7 @@ use crate::layout::{
     Strata,
 };
 use crate::scene::Scene;
-use crate::vpl::{Vpl, LUMINANCE};
+use crate::vpl::Vpl;
 
 /// Settings of the iteration. `Copy`, with named presets.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -228,7 +229,7 @@ fn refine_with(
             let i = Vec3::from_slice(&sub.indirect[3 * p..]);
             let d = e - i;
             sq += f64::from(d.dot(d));
-            residual[sub.cell[p]] += f64::from(d.dot(LUMINANCE).abs());
+            residual[sub.cell[p]] += f64::from(luminance(d).abs());
             pixels[sub.cell[p]] += 1;
         }
         let error = (sq / (3.0 * covered)).sqrt();

@@ -6,6 +6,7 @@
 use glam::Vec3;
 use std::f32::consts::PI;
 
+use crate::color::luminance;
 use crate::error::{Result, VplaceError};
 use crate::rng::Rng;
 use crate::scene::{Light, LightKind, Scene};
@@ -63,9 +64,6 @@ impl Vpl {
     /// Offset of a VPL off its surface, as a fraction of the scene diagonal.
     pub const SURFACE_OFFSET: f32 = 1e-3;
 }
-
-/// Luminance weights (Rec. 709), as everywhere in vplace.
-pub const LUMINANCE: Vec3 = Vec3::new(0.2126, 0.7152, 0.0722);
 
 /// Total power a light emits into the scene (RGB watts).
 #[must_use]
@@ -162,7 +160,7 @@ pub(crate) fn light_powers(scene: &Scene, n: usize) -> Result<(Vec<Vec3>, Vec<f3
         .iter()
         .map(|l| emitted_power(l, scene))
         .collect();
-    let weights: Vec<f32> = powers.iter().map(|p| p.dot(LUMINANCE)).collect();
+    let weights: Vec<f32> = powers.iter().map(|&p| luminance(p)).collect();
     let total: f32 = weights.iter().sum();
     if total.is_nan() || total <= 0.0 {
         return Err(VplaceError::Invalid {
@@ -251,7 +249,7 @@ pub fn light_path_vpls(scene: &Scene, n: usize, seed: u64, bounces: usize) -> Re
             if hits.len() == n || bounce + 1 == bounces {
                 break;
             }
-            let q = reflected.dot(LUMINANCE) / carried.dot(LUMINANCE).max(f32::MIN_POSITIVE);
+            let q = luminance(reflected) / luminance(carried).max(f32::MIN_POSITIVE);
             let q = q.clamp(0.0, 1.0);
             if q.is_nan() || q <= 0.0 || rng.next_f32() >= q {
                 break;
