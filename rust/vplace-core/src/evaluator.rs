@@ -649,27 +649,18 @@ fn evaluate_with(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::test_util::{box_with, closed_box, BLOCKER};
+    use crate::test_util::{box_with, closed_box, floor_gbuffer, BLOCKER};
 
-    /// A `w x w` G-buffer of the floor of the test box, z = 0, normal +Z.
-    fn floor_gbuffer(w: usize) -> (Vec<f32>, Vec<f32>, Vec<f32>, Vec<bool>) {
-        let mut pos = Vec::new();
-        for y in 0..w {
-            for x in 0..w {
-                let fx = (x as f32 + 0.5) / w as f32 * 2.0 - 1.0;
-                let fy = 1.0 - (y as f32 + 0.5) / w as f32 * 2.0;
-                pos.extend([fx, fy, 0.0]);
-            }
-        }
-        let normal = [0.0, 0.0, 1.0].repeat(w * w);
-        let albedo = [0.5, 0.5, 0.5].repeat(w * w);
-        (pos, normal, albedo, vec![true; w * w])
+    /// The arrays of [`floor_gbuffer`]: position, normal, albedo, covered.
+    fn floor(w: usize) -> (Vec<f32>, Vec<f32>, Vec<f32>, Vec<bool>) {
+        let g = floor_gbuffer(w);
+        (g.position, g.normal, g.albedo, g.covered)
     }
 
     #[test]
     fn single_vpl_matches_the_formula() {
         let scene = closed_box(vec![]);
-        let (pos, normal, albedo, covered) = floor_gbuffer(8);
+        let (pos, normal, albedo, covered) = floor(8);
         let g = GBuffer {
             width: 8,
             height: 8,
@@ -713,7 +704,7 @@ mod tests {
     #[test]
     fn shadows_back_faces_clamp_and_cancel() {
         let scene = closed_box(vec![]);
-        let (pos, normal, albedo, covered) = floor_gbuffer(4);
+        let (pos, normal, albedo, covered) = floor(4);
         let g = GBuffer {
             width: 4,
             height: 4,
@@ -777,7 +768,7 @@ mod tests {
     #[test]
     fn bad_input() {
         let scene = closed_box(vec![]);
-        let (mut pos, normal, albedo, covered) = floor_gbuffer(4);
+        let (mut pos, normal, albedo, covered) = floor(4);
         let g = GBuffer {
             width: 4,
             height: 4,
@@ -818,7 +809,7 @@ mod tests {
     #[test]
     fn cached_shadow_rays_give_the_same_image() {
         let scene = box_with(vec![], &[BLOCKER]);
-        let (pos, normal, albedo, mut covered) = floor_gbuffer(12);
+        let (pos, normal, albedo, mut covered) = floor(12);
         covered[5] = false;
         let g = GBuffer {
             width: 12,

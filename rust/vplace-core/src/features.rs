@@ -588,61 +588,14 @@ impl CellModel {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_util::Passes;
 
-    struct Bufs {
-        w: usize,
-        h: usize,
-        position: Vec<f32>,
-        normal: Vec<f32>,
-        albedo: Vec<f32>,
-        depth: Vec<f32>,
-        direct: Vec<f32>,
-        gi: Vec<f32>,
-        covered: Vec<bool>,
+    fn bufs(w: usize, h: usize) -> Passes {
+        Passes::grid(w, h)
     }
 
-    fn bufs(w: usize, h: usize) -> Bufs {
-        let n = w * h;
-        let mut b = Bufs {
-            w,
-            h,
-            position: vec![0.0; 3 * n],
-            normal: vec![0.0; 3 * n],
-            albedo: vec![0.5; 3 * n],
-            depth: vec![1e10; n],
-            direct: vec![0.0; 3 * n],
-            gi: vec![0.0; 3 * n],
-            covered: vec![false; n],
-        };
-        for y in 0..h {
-            for x in 0..w {
-                let i = y * w + x;
-                b.covered[i] = x < w / 2 || y < h / 2;
-                b.position[3 * i] = x as f32;
-                b.position[3 * i + 1] = y as f32;
-                b.normal[3 * i + 2] = 1.0;
-                b.depth[i] = 2.0 + y as f32;
-                b.direct[3 * i..3 * i + 3].fill(0.25);
-                b.gi[3 * i..3 * i + 3].fill(0.25 + 0.01 * x as f32);
-            }
-        }
-        b
-    }
-
-    fn input(b: &Bufs) -> FeatureInput<'_> {
-        FeatureInput {
-            width: b.w,
-            height: b.h,
-            position: &b.position,
-            normal: &b.normal,
-            albedo: &b.albedo,
-            depth: &b.depth,
-            direct: &b.direct,
-            gi: Some(&b.gi),
-            specular: None,
-            covered: &b.covered,
-            light: Some(StrongestLight::Position(Vec3::new(0.0, 0.0, 10.0))),
-        }
+    fn input(b: &Passes) -> FeatureInput<'_> {
+        b.input()
     }
 
     #[test]

@@ -747,98 +747,10 @@ pub fn layout(
 }
 
 #[cfg(test)]
-pub(crate) mod test_util {
-    //! A camera looking down at the floor of the test box.
-    use super::*;
-
-    /// Arrays of a `w x w` view of the test box's floor from `(0, 0, 1.9)` straight down,
-    /// with DiffDir from a point light at `light` of power `power` (no shadows: the floor
-    /// sees it entirely).
-    pub struct FloorView {
-        pub w: usize,
-        pub position: Vec<f32>,
-        pub normal: Vec<f32>,
-        pub albedo: Vec<f32>,
-        pub covered: Vec<bool>,
-        pub diffuse_direct: Vec<f32>,
-        pub camera: Vec3,
-        pub world_to_clip: Mat4,
-    }
-
-    impl FloorView {
-        pub fn new(w: usize, light: Vec3, power: f32) -> Self {
-            let camera = Vec3::new(0.0, 0.0, 1.9);
-            let fov = 2.0 * (1.0f32 / 1.9).atan();
-            // OpenGL perspective (aspect 1, near 0.1, far 10) and a view looking down -Z, up +Y.
-            let (f, near, far) = (1.0 / (0.5 * fov).tan(), 0.1f32, 10.0f32);
-            let proj = Mat4::from_cols(
-                glam::Vec4::new(f, 0.0, 0.0, 0.0),
-                glam::Vec4::new(0.0, f, 0.0, 0.0),
-                glam::Vec4::new(0.0, 0.0, (far + near) / (near - far), -1.0),
-                glam::Vec4::new(0.0, 0.0, 2.0 * far * near / (near - far), 0.0),
-            );
-            let view = Mat4::from_translation(-camera);
-            let world_to_clip = proj * view;
-            let inv = world_to_clip.inverse();
-            let mut s = Self {
-                w,
-                position: Vec::new(),
-                normal: [0.0, 0.0, 1.0].repeat(w * w),
-                albedo: Vec::new(),
-                covered: vec![true; w * w],
-                diffuse_direct: Vec::new(),
-                camera,
-                world_to_clip,
-            };
-            for y in 0..w {
-                for x in 0..w {
-                    let ndc = Vec3::new(
-                        (x as f32 + 0.5) / w as f32 * 2.0 - 1.0,
-                        1.0 - (y as f32 + 0.5) / w as f32 * 2.0,
-                        0.0,
-                    );
-                    let d = (inv.project_point3(ndc) - camera).normalize();
-                    let p = camera + d * (camera.z / -d.z);
-                    s.position.extend(p.to_array());
-                    // Red on the left half, grey elsewhere.
-                    let a = if p.x < 0.0 {
-                        [0.8, 0.2, 0.2]
-                    } else {
-                        [0.5, 0.5, 0.5]
-                    };
-                    s.albedo.extend(a);
-                    let l = light - p;
-                    let irr = power / (4.0 * PI) * l.z / l.length().powi(3);
-                    s.diffuse_direct.extend([irr / PI; 3]);
-                }
-            }
-            s
-        }
-
-        pub fn view(&self) -> LayoutView<'_> {
-            LayoutView {
-                gbuffer: GBuffer {
-                    width: self.w,
-                    height: self.w,
-                    position: &self.position,
-                    normal: &self.normal,
-                    albedo: &self.albedo,
-                    covered: &self.covered,
-                },
-                diffuse_direct: &self.diffuse_direct,
-                camera_position: self.camera,
-                world_to_clip: self.world_to_clip,
-            }
-        }
-    }
-}
-
-#[cfg(test)]
 mod tests {
-    use super::test_util::FloorView;
     use super::*;
-    use crate::scene::test_util::closed_box;
     use crate::scene::Light;
+    use crate::test_util::{closed_box, FloorView};
 
     const LIGHT: Vec3 = Vec3::new(0.3, -0.2, 1.0);
 

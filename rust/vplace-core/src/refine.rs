@@ -276,9 +276,9 @@ fn refine_with(
 mod tests {
     use super::*;
     use crate::evaluator::evaluate;
-    use crate::layout::test_util::FloorView;
-    use crate::scene::test_util::closed_box;
     use crate::scene::Light;
+    use crate::test_util::closed_box;
+    use crate::test_util::FloorView;
 
     const LIGHT: Vec3 = Vec3::new(0.3, -0.2, 1.0);
 
@@ -408,7 +408,7 @@ mod tests {
 
     #[test]
     fn reused_shadow_rays_give_the_same_layout() {
-        use crate::scene::test_util::{box_with, BLOCKER};
+        use crate::test_util::{box_with, BLOCKER};
         let scene = box_with(vec![Light::point(LIGHT, Vec3::splat(20.0))], &[BLOCKER]);
         let fv = FloorView::new(32, LIGHT, 20.0);
         let indirect = reference(&scene, &fv);

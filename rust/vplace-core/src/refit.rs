@@ -448,8 +448,8 @@ pub fn refit(
 mod tests {
     use super::*;
     use crate::evaluator::{evaluate, EvalParams};
-    use crate::layout::test_util::FloorView;
-    use crate::scene::test_util::closed_box;
+    use crate::test_util::closed_box;
+    use crate::test_util::FloorView;
 
     /// VPLs on the ceiling and the walls of the test box, facing in, and one on the floor facing
     /// up that no floor pixel sees.

@@ -95,8 +95,8 @@ pub fn rsm_vpls(scene: &Scene, n: usize) -> Result<Vec<Vpl>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::test_util::closed_box;
     use crate::scene::Light;
+    use crate::test_util::closed_box;
     use crate::vpl::emitted_power;
     use crate::VplaceError;
 

@@ -594,73 +594,9 @@ impl Scene {
 }
 
 #[cfg(test)]
-pub(crate) mod test_util {
-    //! Procedural scenes shared by tests.
-    use super::*;
-
-    /// An open box `[-1, 1]^2 x [0, 2]` (floor, four walls, ceiling) with inward-facing
-    /// triangles, albedo 0.5, and `lights`.
-    pub fn closed_box(lights: Vec<Light>) -> Scene {
-        box_with(lights, &[])
-    }
-
-    /// A horizontal quad over the middle of the floor of [`closed_box`], 0.5 above it.
-    pub const BLOCKER: [Vec3; 4] = [
-        Vec3::new(-0.4, -0.3, 0.5),
-        Vec3::new(0.3, -0.3, 0.5),
-        Vec3::new(0.3, 0.4, 0.5),
-        Vec3::new(-0.4, 0.4, 0.5),
-    ];
-
-    /// [`closed_box`] with extra quads (corners in order) inside it, e.g. occluders.
-    pub fn box_with(lights: Vec<Light>, extra: &[[Vec3; 4]]) -> Scene {
-        let mut v = Vec::new();
-        let mut t = Vec::new();
-        let mut quad = |a: Vec3, b: Vec3, c: Vec3, d: Vec3| {
-            let base = v.len() as u32;
-            v.extend([a, b, c, d]);
-            t.push([base, base + 1, base + 2]);
-            t.push([base, base + 2, base + 3]);
-        };
-        let p = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
-        quad(
-            p(-1., -1., 0.),
-            p(1., -1., 0.),
-            p(1., 1., 0.),
-            p(-1., 1., 0.),
-        ); // floor
-        quad(
-            p(-1., -1., 2.),
-            p(-1., 1., 2.),
-            p(1., 1., 2.),
-            p(1., -1., 2.),
-        ); // ceiling
-        quad(
-            p(-1., -1., 0.),
-            p(-1., 1., 0.),
-            p(-1., 1., 2.),
-            p(-1., -1., 2.),
-        ); // x = -1
-        quad(p(1., -1., 0.), p(1., -1., 2.), p(1., 1., 2.), p(1., 1., 0.)); // x = +1
-        quad(p(-1., 1., 0.), p(1., 1., 0.), p(1., 1., 2.), p(-1., 1., 2.)); // y = +1
-        quad(
-            p(-1., -1., 0.),
-            p(-1., -1., 2.),
-            p(1., -1., 2.),
-            p(1., -1., 0.),
-        ); // y = -1
-        for &[a, b, c, d] in extra {
-            quad(a, b, c, d);
-        }
-        let ids = vec![0; t.len()];
-        Scene::build(&v, &t, &ids, &[Vec3::splat(0.5)], lights).unwrap()
-    }
-}
-
-#[cfg(test)]
 mod tests {
-    use super::test_util::closed_box;
     use super::*;
+    use crate::test_util::{box_with, closed_box};
 
     #[test]
     fn closest_hit_and_occlusion() {
@@ -727,7 +663,7 @@ mod tests {
             let (a, b, d) = (corner(), corner(), corner());
             extra.push([a, b, d, d]);
         }
-        let s = test_util::box_with(vec![], &extra);
+        let s = box_with(vec![], &extra);
         let (mut blocked, mut open) = (0, 0);
         for _ in 0..4000 {
             let mut point = || Vec3::new(2.2 * r() - 1.1, 2.2 * r() - 1.1, 2.2 * r() - 0.1);

@@ -281,7 +281,7 @@ fn cosine_direction(n: Vec3, u1: f32, u2: f32) -> Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::test_util::closed_box;
+    use crate::test_util::closed_box;
 
     #[test]
     fn deterministic_and_on_surfaces() {

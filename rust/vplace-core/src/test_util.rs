@@ -1,0 +1,374 @@
+//! Procedural scenes, views and inputs shared by the tests, the benches and the examples.
+//!
+//! Compiled for the crate's own tests and with the `test-util` feature (the benches and the
+//! examples get it through the crate's dev-dependency on itself). Everything here is
+//! deterministic; the fixtures are fixed data, so a failed build of one is a bug in this module
+//! and panics.
+
+use glam::{Mat4, Vec3, Vec4};
+use std::f32::consts::PI;
+
+use crate::evaluator::GBuffer;
+use crate::features::{FeatureInput, StrongestLight, FEATURE_COUNT};
+use crate::layout::LayoutView;
+use crate::rng::Rng;
+use crate::scene::{Light, Scene};
+
+/// An open box `[-1, 1]^2 x [0, 2]` (floor, four walls, ceiling) with inward-facing
+/// triangles, albedo 0.5, and `lights`.
+#[must_use]
+pub fn closed_box(lights: Vec<Light>) -> Scene {
+    box_with(lights, &[])
+}
+
+/// A horizontal quad over the middle of the floor of [`closed_box`], 0.5 above it.
+pub const BLOCKER: [Vec3; 4] = [
+    Vec3::new(-0.4, -0.3, 0.5),
+    Vec3::new(0.3, -0.3, 0.5),
+    Vec3::new(0.3, 0.4, 0.5),
+    Vec3::new(-0.4, 0.4, 0.5),
+];
+
+/// [`closed_box`] with extra quads (corners in order) inside it, e.g. occluders.
+#[must_use]
+pub fn box_with(lights: Vec<Light>, extra: &[[Vec3; 4]]) -> Scene {
+    let mut v = Vec::new();
+    let mut t = Vec::new();
+    let mut quad = |a: Vec3, b: Vec3, c: Vec3, d: Vec3| {
+        let base = v.len() as u32;
+        v.extend([a, b, c, d]);
+        t.push([base, base + 1, base + 2]);
+        t.push([base, base + 2, base + 3]);
+    };
+    let p = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+    quad(
+        p(-1., -1., 0.),
+        p(1., -1., 0.),
+        p(1., 1., 0.),
+        p(-1., 1., 0.),
+    ); // floor
+    quad(
+        p(-1., -1., 2.),
+        p(-1., 1., 2.),
+        p(1., 1., 2.),
+        p(1., -1., 2.),
+    ); // ceiling
+    quad(
+        p(-1., -1., 0.),
+        p(-1., 1., 0.),
+        p(-1., 1., 2.),
+        p(-1., -1., 2.),
+    ); // x = -1
+    quad(p(1., -1., 0.), p(1., -1., 2.), p(1., 1., 2.), p(1., 1., 0.)); // x = +1
+    quad(p(-1., 1., 0.), p(1., 1., 0.), p(1., 1., 2.), p(-1., 1., 2.)); // y = +1
+    quad(
+        p(-1., -1., 0.),
+        p(-1., -1., 2.),
+        p(1., -1., 2.),
+        p(1., -1., 0.),
+    ); // y = -1
+    for &[a, b, c, d] in extra {
+        quad(a, b, c, d);
+    }
+    let ids = vec![0; t.len()];
+    Scene::build(&v, &t, &ids, &[Vec3::splat(0.5)], lights).expect("the test box is a valid scene")
+}
+
+/// The arrays of a G-buffer, owned; [`GBufferArrays::gbuffer`] borrows them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GBufferArrays {
+    /// Width, pixels.
+    pub width: usize,
+    /// Height, pixels.
+    pub height: usize,
+    /// World position per pixel (`H x W x 3`).
+    pub position: Vec<f32>,
+    /// Shading normal per pixel (`H x W x 3`).
+    pub normal: Vec<f32>,
+    /// Diffuse albedo per pixel (`H x W x 3`).
+    pub albedo: Vec<f32>,
+    /// Coverage per pixel (`H x W`).
+    pub covered: Vec<bool>,
+}
+
+impl GBufferArrays {
+    /// The G-buffer view of the arrays.
+    #[must_use]
+    pub fn gbuffer(&self) -> GBuffer<'_> {
+        GBuffer {
+            width: self.width,
+            height: self.height,
+            position: &self.position,
+            normal: &self.normal,
+            albedo: &self.albedo,
+            covered: &self.covered,
+        }
+    }
+}
+
+/// A `w x w` G-buffer of the floor of [`closed_box`]: pixel centres on a regular grid over
+/// `[-1, 1]^2` (row 0 at `y = 1`), `z = 0`, normal `+Z`, albedo 0.5, every pixel covered.
+#[must_use]
+pub fn floor_gbuffer(w: usize) -> GBufferArrays {
+    let mut position = Vec::new();
+    for y in 0..w {
+        for x in 0..w {
+            let fx = (x as f32 + 0.5) / w as f32 * 2.0 - 1.0;
+            let fy = 1.0 - (y as f32 + 0.5) / w as f32 * 2.0;
+            position.extend([fx, fy, 0.0]);
+        }
+    }
+    GBufferArrays {
+        width: w,
+        height: w,
+        position,
+        normal: [0.0, 0.0, 1.0].repeat(w * w),
+        albedo: [0.5, 0.5, 0.5].repeat(w * w),
+        covered: vec![true; w * w],
+    }
+}
+
+/// Arrays of a `w x w` view of the test box's floor from `(0, 0, 1.9)` straight down,
+/// with DiffDir from a point light at `light` of power `power` (no shadows: the floor
+/// sees it entirely).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FloorView {
+    /// Width and height, pixels.
+    pub w: usize,
+    /// World position per pixel, on the floor `z = 0` (`w x w x 3`).
+    pub position: Vec<f32>,
+    /// `+Z` everywhere (`w x w x 3`).
+    pub normal: Vec<f32>,
+    /// Red `(0.8, 0.2, 0.2)` where `x < 0`, grey 0.5 elsewhere (`w x w x 3`).
+    pub albedo: Vec<f32>,
+    /// Every pixel covered (`w x w`).
+    pub covered: Vec<bool>,
+    /// Cycles' DiffDir of the point light: irradiance / pi (`w x w x 3`).
+    pub diffuse_direct: Vec<f32>,
+    /// Camera position, `(0, 0, 1.9)`.
+    pub camera: Vec3,
+    /// World to clip matrix of the camera (OpenGL conventions, square image).
+    pub world_to_clip: Mat4,
+}
+
+impl FloorView {
+    /// The view, `w x w` pixels, lit by a point light at `light` of `power` watts (grey).
+    #[must_use]
+    pub fn new(w: usize, light: Vec3, power: f32) -> Self {
+        let camera = Vec3::new(0.0, 0.0, 1.9);
+        let fov = 2.0 * (1.0f32 / 1.9).atan();
+        // OpenGL perspective (aspect 1, near 0.1, far 10) and a view looking down -Z, up +Y.
+        let (f, near, far) = (1.0 / (0.5 * fov).tan(), 0.1f32, 10.0f32);
+        let proj = Mat4::from_cols(
+            Vec4::new(f, 0.0, 0.0, 0.0),
+            Vec4::new(0.0, f, 0.0, 0.0),
+            Vec4::new(0.0, 0.0, (far + near) / (near - far), -1.0),
+            Vec4::new(0.0, 0.0, 2.0 * far * near / (near - far), 0.0),
+        );
+        let view = Mat4::from_translation(-camera);
+        let world_to_clip = proj * view;
+        let inv = world_to_clip.inverse();
+        let mut s = Self {
+            w,
+            position: Vec::new(),
+            normal: [0.0, 0.0, 1.0].repeat(w * w),
+            albedo: Vec::new(),
+            covered: vec![true; w * w],
+            diffuse_direct: Vec::new(),
+            camera,
+            world_to_clip,
+        };
+        for y in 0..w {
+            for x in 0..w {
+                let ndc = Vec3::new(
+                    (x as f32 + 0.5) / w as f32 * 2.0 - 1.0,
+                    1.0 - (y as f32 + 0.5) / w as f32 * 2.0,
+                    0.0,
+                );
+                let d = (inv.project_point3(ndc) - camera).normalize();
+                let p = camera + d * (camera.z / -d.z);
+                s.position.extend(p.to_array());
+                // Red on the left half, grey elsewhere.
+                let a = if p.x < 0.0 {
+                    [0.8, 0.2, 0.2]
+                } else {
+                    [0.5, 0.5, 0.5]
+                };
+                s.albedo.extend(a);
+                let l = light - p;
+                let irr = power / (4.0 * PI) * l.z / l.length().powi(3);
+                s.diffuse_direct.extend([irr / PI; 3]);
+            }
+        }
+        s
+    }
+
+    /// The layout's view of the arrays.
+    #[must_use]
+    pub fn view(&self) -> LayoutView<'_> {
+        LayoutView {
+            gbuffer: GBuffer {
+                width: self.w,
+                height: self.w,
+                position: &self.position,
+                normal: &self.normal,
+                albedo: &self.albedo,
+                covered: &self.covered,
+            },
+            diffuse_direct: &self.diffuse_direct,
+            camera_position: self.camera,
+            world_to_clip: self.world_to_clip,
+        }
+    }
+}
+
+/// The render passes the feature extraction reads, owned; [`Passes::input`] borrows them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Passes {
+    /// Width, pixels.
+    pub w: usize,
+    /// Height, pixels.
+    pub h: usize,
+    /// World position (`H x W x 3`).
+    pub position: Vec<f32>,
+    /// Shading normal (`H x W x 3`).
+    pub normal: Vec<f32>,
+    /// Diffuse albedo (`H x W x 3`).
+    pub albedo: Vec<f32>,
+    /// Depth (`H x W`), `1e10` on the background.
+    pub depth: Vec<f32>,
+    /// Direct light (`H x W x 3`).
+    pub direct: Vec<f32>,
+    /// Direct plus indirect light (`H x W x 3`).
+    pub gi: Vec<f32>,
+    /// Coverage (`H x W`).
+    pub covered: Vec<bool>,
+    /// The strongest light.
+    pub light: StrongestLight,
+}
+
+impl Passes {
+    /// A flat grid: pixel `(x, y)` at world `(x, y, 0)`, normal `+Z`, albedo 0.5, depth
+    /// `2 + y`, direct 0.25, gi `0.25 + 0.01 x`; covered where `x < w / 2` or `y < h / 2`; a
+    /// point light at `(0, 0, 10)`. Values simple enough to check cell means by hand.
+    #[must_use]
+    pub fn grid(w: usize, h: usize) -> Self {
+        let n = w * h;
+        let mut b = Self {
+            w,
+            h,
+            position: vec![0.0; 3 * n],
+            normal: vec![0.0; 3 * n],
+            albedo: vec![0.5; 3 * n],
+            depth: vec![1e10; n],
+            direct: vec![0.0; 3 * n],
+            gi: vec![0.0; 3 * n],
+            covered: vec![false; n],
+            light: StrongestLight::Position(Vec3::new(0.0, 0.0, 10.0)),
+        };
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                b.covered[i] = x < w / 2 || y < h / 2;
+                b.position[3 * i] = x as f32;
+                b.position[3 * i + 1] = y as f32;
+                b.normal[3 * i + 2] = 1.0;
+                b.depth[i] = 2.0 + y as f32;
+                b.direct[3 * i..3 * i + 3].fill(0.25);
+                b.gi[3 * i..3 * i + 3].fill(0.25 + 0.01 * x as f32);
+            }
+        }
+        b
+    }
+
+    /// A synthetic room view: a floor (lower 40 %), a back wall, a checker albedo of 64-pixel
+    /// squares, 8 % background (top right), direct and gi with a little noise from a fixed seed;
+    /// a point light at `(0, 1, 2.5)`. The features benchmark's input.
+    #[must_use]
+    pub fn room(w: usize, h: usize) -> Self {
+        let n = w * h;
+        let mut rng = Rng::new(42, 1);
+        let mut p = Self {
+            w,
+            h,
+            position: vec![0.0; 3 * n],
+            normal: vec![0.0; 3 * n],
+            albedo: vec![0.0; 3 * n],
+            depth: vec![1e10; n],
+            direct: vec![0.0; 3 * n],
+            gi: vec![0.0; 3 * n],
+            covered: vec![false; n],
+            light: StrongestLight::Position(Vec3::new(0.0, 1.0, 2.5)),
+        };
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                let (u, v) = (x as f32 / w as f32, y as f32 / h as f32);
+                if u > 0.92 && v < 0.5 {
+                    continue; // background
+                }
+                p.covered[i] = true;
+                let floor = v > 0.6;
+                let nrm = if floor {
+                    Vec3::Z
+                } else {
+                    Vec3::new(0.0, -1.0, 0.0)
+                };
+                let pos = if floor {
+                    Vec3::new(u * 4.0 - 2.0, 4.0 * (v - 0.6), 0.0)
+                } else {
+                    Vec3::new(u * 4.0 - 2.0, 3.0, 3.0 * (1.0 - v))
+                };
+                let alb = if (x / 64 + y / 64) % 2 == 0 { 0.8 } else { 0.3 };
+                let d = 0.5 * alb * nrm.z.max(0.2) + 0.05 * rng.next_f32();
+                let g = d + 0.1 * alb * (1.0 - v) + 0.02 * rng.next_f32();
+                p.position[3 * i..3 * i + 3].copy_from_slice(&pos.to_array());
+                p.normal[3 * i..3 * i + 3].copy_from_slice(&nrm.to_array());
+                p.albedo[3 * i..3 * i + 3].fill(alb);
+                p.depth[i] = 1.0 + 5.0 * (1.0 - v) + u;
+                p.direct[3 * i..3 * i + 3].fill(d);
+                p.gi[3 * i..3 * i + 3].fill(g);
+            }
+        }
+        p
+    }
+
+    /// The feature extraction's view of the passes (gi given, no specular pass).
+    #[must_use]
+    pub fn input(&self) -> FeatureInput<'_> {
+        FeatureInput {
+            width: self.w,
+            height: self.h,
+            position: &self.position,
+            normal: &self.normal,
+            albedo: &self.albedo,
+            depth: &self.depth,
+            direct: &self.direct,
+            gi: Some(&self.gi),
+            specular: None,
+            covered: &self.covered,
+            light: Some(self.light),
+        }
+    }
+}
+
+/// A random `n x FEATURE_COUNT` design (row-major, values in `[0, 1)`) and a label linear in
+/// it plus noise in `[0, 0.1)`, from a fixed seed: the regression benchmark's input.
+#[must_use]
+pub fn linear_design(n: usize) -> (Vec<f64>, Vec<f64>) {
+    let mut rng = Rng::new(7, 2);
+    let x: Vec<f64> = (0..n * FEATURE_COUNT)
+        .map(|_| f64::from(rng.next_f32()))
+        .collect();
+    let y = x
+        .chunks_exact(FEATURE_COUNT)
+        .map(|r| {
+            r.iter()
+                .enumerate()
+                .map(|(j, v)| v * (j % 4) as f64)
+                .sum::<f64>()
+                + 0.1 * f64::from(rng.next_f32())
+        })
+        .collect();
+    (x, y)
+}
