@@ -1,22 +1,22 @@
 //! The VPL evaluator: the indirect image of a VPL set over a captured G-buffer.
 //!
-//! For every covered pixel `x` (normal `n`, albedo `rho`) and VPL `j` (position `y`, normal `m`,
-//! flux `Phi`):
-//! `L += rho / pi * I_j(-l) * max(0, n.l) / max(r^2, r_min^2) * V(x, y)`,
-//! with `l = (y - x) / r` and `V` an any-hit shadow ray through the scene BVH. Work is split in
-//! square pixel tiles run in parallel with rayon; each tile polls the cancel flag of
-//! [`Progress`].
+//! Every covered pixel gets the sum over the VPLs of the shading term of [`crate::shading`]
+//! (`rho / pi * Phi * I(cos_e) * max(0, n . l) * F(r) * V`, `V` an any-hit shadow ray through the
+//! scene BVH). This module is the scheduling: square pixel tiles run in parallel with rayon,
+//! each with one traversal state reused by its shadow rays; each tile polls the cancel flag of
+//! [`Progress`] and counts its rays. [`evaluate_cached`] answers rays from a
+//! [`ShadowCache`] of the previous evaluation.
 
-use glam::{Vec3, Vec3A};
+use glam::Vec3;
 use obvhs::{cwbvh::Traversal, ray::Ray};
 use rayon::prelude::*;
-use std::collections::HashMap;
-use std::f32::consts::PI;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::time::Instant;
 
 use crate::error::{check_finite, Result, VplaceError};
 use crate::scene::Scene;
+use crate::shading::{Batch, Receiver, VplSoa};
+use crate::shadow_cache::{self, ShadowCache};
 use crate::vpl::{Profile, Vpl};
 
 /// A G-buffer view: `width x height` pixels, row 0 at the top, flat `H x W x 3` arrays.
@@ -83,6 +83,17 @@ impl GBuffer<'_> {
 
     fn vec3(arr: &[f32], p: usize) -> Vec3 {
         Vec3::new(arr[3 * p], arr[3 * p + 1], arr[3 * p + 2])
+    }
+
+    /// Pixel `p` as a receiver of VPL light; `eps` is [`Scene::ray_epsilon`].
+    #[inline]
+    pub(crate) fn receiver(&self, p: usize, eps: f32) -> Receiver {
+        Receiver::new(
+            Self::vec3(self.position, p),
+            Self::vec3(self.normal, p),
+            Self::vec3(self.albedo, p),
+            eps,
+        )
     }
 }
 
@@ -183,73 +194,6 @@ pub(crate) fn check_r_min(r_min: f32) -> Result<()> {
     }
 }
 
-/// A covered pixel ready to receive VPL light: the one place where the shading of one VPL at one
-/// pixel is written (the evaluator sums it over VPLs, the refit keeps it per VPL).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Receiver {
-    /// World position.
-    pub position: Vec3,
-    /// Unit shading normal (zero where the G-buffer normal is zero).
-    pub normal: Vec3,
-    /// Diffuse BRDF `albedo / pi`.
-    pub brdf: Vec3,
-    /// Start of the shadow rays: the position pushed off the surface by the ray epsilon.
-    pub origin: Vec3,
-}
-
-impl Receiver {
-    /// The receiver at pixel `p` of `gbuffer`; `eps` is [`Scene::ray_epsilon`].
-    #[must_use]
-    pub fn new(gbuffer: &GBuffer, p: usize, eps: f32) -> Self {
-        let position = GBuffer::vec3(gbuffer.position, p);
-        let normal = GBuffer::vec3(gbuffer.normal, p).normalize_or_zero();
-        Self {
-            position,
-            normal,
-            brdf: GBuffer::vec3(gbuffer.albedo, p) / PI,
-            origin: position + normal * eps,
-        }
-    }
-
-    /// The irradiance-like term of VPL `v` here, before the BRDF:
-    /// `Phi * I(-l) * max(0, n.l) / max(r^2, r_min_sq) * V`, `V` from one shadow ray
-    /// `occluded(origin, v.position)`. `None` when the term is zero without a ray (the VPL is
-    /// behind the receiver, the receiver behind a cosine VPL, or they coincide): then no ray is
-    /// traced. `Some` means exactly one ray was traced (the value is zero when it was blocked).
-    #[inline]
-    pub fn incident(
-        &self,
-        v: &Vpl,
-        profile: Profile,
-        r_min_sq: f32,
-        occluded: impl Fn(Vec3, Vec3) -> bool,
-    ) -> Option<Vec3> {
-        let d = v.position - self.position;
-        let r2 = d.length_squared();
-        if r2 <= 0.0 {
-            return None;
-        }
-        let l = d / r2.sqrt();
-        let cos_r = self.normal.dot(l);
-        if cos_r <= 0.0 {
-            return None;
-        }
-        let i = profile.intensity_per_flux(-v.normal.dot(l));
-        if i <= 0.0 {
-            return None;
-        }
-        let c = v.flux * (i * cos_r / r2.max(r_min_sq));
-        if c == Vec3::ZERO {
-            return None;
-        }
-        Some(if occluded(self.origin, v.position) {
-            Vec3::ZERO
-        } else {
-            c
-        })
-    }
-}
-
 /// Renders the indirect radiance of `vpls` at every covered pixel of `gbuffer` (`H x W x 3`).
 pub fn evaluate(
     scene: &Scene,
@@ -283,40 +227,6 @@ pub fn evaluate_brute_force(
     })
 }
 
-/// The shadow-ray answers of one evaluation, kept for the next evaluation of the same G-buffer
-/// in the same scene (the layout iterations): a VPL of the next set at the same position (bit
-/// for bit) as one of this set gets its answers from here instead of new rays. Visibility depends
-/// only on the two ends of the ray, so the image is bit for bit the one [`evaluate`] renders; only
-/// the number of rays traced changes.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct ShadowCache {
-    width: usize,
-    height: usize,
-    /// The positions of the VPLs the bits are indexed by, bit patterns, first occurrence.
-    keys: HashMap<[u32; 3], usize>,
-    /// `u64` words per pixel in `known` and `visible`.
-    words: usize,
-    /// Per pixel, bit `j`: the pair (pixel, VPL `j`) was traced.
-    known: Vec<u64>,
-    /// Per pixel, bit `j`: its shadow ray was not blocked.
-    visible: Vec<u64>,
-    /// Pairs answered from the cache in the last evaluation instead of a ray.
-    pub reused: u64,
-}
-
-impl ShadowCache {
-    /// The cached answer for pixel `p` and VPL `k` of the cached set, if it was traced.
-    #[inline]
-    fn lookup(&self, p: usize, k: usize) -> Option<bool> {
-        let (word, bit) = (self.words * p + k / 64, k % 64);
-        (self.known[word] >> bit & 1 == 1).then(|| self.visible[word] >> bit & 1 == 1)
-    }
-}
-
-fn position_key(v: &Vpl) -> [u32; 3] {
-    v.position.to_array().map(f32::to_bits)
-}
-
 /// [`evaluate`] that answers the shadow rays of VPLs already evaluated at the same positions from
 /// `cache` and stores this evaluation's answers there. `stats.shadow_rays` counts the rays traced;
 /// `cache.reused` the pairs answered from the cache.
@@ -339,153 +249,8 @@ pub(crate) fn evaluate_cached(
     )
 }
 
-/// The VPLs in structure-of-arrays form for the per-pixel batch of [`Pairs::prepare`].
-struct VplSoa {
-    px: Vec<f32>,
-    py: Vec<f32>,
-    pz: Vec<f32>,
-    mx: Vec<f32>,
-    my: Vec<f32>,
-    mz: Vec<f32>,
-    flux: Vec<Vec3>,
-}
-
-impl VplSoa {
-    fn new(vpls: &[Vpl]) -> Self {
-        let col = |f: fn(&Vpl) -> f32| vpls.iter().map(f).collect::<Vec<f32>>();
-        Self {
-            px: col(|v| v.position.x),
-            py: col(|v| v.position.y),
-            pz: col(|v| v.position.z),
-            mx: col(|v| v.normal.x),
-            my: col(|v| v.normal.y),
-            mz: col(|v| v.normal.z),
-            flux: vpls.iter().map(|v| v.flux).collect(),
-        }
-    }
-
-    fn len(&self) -> usize {
-        self.flux.len()
-    }
-}
-
-/// One pixel against every VPL, computed in a batch the compiler vectorizes: the unshadowed
-/// scale `G = I(cos_e) * cos_r / max(r^2, r_min^2)` of each pair (0 when the pair gives
-/// nothing: behind the receiver or the VPL) and its shadow ray, with the operations of the
-/// scalar formula in the same order so that every value is bit for bit the same.
-struct Pairs {
-    scale: Vec<f32>,
-    len: Vec<f32>,
-    dx: Vec<f32>,
-    dy: Vec<f32>,
-    dz: Vec<f32>,
-    ix: Vec<f32>,
-    iy: Vec<f32>,
-    iz: Vec<f32>,
-}
-
-/// `obvhs::ray::safe_inverse`, as `Ray::new` computes it.
-#[inline(always)]
-fn safe_inverse(x: f32) -> f32 {
-    if x.abs() <= f32::EPSILON {
-        x.signum() / f32::EPSILON
-    } else {
-        1.0 / x
-    }
-}
-
-impl Pairs {
-    fn new(n: usize) -> Self {
-        let z = || vec![0.0f32; n];
-        Self {
-            scale: z(),
-            len: z(),
-            dx: z(),
-            dy: z(),
-            dz: z(),
-            ix: z(),
-            iy: z(),
-            iz: z(),
-        }
-    }
-
-    fn prepare(
-        &mut self,
-        v: &VplSoa,
-        pos: Vec3,
-        n: Vec3,
-        origin: Vec3,
-        profile: Profile,
-        r_min2: f32,
-    ) {
-        match profile {
-            Profile::Cosine => self.prepare_with::<true>(v, pos, n, origin, r_min2),
-            Profile::Omni => self.prepare_with::<false>(v, pos, n, origin, r_min2),
-        }
-    }
-
-    #[inline(always)]
-    fn prepare_with<const COSINE: bool>(
-        &mut self,
-        v: &VplSoa,
-        pos: Vec3,
-        n: Vec3,
-        origin: Vec3,
-        r_min2: f32,
-    ) {
-        let m = v.len();
-        let (px, py, pz) = (&v.px[..m], &v.py[..m], &v.pz[..m]);
-        let (mx, my, mz) = (&v.mx[..m], &v.my[..m], &v.mz[..m]);
-        let scale = &mut self.scale[..m];
-        let len = &mut self.len[..m];
-        let (dx, dy, dz) = (&mut self.dx[..m], &mut self.dy[..m], &mut self.dz[..m]);
-        let (ix, iy, iz) = (&mut self.ix[..m], &mut self.iy[..m], &mut self.iz[..m]);
-        for j in 0..m {
-            // Shading, as `evaluate` wrote it per pair.
-            let (ex, ey, ez) = (px[j] - pos.x, py[j] - pos.y, pz[j] - pos.z);
-            let r2 = (ex * ex) + (ey * ey) + (ez * ez);
-            let r = r2.sqrt();
-            let (lx, ly, lz) = (ex / r, ey / r, ez / r);
-            let cos_r = (n.x * lx) + (n.y * ly) + (n.z * lz);
-            let i = if COSINE {
-                let cos_e = -((mx[j] * lx) + (my[j] * ly) + (mz[j] * lz));
-                Profile::Cosine.intensity_per_flux(cos_e)
-            } else {
-                Profile::Omni.intensity_per_flux(0.0)
-            };
-            let s = i * cos_r / r2.max(r_min2);
-            scale[j] = if r2 > 0.0 && cos_r > 0.0 && i > 0.0 {
-                s
-            } else {
-                0.0
-            };
-            // The shadow ray from `origin`, as `Scene::occluded` and `Ray::new` make it.
-            let (ox, oy, oz) = (px[j] - origin.x, py[j] - origin.y, pz[j] - origin.z);
-            let l = ((ox * ox) + (oy * oy) + (oz * oz)).sqrt();
-            let (ux, uy, uz) = (ox / l, oy / l, oz / l);
-            len[j] = l;
-            (dx[j], dy[j], dz[j]) = (ux, uy, uz);
-            (ix[j], iy[j], iz[j]) = (safe_inverse(ux), safe_inverse(uy), safe_inverse(uz));
-        }
-    }
-
-    /// Whether the shadow ray of pair `j` is blocked, by `occluded`; a zero-length ray is not.
-    #[inline(always)]
-    fn ray_occluded(&self, j: usize, origin: Vec3, occluded: impl FnOnce(&Ray) -> bool) -> bool {
-        let len = self.len[j];
-        if len <= 0.0 {
-            return false;
-        }
-        occluded(&Ray {
-            origin: Vec3A::from(origin),
-            direction: Vec3A::new(self.dx[j], self.dy[j], self.dz[j]),
-            inv_direction: Vec3A::new(self.ix[j], self.iy[j], self.iz[j]),
-            tmin: 0.0,
-            tmax: len,
-        })
-    }
-}
-
+/// The evaluation: tiles of pixels in parallel, each pixel shaded by every VPL through the
+/// shading module with one traversal state per tile; `occluded` answers a shadow ray with it.
 fn evaluate_with(
     scene: &Scene,
     gbuffer: &GBuffer,
@@ -515,27 +280,18 @@ fn evaluate_with(
         p.done.store(0, Ordering::Relaxed);
     }
     let soa = VplSoa::new(vpls);
-    // With a cache: the index of each VPL in the cached set (if there), the cache's bits, and
-    // the size of this evaluation's bit rows.
-    let old = cache
-        .as_deref()
-        .filter(|c| c.width == w && c.height == h && c.words > 0);
-    let previous: Vec<Option<usize>> = match old {
-        Some(c) => vpls
-            .iter()
-            .map(|v| c.keys.get(&position_key(v)).copied())
-            .collect(),
-        None => vec![None; vpls.len()],
-    };
+    // With a cache: the answers it holds for these VPLs, and the size of this evaluation's bit
+    // rows (per pixel, `known` then `visible`).
+    let reuse = cache.as_deref().and_then(|c| c.reuse(vpls, w, h));
     let words = if cache.is_some() {
-        vpls.len().div_ceil(64)
+        shadow_cache::words_for(vpls.len())
     } else {
         0
     };
     let rays = AtomicU64::new(0);
     let reused = AtomicU64::new(0);
     let eps = scene.ray_epsilon();
-    let r_min2 = params.r_min * params.r_min;
+    let r_min_sq = params.r_min * params.r_min;
     let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
     type Tile = (Vec<(usize, Vec3)>, Vec<u64>);
     let results: Vec<Option<Tile>> = tiles
@@ -550,51 +306,35 @@ fn evaluate_with(
             let mut tile_rays = 0u64;
             let mut tile_reused = 0u64;
             let mut state = scene.shadow_state();
-            let mut pairs = Pairs::new(soa.len());
+            let mut batch = Batch::new(soa.len());
             for y in y0..(y0 + t).min(h) {
                 for x in x0..(x0 + t).min(w) {
                     let p = y * w + x;
                     if !gbuffer.covered[p] {
                         continue;
                     }
-                    let pos = GBuffer::vec3(gbuffer.position, p);
-                    let n = GBuffer::vec3(gbuffer.normal, p).normalize_or_zero();
-                    let rho = GBuffer::vec3(gbuffer.albedo, p);
-                    let origin = pos + n * eps;
-                    pairs.prepare(&soa, pos, n, origin, params.profile, r_min2);
+                    let recv = gbuffer.receiver(p, eps);
+                    batch.prepare(&soa, &recv, params.profile, r_min_sq);
                     let row = bits.len();
                     bits.resize(row + 2 * words, 0);
                     let (known, visible) = bits[row..].split_at_mut(words);
                     let mut sum = Vec3::ZERO;
-                    for (j, &flux) in soa.flux.iter().enumerate() {
-                        let s = pairs.scale[j];
-                        if s == 0.0 {
-                            continue;
-                        }
-                        let c = flux * s;
-                        if c == Vec3::ZERO {
-                            continue;
-                        }
-                        let cached = match (old, previous[j]) {
-                            (Some(cache), Some(k)) => cache.lookup(p, k),
-                            _ => None,
-                        };
-                        let lit = if let Some(lit) = cached {
+                    for (j, c) in batch.unshadowed(&soa) {
+                        let lit = if let Some(lit) = reuse.as_ref().and_then(|r| r.lookup(p, j)) {
                             tile_reused += 1;
                             lit
                         } else {
                             tile_rays += 1;
-                            !pairs.ray_occluded(j, origin, |ray| occluded(&mut state, ray))
+                            !batch.occluded(j, |ray| occluded(&mut state, ray))
                         };
                         if words > 0 {
-                            known[j / 64] |= 1 << (j % 64);
-                            visible[j / 64] |= u64::from(lit) << (j % 64);
+                            shadow_cache::record(known, visible, j, lit);
                         }
                         if lit {
                             sum += c;
                         }
                     }
-                    out.push((p, rho / PI * sum));
+                    out.push((p, recv.brdf * sum));
                 }
             }
             rays.fetch_add(tile_rays, Ordering::Relaxed);
@@ -621,19 +361,7 @@ fn evaluate_with(
         }
     }
     if let Some(cache) = cache {
-        let mut keys = HashMap::with_capacity(vpls.len());
-        for (j, v) in vpls.iter().enumerate() {
-            keys.entry(position_key(v)).or_insert(j);
-        }
-        *cache = ShadowCache {
-            width: w,
-            height: h,
-            keys,
-            words,
-            known,
-            visible,
-            reused: reused.into_inner(),
-        };
+        *cache = ShadowCache::new(vpls, w, h, known, visible, reused.into_inner());
     }
     let covered = gbuffer.covered.iter().filter(|&&c| c).count() as u64;
     Ok((
@@ -650,6 +378,7 @@ fn evaluate_with(
 mod tests {
     use super::*;
     use crate::test_util::{box_with, closed_box, floor_gbuffer, BLOCKER};
+    use std::f32::consts::PI;
 
     /// The arrays of [`floor_gbuffer`]: position, normal, albedo, covered.
     fn floor(w: usize) -> (Vec<f32>, Vec<f32>, Vec<f32>, Vec<bool>) {

@@ -48,6 +48,8 @@ pub mod regression;
 pub mod rng;
 pub mod rsm;
 pub mod scene;
+pub mod shading;
+mod shadow_cache;
 #[cfg(any(test, feature = "test-util"))]
 pub mod test_util;
 pub mod vpl;

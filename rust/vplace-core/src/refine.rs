@@ -20,12 +20,13 @@ use std::time::Instant;
 
 use crate::color::luminance;
 use crate::error::{check_finite, Result, VplaceError};
-use crate::evaluator::{evaluate_cached, EvalParams, GBuffer, Progress, ShadowCache};
+use crate::evaluator::{evaluate_cached, EvalParams, GBuffer, Progress};
 use crate::layout::{
     allocate, blend, build_strata, draw, importance, shares, Allocation, LayoutParams, LayoutView,
     Strata,
 };
 use crate::scene::Scene;
+use crate::shadow_cache::ShadowCache;
 use crate::vpl::Vpl;
 
 /// Settings of the iteration. `Copy`, with named presets.

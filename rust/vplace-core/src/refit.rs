@@ -3,8 +3,8 @@
 //!
 //! Column `j` of `A` is the contribution of VPL `j` (with its current flux) to the covered pixels
 //! of the strided grid (every `stride`-th pixel in x and y), RGB stacked, computed by the
-//! evaluator's own [`Receiver::incident`] with its shadow ray; `b` is `I` on the same rows. The
-//! refit solves
+//! evaluator's own shading term ([`crate::shading`]) with its shadow ray: entry for entry the
+//! evaluator's image before the sum over VPLs. `b` is `I` on the same rows. The refit solves
 //!
 //! `min_s ||A s - b||^2 + lambda ||s - 1||^2  subject to  s >= 0`,
 //!
@@ -13,8 +13,9 @@
 //! `s = 1` is feasible and scores the error before the refit, so the refitted error is never
 //! larger: if rounding ever made it so, the refit returns `s = 1`.
 //!
-//! **How.** `A` is never stored: the strided pixels are traced in blocks (rayon over the block's
-//! pixels), and each block's rows are added to the Gram matrix `A^T A` (f64, blocked GEMM,
+//! **How.** `A` is never stored: the strided pixels are traced in blocks (rayon over chunks of
+//! the block's pixels, each chunk with one traversal state for its shadow rays, as the
+//! evaluator's tiles), and each block's rows are added to the Gram matrix `A^T A` (f64, blocked GEMM,
 //! rayon over column panels of the upper triangle), to `A^T b` and `b^T b`. Memory is
 //! `O(n^2 + block * n)`, the time one shadow ray per (pixel, VPL) pair plus `rows * n^2 / 2`
 //! multiply-adds (`rows` = 3 x pixels). The errors come from the same quadratic form:
@@ -33,13 +34,15 @@
 
 use glam::Vec3;
 use nalgebra::{Cholesky, DMatrix, DMatrixView, DMatrixViewMut, DVector};
+use obvhs::ray::Ray;
 use rayon::prelude::*;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 use crate::error::{check_finite, Result, VplaceError};
-use crate::evaluator::{check_r_min, validate_vpls, GBuffer, Progress, Receiver};
+use crate::evaluator::{check_r_min, validate_vpls, GBuffer, Progress};
 use crate::scene::Scene;
+use crate::shading::{Batch, Receiver, VplSoa};
 use crate::vpl::{Profile, Vpl};
 
 /// Settings of the refit. `Copy`, with a default.
@@ -115,6 +118,38 @@ struct Normal {
 /// Columns of the Gram matrix one task updates.
 const PANEL: usize = 32;
 
+/// Pixels one rayon task traces, with one traversal state and one shading batch.
+const PIXELS_PER_TASK: usize = 16;
+
+/// Fills the three rows of `A` of receiver `recv` (`rows`: R, G then B, `n` values each, `n`
+/// the VPLs of `soa`): `brdf * Phi_j * scale_j` where VPL `j`'s shadow ray is not blocked, 0
+/// elsewhere. `occluded` answers a shadow ray. Returns the rays traced.
+fn pixel_rows(
+    recv: &Receiver,
+    soa: &VplSoa,
+    profile: Profile,
+    r_min_sq: f32,
+    batch: &mut Batch,
+    mut occluded: impl FnMut(&Ray) -> bool,
+    rows: &mut [f64],
+) -> u64 {
+    let n = soa.len();
+    rows.fill(0.0);
+    let (red, rest) = rows.split_at_mut(n);
+    let (green, blue) = rest.split_at_mut(n);
+    batch.prepare(soa, recv, profile, r_min_sq);
+    let mut rays = 0u64;
+    for (j, c) in batch.unshadowed(soa) {
+        rays += 1;
+        let lit = !batch.occluded(j, &mut occluded);
+        let a = recv.brdf * if lit { c } else { Vec3::ZERO };
+        red[j] = f64::from(a.x);
+        green[j] = f64::from(a.y);
+        blue[j] = f64::from(a.z);
+    }
+    rays
+}
+
 /// Traces the strided pixels `pixels` block by block and accumulates the normal equations.
 fn normal_equations(
     scene: &Scene,
@@ -136,7 +171,7 @@ fn normal_equations(
     let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
     let eps = scene.ray_epsilon();
     let r_min_sq = params.r_min * params.r_min;
-    let occluded = |a: Vec3, b: Vec3| scene.occluded(a, b);
+    let soa = VplSoa::new(vpls);
     let mut out = Normal {
         gram: vec![0.0; n * n],
         atb: vec![0.0; n],
@@ -150,28 +185,30 @@ fn normal_equations(
         }
         let r = 3 * chunk.len();
         let rows = &mut rows[..r * n];
-        // Rows 3k..3k+3 are pixel k's R, G and B: `brdf * incident` of every VPL.
+        // Rows 3k..3k+3 are pixel k's R, G and B: every VPL's shaded contribution.
         out.rays += rows
-            .par_chunks_mut(3 * n)
-            .zip(chunk)
-            .map(|(px_rows, &p)| {
-                let recv = Receiver::new(gbuffer, p, eps);
-                let (red, rest) = px_rows.split_at_mut(n);
-                let (green, blue) = rest.split_at_mut(n);
-                let mut rays = 0u64;
-                for (j, v) in vpls.iter().enumerate() {
-                    let a = match recv.incident(v, params.profile, r_min_sq, occluded) {
-                        Some(c) => {
-                            rays += 1;
-                            recv.brdf * c
-                        }
-                        None => Vec3::ZERO,
-                    };
-                    red[j] = f64::from(a.x);
-                    green[j] = f64::from(a.y);
-                    blue[j] = f64::from(a.z);
-                }
-                rays
+            .par_chunks_mut(3 * n * PIXELS_PER_TASK)
+            .zip(chunk.par_chunks(PIXELS_PER_TASK))
+            .map(|(task_rows, task_pixels)| {
+                let mut state = scene.shadow_state();
+                let mut batch = Batch::new(n);
+                task_rows
+                    .chunks_mut(3 * n)
+                    .zip(task_pixels)
+                    .map(|(px_rows, &p)| {
+                        let recv = gbuffer.receiver(p, eps);
+                        let occluded = |ray: &_| scene.occluded_ray(&mut state, ray);
+                        pixel_rows(
+                            &recv,
+                            &soa,
+                            params.profile,
+                            r_min_sq,
+                            &mut batch,
+                            occluded,
+                            px_rows,
+                        )
+                    })
+                    .sum::<u64>()
             })
             .sum::<u64>();
         for (k, &p) in chunk.iter().enumerate() {
