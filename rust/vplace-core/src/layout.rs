@@ -39,14 +39,13 @@ use crate::error::{check_finite, Result, VplaceError};
 use crate::evaluator::GBuffer;
 use crate::rng::Rng;
 use crate::scene::Scene;
-use crate::vpl::{light_path_vpls, Vpl, MAX_BOUNCES};
+use crate::shading::{Batch, VplSoa};
+use crate::vpl::{light_path_vpls, Profile, Vpl, MAX_BOUNCES};
 
 /// Off-screen strata with a non-zero view efficiency (plus the dark one).
 pub const OFFSCREEN_BINS: usize = 8;
 /// About this many covered pixels sample the view for [`view_efficiency`].
 pub const VIEW_SAMPLES: usize = 1024;
-/// Distance clamp of the view efficiency, as a fraction of the scene diagonal.
-pub const VIEW_R_MIN_FRACTION: f32 = 0.01;
 
 /// Smallest `|cos|` between a pixel's normal and its view ray used for its footprint: bounds
 /// the `1 / cos` of grazing pixels (about 87 degrees).
@@ -324,7 +323,7 @@ pub fn build_strata(scene: &Scene, view: &LayoutView<'_>, params: &LayoutParams)
         }
     }
     let samples = view_samples(view);
-    let r_min = VIEW_R_MIN_FRACTION * scene.diagonal();
+    let r_min = scene.near_field_radius();
     let on_screen: Vec<&Emitter> = per.iter().flatten().collect();
     let step = on_screen.len().div_ceil(VIEW_SAMPLES).max(1);
     let on_sample: Vec<&Emitter> = on_screen.iter().step_by(step).copied().collect();
@@ -407,39 +406,49 @@ fn view_samples(view: &LayoutView<'_>) -> Vec<(Vec3, Vec3, f32)> {
     out
 }
 
-/// The view efficiency `eta_e` of each emitter: the mean over `samples` of
-/// `albedo * max(0, n_e . l) * max(0, -n_p . l) / (pi^2 * max(r^2, r_min^2))` (the radiance an
-/// emitter of unit flux sends back from each sample pixel, no shadow rays). Parallel.
+/// Emitters per task of [`view_efficiency`], shaded in one batch per sample.
+const EMITTER_CHUNK: usize = 256;
+
+/// The view efficiency `eta_e` of each emitter: the mean over `samples` (position, unit normal,
+/// albedo) of `albedo / pi * I(cos_e) * max(0, n_p . l) * F(r)`, the shading term of
+/// [`crate::shading`] for the cosine profile without shadow rays (the radiance an emitter of
+/// unit flux sends back from each sample pixel; `F` the near-field term with radius `r_min`).
+/// Parallel over chunks of emitters; each sample shades a chunk in one batch.
+#[must_use]
 pub fn view_efficiency(
     emitters: &[&Emitter],
     samples: &[(Vec3, Vec3, f32)],
     r_min: f32,
 ) -> Vec<f64> {
-    use rayon::prelude::*;
     if samples.is_empty() {
         return vec![0.0; emitters.len()];
     }
-    let r2_min = r_min * r_min;
+    let r_min_sq = r_min * r_min;
+    let norm = samples.len() as f64 * f64::from(PI);
     emitters
-        .par_iter()
-        .map(|e| {
-            let mut sum = 0.0f64;
+        .par_chunks(EMITTER_CHUNK)
+        .map(|chunk| {
+            let unit: Vec<Vpl> = chunk
+                .iter()
+                .map(|e| Vpl {
+                    position: e.position,
+                    normal: e.normal,
+                    flux: Vec3::ONE,
+                })
+                .collect();
+            let soa = VplSoa::new(&unit);
+            let mut batch = Batch::new(soa.len());
+            let mut sum = vec![0.0f64; chunk.len()];
             for &(p, n, albedo) in samples {
-                let d = p - e.position;
-                let r2 = d.length_squared();
-                if r2 <= 0.0 {
-                    continue;
-                }
-                let l = d / r2.sqrt();
-                let ce = e.normal.dot(l);
-                let cp = -n.dot(l);
-                if ce > 0.0 && cp > 0.0 {
-                    sum += f64::from(albedo * ce * cp / r2.max(r2_min));
+                batch.prepare_unshadowed(&soa, p, n, Profile::Cosine, r_min_sq);
+                for (acc, &s) in sum.iter_mut().zip(batch.scales()) {
+                    *acc += f64::from(albedo * s);
                 }
             }
-            sum / (samples.len() as f64 * f64::from(PI * PI))
+            sum.into_iter().map(|s| s / norm).collect::<Vec<f64>>()
         })
-        .collect()
+        .collect::<Vec<_>>()
+        .concat()
 }
 
 /// `sum lum(flux_e) * eta_e / sum lum(flux_e)`, 0 for no flux.

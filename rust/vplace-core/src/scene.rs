@@ -15,6 +15,7 @@ use obvhs::{
 use std::time::Duration;
 
 use crate::error::{check_finite, Result, VplaceError};
+use crate::shading::NEAR_FIELD_FRACTION;
 
 /// obvhs's `medium_build` with the full PLOC search distance from the first pass
 /// (`search_depth_threshold: 0`; the preset uses distance 1 for the first 3 passes). On rooms of
@@ -492,6 +493,13 @@ impl Scene {
         (self.bounds_max - self.bounds_min).length().max(1e-6)
     }
 
+    /// The default near-field radius `r_min` of this scene: [`NEAR_FIELD_FRACTION`] of the
+    /// diagonal (the layout's view efficiency uses it; see [`crate::shading::near_field`]).
+    #[must_use]
+    pub fn near_field_radius(&self) -> f32 {
+        NEAR_FIELD_FRACTION * self.diagonal()
+    }
+
     /// Ray offset used to leave a surface without hitting it again.
     #[must_use]
     pub fn ray_epsilon(&self) -> f32 {
@@ -541,7 +549,7 @@ impl Scene {
         self.occluded_ray(&mut self.shadow_state(), &ray)
     }
 
-    /// A traversal state for [`Scene::occluded_with`], reused from ray to ray (a fresh one per
+    /// A traversal state for [`Scene::occluded_ray`], reused from ray to ray (a fresh one per
     /// ray zeroes its stack every time).
     pub(crate) fn shadow_state(&self) -> Traversal {
         self.bvh.new_traversal(Vec3A::X)

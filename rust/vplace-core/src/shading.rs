@@ -16,6 +16,8 @@
 //! - the evaluator ([`crate::evaluator`]) sums the pairs of each pixel, with shadow rays;
 //! - the refit ([`crate::refit`]) keeps them per VPL as the columns of its matrix, with shadow
 //!   rays;
+//! - the layout's view efficiency ([`crate::layout::view_efficiency`]) averages the unshadowed
+//!   term of the cosine profile over a few pixels of the view.
 //!
 //! **How.** [`Batch`] computes one receiver against every VPL of a [`VplSoa`] (the VPLs in
 //! structure-of-arrays form) in a loop the compiler vectorizes: the unshadowed scale of every
@@ -30,13 +32,18 @@ use std::f32::consts::PI;
 
 use crate::vpl::{Profile, Vpl};
 
+/// The default near-field radius `r_min` as a fraction of the scene diagonal
+/// ([`crate::scene::Scene::near_field_radius`]): VPL spacing grows with the scene, so the radius
+/// within which a VPL's `1 / r^2` is bounded does too.
+pub const NEAR_FIELD_FRACTION: f32 = 0.01;
+
 /// The near-field term: the distance falloff `F(r)` of a VPL applied to `cosines`
 /// (`I(cos_e) * cos_r`), that is `cosines * F(r)` with `F(r) = 1 / max(r^2, r_min^2)` (a point
 /// light whose `1 / r^2` is clamped within the near-field radius `r_min`). `r2` is `r^2`,
 /// `r_min_sq` is `r_min^2`; `r_min = 0` gives the unclamped inverse square.
 ///
 /// The one function that says how a VPL's light falls off with distance, for the evaluator, the
-/// refit alike. Written as a division (not a product with `1 / max`) so
+/// refit and the view efficiency alike. Written as a division (not a product with `1 / max`) so
 /// that the values are bit for bit those of the formula `i * cos_r / max(r^2, r_min^2)`.
 #[inline(always)]
 #[must_use]
@@ -165,6 +172,23 @@ impl Batch {
         }
     }
 
+    /// The unshadowed scales only (no shadow rays) of a receiver at `position` with unit (or
+    /// zero) `normal`; [`Batch::scales`] reads them.
+    pub(crate) fn prepare_unshadowed(
+        &mut self,
+        v: &VplSoa,
+        position: Vec3,
+        normal: Vec3,
+        profile: Profile,
+        r_min_sq: f32,
+    ) {
+        let p = position;
+        match profile {
+            Profile::Cosine => self.prepare_with::<true, false>(v, p, normal, p, r_min_sq),
+            Profile::Omni => self.prepare_with::<false, false>(v, p, normal, p, r_min_sq),
+        }
+    }
+
     #[inline(always)]
     fn prepare_with<const COSINE: bool, const RAYS: bool>(
         &mut self,
@@ -210,6 +234,14 @@ impl Batch {
                 (ix[j], iy[j], iz[j]) = (safe_inverse(ux), safe_inverse(uy), safe_inverse(uz));
             }
         }
+    }
+
+    /// The unshadowed scales `I(cos_e) * cos_r * F(r)` of the last prepare, one per VPL
+    /// (`>= 0`, 0 where the pair gives nothing).
+    #[inline]
+    #[must_use]
+    pub(crate) fn scales(&self) -> &[f32] {
+        &self.scale
     }
 
     /// The pairs of the last prepare that give light before shadowing: `(j, Phi_j * scale_j)`
