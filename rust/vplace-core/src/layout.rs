@@ -759,7 +759,7 @@ pub fn layout(
 mod tests {
     use super::*;
     use crate::scene::Light;
-    use crate::test_util::{closed_box, FloorView};
+    use crate::test_util::{closed_box, reference_incident, shading_cases, FloorView};
 
     const LIGHT: Vec3 = Vec3::new(0.3, -0.2, 1.0);
 
@@ -946,6 +946,81 @@ mod tests {
         assert!((eta[0] / eta[1] - 4.0).abs() < 1e-4); // inverse square
         assert_eq!(eta[2], 0.0); // faces away: dark
         assert!(view_efficiency(&[&down1], &[], 0.01) == vec![0.0]);
+    }
+
+    /// The view efficiency is the brute-force reference's (a plain scalar loop over emitters x
+    /// samples of `albedo / pi * reference_incident` with unit flux, cosine profile, no shadow
+    /// ray), bit for bit, on the degenerate cases of [`shading_cases`] (a zero normal, an
+    /// emitter at a sample, emitters behind samples, samples behind emitters), with more
+    /// emitters than one parallel chunk; and within rounding of the formula it had before it
+    /// used the shading module.
+    #[test]
+    fn view_efficiency_matches_the_brute_force_reference() {
+        let (_, g, vpls) = shading_cases();
+        let samples: Vec<(Vec3, Vec3, f32)> = (0..144)
+            .filter(|&p| g.covered[p])
+            .map(|p| {
+                let v = |a: &[f32]| Vec3::from_slice(&a[3 * p..3 * p + 3]);
+                (
+                    v(&g.position),
+                    v(&g.normal).normalize_or_zero(),
+                    luminance(v(&g.albedo)),
+                )
+            })
+            .collect();
+        let mut rng = Rng::new(2, 0);
+        let mut emitters: Vec<Emitter> = vpls
+            .iter()
+            .map(|v| Emitter {
+                position: v.position,
+                normal: v.normal,
+                flux: v.flux,
+            })
+            .collect();
+        while emitters.len() < EMITTER_CHUNK + 50 {
+            let k = emitters.len() % vpls.len();
+            let jitter = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 0.02;
+            emitters.push(Emitter {
+                position: vpls[k].position - jitter,
+                ..emitters[k]
+            });
+        }
+        let refs: Vec<&Emitter> = emitters.iter().collect();
+        for r_min in [0.0, 0.05, 0.4] {
+            let eta = view_efficiency(&refs, &samples, r_min);
+            let mut any_behind = false;
+            for (e, &got) in emitters.iter().zip(&eta) {
+                let unit = Vpl {
+                    position: e.position,
+                    normal: e.normal,
+                    flux: Vec3::ONE,
+                };
+                let mut sum = 0.0f64;
+                let mut old = 0.0f64;
+                for &(p, n, albedo) in &samples {
+                    match reference_incident(None, p, n, &unit, Profile::Cosine, r_min) {
+                        Some(c) => sum += f64::from(albedo * c.x),
+                        None => any_behind |= n != Vec3::ZERO && p != e.position,
+                    }
+                    // The formula before the shading module.
+                    let d = p - e.position;
+                    let r2 = d.length_squared();
+                    if r2 > 0.0 {
+                        let l = d / r2.sqrt();
+                        let (ce, cp) = (e.normal.dot(l), -n.dot(l));
+                        if ce > 0.0 && cp > 0.0 {
+                            old += f64::from(albedo * ce * cp / r2.max(r_min * r_min));
+                        }
+                    }
+                }
+                let n = samples.len() as f64;
+                assert_eq!(got, sum / (n * f64::from(PI)), "r_min {r_min}");
+                let old = old / (n * f64::from(PI * PI));
+                assert!((got - old).abs() <= 1e-6 * old, "{got} {old}");
+            }
+            assert!(any_behind);
+            assert!(eta.contains(&0.0) && eta.iter().any(|&e| e > 0.0));
+        }
     }
 
     #[test]

@@ -278,8 +278,7 @@ mod tests {
     use super::*;
     use crate::evaluator::evaluate;
     use crate::scene::Light;
-    use crate::test_util::closed_box;
-    use crate::test_util::FloorView;
+    use crate::test_util::{closed_box, FloorView};
 
     const LIGHT: Vec3 = Vec3::new(0.3, -0.2, 1.0);
 

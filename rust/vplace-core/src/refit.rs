@@ -485,8 +485,7 @@ pub fn refit(
 mod tests {
     use super::*;
     use crate::evaluator::{evaluate, EvalParams};
-    use crate::test_util::closed_box;
-    use crate::test_util::FloorView;
+    use crate::test_util::{closed_box, reference_incident, shading_cases, FloorView};
 
     /// VPLs on the ceiling and the walls of the test box, facing in, and one on the floor facing
     /// up that no floor pixel sees.
@@ -677,6 +676,94 @@ mod tests {
                 assert_eq!(again.scales, r.scales);
                 assert_eq!(again.error_after, r.error_after);
                 assert_eq!(again.shadow_rays, r.shadow_rays);
+            }
+        }
+    }
+
+    /// The refit's matrix rows are bit for bit the brute-force reference's entries
+    /// (`albedo / pi * reference_incident`, a plain scalar loop with shadow rays against every
+    /// triangle) on the degenerate cases of [`shading_cases`], with one ray per pair the
+    /// reference traces; and its normal equations are those of the reference's rows.
+    #[test]
+    fn matrix_rows_match_the_brute_force_reference() {
+        let (scene, arrays, vpls) = shading_cases();
+        let g = arrays.gbuffer();
+        let n = vpls.len();
+        let soa = VplSoa::new(&vpls);
+        let eps = scene.ray_epsilon();
+        let vec3 = |a: &[f32], p: usize| Vec3::from_slice(&a[3 * p..3 * p + 3]);
+        for profile in [Profile::Cosine, Profile::Omni] {
+            for r_min in [0.0, 0.05, 0.4] {
+                let params = RefitParams {
+                    profile,
+                    r_min,
+                    stride: 1,
+                    ridge: 0.1,
+                };
+                let pixels: Vec<usize> = (0..144).filter(|&p| g.covered[p]).collect();
+                let mut expect = Vec::new();
+                let mut expect_rays = 0;
+                let (mut state, mut batch) = (scene.shadow_state(), Batch::new(n));
+                let mut rows = vec![0.0; 3 * n];
+                for &p in &pixels {
+                    let (x, nrm) = (vec3(g.position, p), vec3(g.normal, p).normalize_or_zero());
+                    let brdf = vec3(g.albedo, p) / std::f32::consts::PI;
+                    let mut pixel_rays = 0;
+                    let a: Vec<Vec3> = vpls
+                        .iter()
+                        .map(|v| {
+                            let c = reference_incident(Some(&scene), x, nrm, v, profile, r_min);
+                            pixel_rays += u64::from(c.is_some());
+                            brdf * c.unwrap_or(Vec3::ZERO)
+                        })
+                        .collect();
+                    expect_rays += pixel_rays;
+                    let rays = pixel_rows(
+                        &g.receiver(p, eps),
+                        &soa,
+                        profile,
+                        r_min * r_min,
+                        &mut batch,
+                        |ray| scene.occluded_ray(&mut state, ray),
+                        &mut rows,
+                    );
+                    assert_eq!(rays, pixel_rays, "pixel {p}");
+                    for c in 0..3 {
+                        let want: Vec<f64> = a.iter().map(|v| f64::from(v[c])).collect();
+                        assert_eq!(
+                            &rows[c * n..(c + 1) * n],
+                            &want[..],
+                            "pixel {p} channel {c}"
+                        );
+                    }
+                    expect.extend(a);
+                }
+                // The normal equations of the reference rows (pixel-major, R G B per pixel).
+                let target: Vec<f32> = (0..3 * 144).map(|i| 0.01 * (i % 7) as f32).collect();
+                let ne =
+                    normal_equations(&scene, &g, &vpls, &target, &pixels, &params, None).unwrap();
+                assert_eq!(ne.rays, expect_rays);
+                let (mut atb, mut gram) = (vec![0.0f64; n], vec![0.0f64; n * n]);
+                for (k, &p) in pixels.iter().enumerate() {
+                    for c in 0..3 {
+                        let row: Vec<f64> =
+                            (0..n).map(|j| f64::from(expect[k * n + j][c])).collect();
+                        for i in 0..n {
+                            atb[i] += row[i] * f64::from(target[3 * p + c]);
+                            for j in 0..n {
+                                gram[j * n + i] += row[i] * row[j];
+                            }
+                        }
+                    }
+                }
+                let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs();
+                for i in 0..n {
+                    assert!(close(ne.atb[i], atb[i]), "{i}: {} {}", ne.atb[i], atb[i]);
+                    for j in 0..n {
+                        let (got, want) = (ne.gram[j * n + i], gram[j * n + i]);
+                        assert!(close(got, want), "{i} {j}: {got} {want}");
+                    }
+                }
             }
         }
     }

@@ -289,3 +289,91 @@ impl Batch {
         self.shadow_ray(j).is_some_and(|ray| occluded(&ray))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::Rng;
+    use crate::test_util::{reference_incident, shading_cases};
+
+    /// The formula of the near-field term itself: the reference tests of the callers share
+    /// this function with them, so it is checked here on its own.
+    #[test]
+    fn near_field_is_the_clamped_inverse_square() {
+        assert_eq!(near_field(2.0, 4.0, 0.0), 0.5);
+        assert_eq!(near_field(2.0, 4.0, 1.0), 0.5); // beyond the radius: 1 / r^2
+        assert_eq!(near_field(1.0, 0.01, 0.25), 4.0); // within: 1 / r_min^2
+        assert_eq!(near_field(3.0, 0.25, 0.25), 12.0);
+        assert_eq!(near_field(0.0, 0.0, 0.01), 0.0);
+    }
+
+    /// The batch's scales are the scalar reference's (unshadowed, unit flux) and its shadow
+    /// rays are the rays `Scene::occluded` builds (`Ray::new` from the receiver's origin), bit
+    /// for bit, for random receivers and the VPLs of [`shading_cases`].
+    #[test]
+    fn batch_matches_the_scalar_formula_and_scene_rays() {
+        let (scene, _, vpls) = shading_cases();
+        let unit: Vec<Vpl> = vpls
+            .iter()
+            .map(|v| Vpl {
+                flux: Vec3::ONE,
+                ..*v
+            })
+            .collect();
+        let soa = VplSoa::new(&unit);
+        let mut batch = Batch::new(soa.len());
+        let mut rng = Rng::new(5, 0);
+        let mut r = || 2.0 * rng.next_f32() - 1.0;
+        let eps = scene.ray_epsilon();
+        for k in 0..200 {
+            let position = Vec3::new(r(), r(), 1.0 + r());
+            let normal = match k % 4 {
+                0 => Vec3::ZERO,
+                1 => Vec3::Z,
+                _ => Vec3::new(r(), r(), r()),
+            };
+            let recv = Receiver::new(position, normal, Vec3::splat(0.5), eps);
+            for profile in [Profile::Cosine, Profile::Omni] {
+                for r_min in [0.0, 0.1] {
+                    let r_min_sq = r_min * r_min;
+                    batch.prepare(&soa, &recv, profile, r_min_sq);
+                    let scales = batch.scales().to_vec();
+                    let unshadowed: Vec<usize> = batch.unshadowed(&soa).map(|(j, _)| j).collect();
+                    let mut expect = Vec::new();
+                    for (j, v) in unit.iter().enumerate() {
+                        let want =
+                            reference_incident(None, position, recv.normal, v, profile, r_min);
+                        assert_eq!(scales[j], want.map_or(0.0, |c| c.x), "{k} {j}");
+                        if want.is_some() {
+                            expect.push(j);
+                        }
+                        let d = v.position - recv.origin;
+                        let len = d.length();
+                        let ray =
+                            Ray::new(Vec3A::from(recv.origin), Vec3A::from(d / len), 0.0, len);
+                        let got = batch.shadow_ray(j).unwrap();
+                        assert_eq!(
+                            (
+                                got.origin,
+                                got.direction,
+                                got.inv_direction,
+                                got.tmin,
+                                got.tmax
+                            ),
+                            (
+                                ray.origin,
+                                ray.direction,
+                                ray.inv_direction,
+                                ray.tmin,
+                                ray.tmax
+                            )
+                        );
+                    }
+                    assert_eq!(unshadowed, expect);
+                    batch.prepare_unshadowed(&soa, position, recv.normal, profile, r_min_sq);
+                    assert_eq!(batch.scales(), &scales[..]);
+                }
+            }
+        }
+    }
+}

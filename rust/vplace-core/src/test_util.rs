@@ -13,6 +13,8 @@ use crate::features::{FeatureInput, StrongestLight, FEATURE_COUNT};
 use crate::layout::LayoutView;
 use crate::rng::Rng;
 use crate::scene::{Light, Scene};
+use crate::shading::near_field;
+use crate::vpl::{Profile, Vpl};
 
 /// An open box `[-1, 1]^2 x [0, 2]` (floor, four walls, ceiling) with inward-facing
 /// triangles, albedo 0.5, and `lights`.
@@ -371,4 +373,159 @@ pub fn linear_design(n: usize) -> (Vec<f64>, Vec<f64>) {
         })
         .collect();
     (x, y)
+}
+
+/// The shading of one (receiver, VPL) pair written as a plain scalar formula: the reference
+/// that the evaluator, the refit's matrix and the view efficiency are tested against.
+///
+/// The receiver is at `position` with the unit (or zero) normal `n`. Returns `Phi * I(cos_e) * max(0, n . l) * F(r) * V` (before the BRDF), `F` the
+/// near-field term [`near_field`] with radius `r_min`, `V` one shadow ray from the receiver
+/// pushed off its surface by [`Scene::ray_epsilon`] to the VPL, traced against every triangle
+/// ([`Scene::occluded_brute_force`]) when `scene` is given; without a scene `V = 1`. `None`
+/// when the pair gives nothing without a ray: `r = 0`, the VPL behind the receiver, the
+/// receiver behind a cosine VPL, or a zero product. `Some` means exactly one ray (the value is
+/// zero when it was blocked).
+#[must_use]
+pub fn reference_incident(
+    scene: Option<&Scene>,
+    position: Vec3,
+    n: Vec3,
+    vpl: &Vpl,
+    profile: Profile,
+    r_min: f32,
+) -> Option<Vec3> {
+    let d = vpl.position - position;
+    let r2 = d.length_squared();
+    if r2 <= 0.0 {
+        return None;
+    }
+    let l = d / r2.sqrt();
+    let cos_r = n.dot(l);
+    if cos_r <= 0.0 {
+        return None;
+    }
+    let i = profile.intensity_per_flux(-vpl.normal.dot(l));
+    if i <= 0.0 {
+        return None;
+    }
+    let c = vpl.flux * near_field(i * cos_r, r2, r_min * r_min);
+    if c == Vec3::ZERO {
+        return None;
+    }
+    let blocked = scene.is_some_and(|s| {
+        let origin = position + n * s.ray_epsilon();
+        s.occluded_brute_force(origin, vpl.position)
+    });
+    Some(if blocked { Vec3::ZERO } else { c })
+}
+
+/// The evaluator's image by brute force: a plain loop over the covered pixels and the VPLs,
+/// each pixel `albedo / pi` times the sum of [`reference_incident`] (the G-buffer normal
+/// normalized, zero staying zero; shadow rays against every triangle) in VPL order; and the
+/// number of shadow rays.
+#[must_use]
+pub fn reference_image(
+    scene: &Scene,
+    g: &GBuffer<'_>,
+    vpls: &[Vpl],
+    profile: Profile,
+    r_min: f32,
+) -> (Vec<f32>, u64) {
+    let vec3 = |a: &[f32], p: usize| Vec3::from_slice(&a[3 * p..3 * p + 3]);
+    let mut image = vec![0.0f32; 3 * g.width * g.height];
+    let mut rays = 0;
+    for p in (0..g.width * g.height).filter(|&p| g.covered[p]) {
+        let (position, normal) = (vec3(g.position, p), vec3(g.normal, p).normalize_or_zero());
+        let mut sum = Vec3::ZERO;
+        for v in vpls {
+            if let Some(c) = reference_incident(Some(scene), position, normal, v, profile, r_min) {
+                rays += 1;
+                sum += c;
+            }
+        }
+        let pixel = vec3(g.albedo, p) / PI * sum;
+        image[3 * p..3 * p + 3].copy_from_slice(&pixel.to_array());
+    }
+    (image, rays)
+}
+
+/// Degenerate shading cases in one scene: the test box with [`BLOCKER`], a `12 x 12`
+/// G-buffer and VPLs. The G-buffer holds floor pixels (rows 0 to 7) and pixels on the wall
+/// `x = -1` (rows 8 to 11), coloured albedo; among them a zero normal, a short (box-filtered)
+/// normal, a tilted unnormalized one, and two uncovered pixels. The VPLs: 40 random ones on
+/// the ceiling and the walls facing into the box (many of them shadowed by the blocker for the
+/// floor pixels below it), one exactly at a floor pixel's position (`r = 0` for that pixel), one
+/// 1 mm above another floor pixel facing down (inside any near-field radius), one below the
+/// floor (behind the floor pixels; the wall pixels see it through the floor, occluded), one on
+/// the ceiling facing up (the receivers are behind it: dark for the cosine profile, not for
+/// `omni`), one without flux, and one straight above the blocker.
+#[must_use]
+pub fn shading_cases() -> (Scene, GBufferArrays, Vec<Vpl>) {
+    let scene = box_with(vec![], &[BLOCKER]);
+    let (w, h) = (12, 12);
+    let mut g = GBufferArrays {
+        width: w,
+        height: h,
+        position: Vec::new(),
+        normal: Vec::new(),
+        albedo: Vec::new(),
+        covered: vec![true; w * h],
+    };
+    for y in 0..h {
+        for x in 0..w {
+            let u = (x as f32 + 0.5) / w as f32 * 1.9 - 0.95;
+            if y < 8 {
+                let v = 0.95 - (y as f32 + 0.5) / 8.0 * 1.9;
+                g.position.extend([u, v, 0.0]);
+                g.normal.extend([0.0, 0.0, 1.0]);
+            } else {
+                let z = 0.1 + (y - 8) as f32 / 4.0 * 1.8;
+                g.position.extend([-1.0, u, z]);
+                g.normal.extend([1.0, 0.0, 0.0]);
+            }
+            g.albedo
+                .extend([0.2 + 0.05 * x as f32, 0.5, 0.9 - 0.06 * y as f32]);
+        }
+    }
+    g.normal[3 * 14..3 * 14 + 3].fill(0.0);
+    g.normal[3 * 27..3 * 27 + 3].copy_from_slice(&[0.0, 0.0, 0.6]);
+    g.normal[3 * 40..3 * 40 + 3].copy_from_slice(&[0.3, -0.2, 0.8]);
+    g.covered[5] = false;
+    g.covered[100] = false;
+    let at = |p: usize| Vec3::from_slice(&g.position[3 * p..3 * p + 3]);
+    let mut rng = Rng::new(15, 0);
+    let mut r = || rng.next_f32();
+    let mut vpls: Vec<Vpl> = (0..40)
+        .map(|_| {
+            let (a, b, c) = (2.0 * r() - 1.0, 2.0 * r() - 1.0, r());
+            let (position, normal) = match (3.0 * c) as u32 {
+                0 => (Vec3::new(a, b, 1.99), Vec3::NEG_Z),
+                1 => (Vec3::new(0.99, a, 1.0 + b), Vec3::NEG_X),
+                _ => (Vec3::new(a, -0.99, 1.0 + b), Vec3::Y),
+            };
+            Vpl {
+                position,
+                normal,
+                flux: Vec3::new(0.5 + r(), 0.7, 1.5 * r()),
+            }
+        })
+        .collect();
+    let vpl = |position: Vec3, normal: Vec3, flux: Vec3| Vpl {
+        position,
+        normal,
+        flux,
+    };
+    vpls.extend([
+        vpl(at(30), Vec3::Z, Vec3::new(1.0, 0.5, 0.25)),
+        vpl(at(50) + Vec3::new(0.0, 0.0, 1e-3), Vec3::NEG_Z, Vec3::ONE),
+        vpl(Vec3::new(0.1, 0.2, -0.3), Vec3::Z, Vec3::splat(2.0)),
+        vpl(
+            Vec3::new(0.2, -0.3, 1.99),
+            Vec3::Z,
+            Vec3::new(0.3, 0.6, 0.9),
+        ),
+        vpl(Vec3::new(-0.5, 0.5, 1.99), Vec3::NEG_Z, Vec3::ZERO),
+        vpl(Vec3::new(0.0, 0.0, 1.99), Vec3::NEG_Z, Vec3::splat(1.5)),
+    ]);
+    (scene, g, vpls)
 }
