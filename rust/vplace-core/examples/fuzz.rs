@@ -1,6 +1,7 @@
-//! Time-boxed fuzzing of the regression and PAR 2D entry points (not run in CI).
+//! Fuzzing of the regression and PAR 2D entry points.
 //!
-//! `cargo run --release -p vplace-core --example fuzz -- [seconds] [seed]`
+//! `cargo test` runs a fixed set of cases (the test below); a time-boxed run with another seed:
+//! `cargo run --release -p vplace-core --example fuzz -- [seconds] [seed]`.
 //!
 //! Inputs are random and hostile: NaN, inf, subnormal and huge values, duplicated, constant and
 //! collinear columns, zero-length and mismatched arrays; degenerate, non-convex, tiny, far-away
@@ -146,15 +147,21 @@ fn par2d_case(r: &mut Rng) -> Result<(), String> {
     Ok(())
 }
 
-fn main() {
-    let args: Vec<String> = std::env::args().collect();
-    let seconds: u64 = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(60);
-    let seed: u64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(1);
+/// What a fuzzing run found: cases per target and the failures, one line each.
+#[derive(Debug, Default)]
+struct Report {
+    cases: [u64; 2],
+    failures: Vec<String>,
+}
+
+/// Runs cases `1, 2, ...` of both targets from `seed` while `go(case)` says so. Each case has
+/// its own random stream, so a failure is reproduced by its seed and case number alone.
+fn fuzz(seed: u64, mut go: impl FnMut(u64) -> bool) -> Report {
+    let hook = std::panic::take_hook();
     std::panic::set_hook(Box::new(|_| {})); // panics are counted below, not printed twice
-    let deadline = Instant::now() + Duration::from_secs(seconds);
-    let (mut cases, mut failures) = ([0u64; 2], 0u64);
+    let mut report = Report::default();
     let mut case = 0u64;
-    while Instant::now() < deadline {
+    while go(case + 1) {
         case += 1;
         for (t, target) in [
             regression_case as fn(&mut Rng) -> Result<(), String>,
@@ -164,23 +171,58 @@ fn main() {
         .enumerate()
         {
             let mut r = Rng::new(seed, case * 2 + t as u64);
-            cases[t] += 1;
+            report.cases[t] += 1;
             match catch_unwind(AssertUnwindSafe(|| target(&mut r))) {
                 Ok(Ok(())) => {}
-                Ok(Err(msg)) => {
-                    failures += 1;
-                    println!("FAIL target {t} seed {seed} case {case}: {msg}");
-                }
-                Err(_) => {
-                    failures += 1;
-                    println!("PANIC target {t} seed {seed} case {case}");
-                }
+                Ok(Err(msg)) => report
+                    .failures
+                    .push(format!("FAIL target {t} seed {seed} case {case}: {msg}")),
+                Err(_) => report
+                    .failures
+                    .push(format!("PANIC target {t} seed {seed} case {case}")),
             }
         }
     }
+    std::panic::set_hook(hook);
+    report
+}
+
+/// `[seconds] [seed]`: fuzz for that long (default 60 s, seed 1); exits with 1 on a failure.
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let seconds: u64 = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(60);
+    let seed: u64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(1);
+    let deadline = Instant::now() + Duration::from_secs(seconds);
+    let report = fuzz(seed, |_| Instant::now() < deadline);
+    for f in &report.failures {
+        println!("{f}");
+    }
     println!(
-        "fuzzed {seconds} s: {} regression cases, {} PAR 2D cases, {failures} failures",
-        cases[0], cases[1]
+        "fuzzed {seconds} s: {} regression cases, {} PAR 2D cases, {} failures",
+        report.cases[0],
+        report.cases[1],
+        report.failures.len()
     );
-    std::process::exit(i32::from(failures > 0));
+    std::process::exit(i32::from(!report.failures.is_empty()));
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Cases per target `cargo test` runs: a fixed, deterministic set (seed 1, cases 1 to
+    /// 15000), about 5 s in a debug build. Longer runs: `cargo run --release --example fuzz`.
+    const CASES: u64 = 15_000;
+
+    #[test]
+    fn fixed_cases_neither_panic_nor_return_non_finite_values() {
+        let report = fuzz(1, |case| case <= CASES);
+        assert_eq!(report.cases, [CASES; 2]);
+        assert!(
+            report.failures.is_empty(),
+            "{} failures:\n{}",
+            report.failures.len(),
+            report.failures.join("\n")
+        );
+    }
 }
