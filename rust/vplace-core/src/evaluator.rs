@@ -378,8 +378,8 @@ fn evaluate_with(
 mod tests {
     use super::*;
     use crate::test_util::{
-        box_with, closed_box, floor_gbuffer, reference_image, reference_incident, shading_cases,
-        BLOCKER,
+        box_with, closed_box, floor_gbuffer, inward_point, reference_image, reference_incident,
+        shading_cases, BLOCKER,
     };
     use std::f32::consts::PI;
 
@@ -604,19 +604,13 @@ mod tests {
             covered: &covered,
         };
         let mut rng = crate::rng::Rng::new(4, 0);
-        let mut r = || rng.next_f32();
         // VPLs on the ceiling and walls, all facing into the box.
         let mut vpl = || {
-            let (a, b, c) = (2.0 * r() - 1.0, 2.0 * r() - 1.0, r());
-            let (position, normal) = match (3.0 * c) as u32 {
-                0 => (Vec3::new(a, b, 1.99), Vec3::NEG_Z),
-                1 => (Vec3::new(0.99, a, 1.0 + b), Vec3::NEG_X),
-                _ => (Vec3::new(a, -0.99, 1.0 + b), Vec3::Y),
-            };
+            let (position, normal) = inward_point(&mut rng);
             Vpl {
                 position,
                 normal,
-                flux: Vec3::new(1.0 + r(), 0.5, 2.0 * r()),
+                flux: Vec3::new(1.0 + rng.next_f32(), 0.5, 2.0 * rng.next_f32()),
             }
         };
         let first: Vec<Vpl> = (0..150).map(|_| vpl()).collect();

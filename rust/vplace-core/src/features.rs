@@ -637,8 +637,8 @@ mod tests {
         let mut b = bufs(4, 4);
         b.gi[0] = f32::NAN;
         b.depth[1] = f32::INFINITY;
-        b.position[3 * 6] = f32::NAN;
-        b.position[3 * 15] = f32::NAN; // uncovered: not counted
+        b.gbuffer.position[3 * 6] = f32::NAN;
+        b.gbuffer.position[3 * 15] = f32::NAN; // uncovered: not counted
         let f = extract_features(&input(&b), 2).unwrap();
         assert_eq!(f.masked_pixels, 3);
         assert!(f.values.iter().all(|v| v.is_finite()));
@@ -659,7 +659,7 @@ mod tests {
             Err(VplaceError::Shape { .. })
         ));
         let mut none = bufs(2, 2);
-        none.covered.fill(false);
+        none.gbuffer.covered.fill(false);
         assert!(matches!(
             extract_features(&input(&none), 1),
             Err(VplaceError::Empty { .. })

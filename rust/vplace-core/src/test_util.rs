@@ -135,16 +135,9 @@ pub fn floor_gbuffer(w: usize) -> GBufferArrays {
 /// sees it entirely).
 #[derive(Debug, Clone, PartialEq)]
 pub struct FloorView {
-    /// Width and height, pixels.
-    pub w: usize,
-    /// World position per pixel, on the floor `z = 0` (`w x w x 3`).
-    pub position: Vec<f32>,
-    /// `+Z` everywhere (`w x w x 3`).
-    pub normal: Vec<f32>,
-    /// Red `(0.8, 0.2, 0.2)` where `x < 0`, grey 0.5 elsewhere (`w x w x 3`).
-    pub albedo: Vec<f32>,
-    /// Every pixel covered (`w x w`).
-    pub covered: Vec<bool>,
+    /// `w x w` pixels: positions on the floor `z = 0`, normal `+Z`, albedo red
+    /// `(0.8, 0.2, 0.2)` where `x < 0` and grey 0.5 elsewhere, every pixel covered.
+    pub gbuffer: GBufferArrays,
     /// Cycles' DiffDir of the point light: irradiance / pi (`w x w x 3`).
     pub diffuse_direct: Vec<f32>,
     /// Camera position, `(0, 0, 1.9)`.
@@ -171,11 +164,14 @@ impl FloorView {
         let world_to_clip = proj * view;
         let inv = world_to_clip.inverse();
         let mut s = Self {
-            w,
-            position: Vec::new(),
-            normal: [0.0, 0.0, 1.0].repeat(w * w),
-            albedo: Vec::new(),
-            covered: vec![true; w * w],
+            gbuffer: GBufferArrays {
+                width: w,
+                height: w,
+                position: Vec::new(),
+                normal: [0.0, 0.0, 1.0].repeat(w * w),
+                albedo: Vec::new(),
+                covered: vec![true; w * w],
+            },
             diffuse_direct: Vec::new(),
             camera,
             world_to_clip,
@@ -189,14 +185,14 @@ impl FloorView {
                 );
                 let d = (inv.project_point3(ndc) - camera).normalize();
                 let p = camera + d * (camera.z / -d.z);
-                s.position.extend(p.to_array());
+                s.gbuffer.position.extend(p.to_array());
                 // Red on the left half, grey elsewhere.
                 let a = if p.x < 0.0 {
                     [0.8, 0.2, 0.2]
                 } else {
                     [0.5, 0.5, 0.5]
                 };
-                s.albedo.extend(a);
+                s.gbuffer.albedo.extend(a);
                 let l = light - p;
                 let irr = power / (4.0 * PI) * l.z / l.length().powi(3);
                 s.diffuse_direct.extend([irr / PI; 3]);
@@ -209,14 +205,7 @@ impl FloorView {
     #[must_use]
     pub fn view(&self) -> LayoutView<'_> {
         LayoutView {
-            gbuffer: GBuffer {
-                width: self.w,
-                height: self.w,
-                position: &self.position,
-                normal: &self.normal,
-                albedo: &self.albedo,
-                covered: &self.covered,
-            },
+            gbuffer: self.gbuffer.gbuffer(),
             diffuse_direct: &self.diffuse_direct,
             camera_position: self.camera,
             world_to_clip: self.world_to_clip,
@@ -227,54 +216,52 @@ impl FloorView {
 /// The render passes the feature extraction reads, owned; [`Passes::input`] borrows them.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Passes {
-    /// Width, pixels.
-    pub w: usize,
-    /// Height, pixels.
-    pub h: usize,
-    /// World position (`H x W x 3`).
-    pub position: Vec<f32>,
-    /// Shading normal (`H x W x 3`).
-    pub normal: Vec<f32>,
-    /// Diffuse albedo (`H x W x 3`).
-    pub albedo: Vec<f32>,
+    /// Position, normal, albedo and coverage.
+    pub gbuffer: GBufferArrays,
     /// Depth (`H x W`), `1e10` on the background.
     pub depth: Vec<f32>,
     /// Direct light (`H x W x 3`).
     pub direct: Vec<f32>,
     /// Direct plus indirect light (`H x W x 3`).
     pub gi: Vec<f32>,
-    /// Coverage (`H x W`).
-    pub covered: Vec<bool>,
     /// The strongest light.
     pub light: StrongestLight,
 }
 
 impl Passes {
+    /// Nothing covered: zero position, normal, light passes, depth `1e10`, grey `albedo`, a
+    /// point light at `light`.
+    fn background(w: usize, h: usize, albedo: f32, light: Vec3) -> Self {
+        let n = w * h;
+        Self {
+            gbuffer: GBufferArrays {
+                width: w,
+                height: h,
+                position: vec![0.0; 3 * n],
+                normal: vec![0.0; 3 * n],
+                albedo: vec![albedo; 3 * n],
+                covered: vec![false; n],
+            },
+            depth: vec![1e10; n],
+            direct: vec![0.0; 3 * n],
+            gi: vec![0.0; 3 * n],
+            light: StrongestLight::Position(light),
+        }
+    }
+
     /// A flat grid: pixel `(x, y)` at world `(x, y, 0)`, normal `+Z`, albedo 0.5, depth
     /// `2 + y`, direct 0.25, gi `0.25 + 0.01 x`; covered where `x < w / 2` or `y < h / 2`; a
     /// point light at `(0, 0, 10)`. Values simple enough to check cell means by hand.
     #[must_use]
     pub fn grid(w: usize, h: usize) -> Self {
-        let n = w * h;
-        let mut b = Self {
-            w,
-            h,
-            position: vec![0.0; 3 * n],
-            normal: vec![0.0; 3 * n],
-            albedo: vec![0.5; 3 * n],
-            depth: vec![1e10; n],
-            direct: vec![0.0; 3 * n],
-            gi: vec![0.0; 3 * n],
-            covered: vec![false; n],
-            light: StrongestLight::Position(Vec3::new(0.0, 0.0, 10.0)),
-        };
+        let mut b = Self::background(w, h, 0.5, Vec3::new(0.0, 0.0, 10.0));
         for y in 0..h {
             for x in 0..w {
                 let i = y * w + x;
-                b.covered[i] = x < w / 2 || y < h / 2;
-                b.position[3 * i] = x as f32;
-                b.position[3 * i + 1] = y as f32;
-                b.normal[3 * i + 2] = 1.0;
+                b.gbuffer.covered[i] = x < w / 2 || y < h / 2;
+                b.gbuffer.position[3 * i] = x as f32;
+                b.gbuffer.position[3 * i + 1] = y as f32;
+                b.gbuffer.normal[3 * i + 2] = 1.0;
                 b.depth[i] = 2.0 + y as f32;
                 b.direct[3 * i..3 * i + 3].fill(0.25);
                 b.gi[3 * i..3 * i + 3].fill(0.25 + 0.01 * x as f32);
@@ -288,20 +275,8 @@ impl Passes {
     /// a point light at `(0, 1, 2.5)`. The features benchmark's input.
     #[must_use]
     pub fn room(w: usize, h: usize) -> Self {
-        let n = w * h;
         let mut rng = Rng::new(42, 1);
-        let mut p = Self {
-            w,
-            h,
-            position: vec![0.0; 3 * n],
-            normal: vec![0.0; 3 * n],
-            albedo: vec![0.0; 3 * n],
-            depth: vec![1e10; n],
-            direct: vec![0.0; 3 * n],
-            gi: vec![0.0; 3 * n],
-            covered: vec![false; n],
-            light: StrongestLight::Position(Vec3::new(0.0, 1.0, 2.5)),
-        };
+        let mut p = Self::background(w, h, 0.0, Vec3::new(0.0, 1.0, 2.5));
         for y in 0..h {
             for x in 0..w {
                 let i = y * w + x;
@@ -309,7 +284,7 @@ impl Passes {
                 if u > 0.92 && v < 0.5 {
                     continue; // background
                 }
-                p.covered[i] = true;
+                p.gbuffer.covered[i] = true;
                 let floor = v > 0.6;
                 let nrm = if floor {
                     Vec3::Z
@@ -324,9 +299,9 @@ impl Passes {
                 let alb = if (x / 64 + y / 64) % 2 == 0 { 0.8 } else { 0.3 };
                 let d = 0.5 * alb * nrm.z.max(0.2) + 0.05 * rng.next_f32();
                 let g = d + 0.1 * alb * (1.0 - v) + 0.02 * rng.next_f32();
-                p.position[3 * i..3 * i + 3].copy_from_slice(&pos.to_array());
-                p.normal[3 * i..3 * i + 3].copy_from_slice(&nrm.to_array());
-                p.albedo[3 * i..3 * i + 3].fill(alb);
+                p.gbuffer.position[3 * i..3 * i + 3].copy_from_slice(&pos.to_array());
+                p.gbuffer.normal[3 * i..3 * i + 3].copy_from_slice(&nrm.to_array());
+                p.gbuffer.albedo[3 * i..3 * i + 3].fill(alb);
                 p.depth[i] = 1.0 + 5.0 * (1.0 - v) + u;
                 p.direct[3 * i..3 * i + 3].fill(d);
                 p.gi[3 * i..3 * i + 3].fill(g);
@@ -338,17 +313,18 @@ impl Passes {
     /// The feature extraction's view of the passes (gi given, no specular pass).
     #[must_use]
     pub fn input(&self) -> FeatureInput<'_> {
+        let g = &self.gbuffer;
         FeatureInput {
-            width: self.w,
-            height: self.h,
-            position: &self.position,
-            normal: &self.normal,
-            albedo: &self.albedo,
+            width: g.width,
+            height: g.height,
+            position: &g.position,
+            normal: &g.normal,
+            albedo: &g.albedo,
             depth: &self.depth,
             direct: &self.direct,
             gi: Some(&self.gi),
             specular: None,
-            covered: &self.covered,
+            covered: &g.covered,
             light: Some(self.light),
         }
     }
@@ -449,6 +425,20 @@ pub fn reference_image(
     (image, rays)
 }
 
+/// A random point 0.01 inside the ceiling or the walls `x = 1`, `y = -1` of [`closed_box`]
+/// (one of the three with equal odds, uniform over it) and the normal there facing into the
+/// box: a VPL's position and normal.
+#[must_use]
+pub fn inward_point(rng: &mut Rng) -> (Vec3, Vec3) {
+    let mut r = || rng.next_f32();
+    let (a, b, c) = (2.0 * r() - 1.0, 2.0 * r() - 1.0, r());
+    match (3.0 * c) as u32 {
+        0 => (Vec3::new(a, b, 1.99), Vec3::NEG_Z),
+        1 => (Vec3::new(0.99, a, 1.0 + b), Vec3::NEG_X),
+        _ => (Vec3::new(a, -0.99, 1.0 + b), Vec3::Y),
+    }
+}
+
 /// Degenerate shading cases in one scene: the test box with [`BLOCKER`], a `12 x 12`
 /// G-buffer and VPLs. The G-buffer holds floor pixels (rows 0 to 7) and pixels on the wall
 /// `x = -1` (rows 8 to 11), coloured albedo; among them a zero normal, a short (box-filtered)
@@ -494,19 +484,13 @@ pub fn shading_cases() -> (Scene, GBufferArrays, Vec<Vpl>) {
     g.covered[100] = false;
     let at = |p: usize| Vec3::from_slice(&g.position[3 * p..3 * p + 3]);
     let mut rng = Rng::new(15, 0);
-    let mut r = || rng.next_f32();
     let mut vpls: Vec<Vpl> = (0..40)
         .map(|_| {
-            let (a, b, c) = (2.0 * r() - 1.0, 2.0 * r() - 1.0, r());
-            let (position, normal) = match (3.0 * c) as u32 {
-                0 => (Vec3::new(a, b, 1.99), Vec3::NEG_Z),
-                1 => (Vec3::new(0.99, a, 1.0 + b), Vec3::NEG_X),
-                _ => (Vec3::new(a, -0.99, 1.0 + b), Vec3::Y),
-            };
+            let (position, normal) = inward_point(&mut rng);
             Vpl {
                 position,
                 normal,
-                flux: Vec3::new(0.5 + r(), 0.7, 1.5 * r()),
+                flux: Vec3::new(0.5 + rng.next_f32(), 0.7, 1.5 * rng.next_f32()),
             }
         })
         .collect();
