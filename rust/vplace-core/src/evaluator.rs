@@ -4,8 +4,8 @@
 //! (`rho / pi * Phi * I(cos_e) * max(0, n . l) * F(r) * V`, `V` an any-hit shadow ray through the
 //! scene BVH). This module is the scheduling: square pixel tiles run in parallel with rayon,
 //! each with one traversal state reused by its shadow rays; each tile polls the cancel flag of
-//! [`Progress`] and counts its rays. [`evaluate_cached`] answers rays from a
-//! [`ShadowCache`] of the previous evaluation.
+//! [`Progress`] and counts its rays. The layout iterations answer rays from the previous
+//! evaluation's cache (`shadow_cache.rs`).
 
 use glam::Vec3;
 use obvhs::{cwbvh::Traversal, ray::Ray};

@@ -11,7 +11,9 @@
 //! 1. [`scene::Scene`]: triangles, per-triangle albedo and the scene's lights, with an obvhs BVH.
 //! 2. [`vpl::uniform_vpls`]: Keller's instant radiosity: rays from the lights, first hits become
 //!    VPLs carrying `P / n * albedo`.
-//! 3. [`evaluator::evaluate`]: the indirect image of a VPL set over a captured G-buffer.
+//! 3. [`evaluator::evaluate`]: the indirect image of a VPL set over a captured G-buffer, every
+//!    pixel shaded by the one VPL-to-pixel term of [`shading`] (also used by the refit and the
+//!    layout's view efficiency).
 //! 4. [`metrics`]: RMSE and relative MSE against a reference, SSIM on the display luminance.
 //! 5. [`layout`]: candidate emitters (lit pixels and off-screen light-ray hits), strata (image
 //!    cells plus an off-screen stratum), the budget split `N * lerp(u_k, m_k, alpha)` by largest
@@ -20,6 +22,9 @@
 //!    high residuals, returning the best layout; [`rsm`]: the reflective-shadow-map baseline.
 //! 6. [`refit`]: the optional non-negative least-squares refit of the VPL powers against the
 //!    indirect image.
+//!
+//! Luminance is Rec. 709's everywhere ([`luminance`]). The `test-util` feature exposes
+//! `test_util`: the procedural scenes and views of the tests, for benches and examples.
 //!
 //! ```
 //! use vplace_core::{scene::{Scene, Light}, vpl::{uniform_vpls, Profile}};

@@ -19,7 +19,7 @@
 //! - the layout's view efficiency ([`crate::layout::view_efficiency`]) averages the unshadowed
 //!   term of the cosine profile over a few pixels of the view.
 //!
-//! **How.** [`Batch`] computes one receiver against every VPL of a [`VplSoa`] (the VPLs in
+//! **How.** `Batch` computes one receiver against every VPL of a `VplSoa` (the VPLs in
 //! structure-of-arrays form) in a loop the compiler vectorizes: the unshadowed scale of every
 //! pair and, for the callers that trace, its shadow ray (unit direction, its safe inverse and
 //! length, as `Scene::occluded` and obvhs's `Ray::new` make them). The operations are those of
