@@ -87,6 +87,7 @@ impl GBuffer<'_> {
 
     /// Pixel `p` as a receiver of VPL light; `eps` is [`Scene::ray_epsilon`].
     #[inline]
+    #[must_use]
     pub(crate) fn receiver(&self, p: usize, eps: f32) -> Receiver {
         Receiver::new(
             Self::vec3(self.position, p),

@@ -15,8 +15,8 @@
 //!
 //! **How.** `A` is never stored: the strided pixels are traced in blocks (rayon over chunks of
 //! the block's pixels, each chunk with one traversal state for its shadow rays, as the
-//! evaluator's tiles), and each block's rows are added to the Gram matrix `A^T A` (f64, blocked GEMM,
-//! rayon over column panels of the upper triangle), to `A^T b` and `b^T b`. Memory is
+//! evaluator's tiles), and each block's rows are added to the Gram matrix `A^T A` (f64,
+//! blocked GEMM, rayon over column panels of the upper triangle), to `A^T b` and `b^T b`. Memory is
 //! `O(n^2 + block * n)`, the time one shadow ray per (pixel, VPL) pair plus `rows * n^2 / 2`
 //! multiply-adds (`rows` = 3 x pixels). The errors come from the same quadratic form:
 //! `||A s - b||^2 = s^T A^T A s - 2 s^T A^T b + b^T b`.

@@ -131,6 +131,8 @@ fn safe_inverse(x: f32) -> f32 {
 /// unshadowed scale `I(cos_e) * cos_r * F(r)` (0 when the pair gives nothing) and, after
 /// [`Batch::prepare`], its shadow ray. Buffers reused from receiver to receiver.
 pub(crate) struct Batch {
+    /// VPLs of the last prepare.
+    count: usize,
     scale: Vec<f32>,
     /// Origin of the shadow rays of the last [`Batch::prepare`].
     origin: Vec3,
@@ -149,6 +151,7 @@ impl Batch {
     pub(crate) fn new(n: usize) -> Self {
         let z = || vec![0.0f32; n];
         Self {
+            count: 0,
             scale: z(),
             origin: Vec3::ZERO,
             len: z(),
@@ -199,6 +202,7 @@ impl Batch {
         r_min_sq: f32,
     ) {
         let m = v.len();
+        self.count = m;
         let (px, py, pz) = (&v.px[..m], &v.py[..m], &v.pz[..m]);
         let (mx, my, mz) = (&v.mx[..m], &v.my[..m], &v.mz[..m]);
         let scale = &mut self.scale[..m];
@@ -241,7 +245,7 @@ impl Batch {
     #[inline]
     #[must_use]
     pub(crate) fn scales(&self) -> &[f32] {
-        &self.scale
+        &self.scale[..self.count]
     }
 
     /// The pairs of the last prepare that give light before shadowing: `(j, Phi_j * scale_j)`
@@ -252,7 +256,7 @@ impl Batch {
         &'a self,
         v: &'a VplSoa,
     ) -> impl Iterator<Item = (usize, Vec3)> + 'a {
-        self.scale
+        self.scales()
             .iter()
             .zip(&v.flux)
             .enumerate()

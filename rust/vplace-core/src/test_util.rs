@@ -354,9 +354,10 @@ pub fn linear_design(n: usize) -> (Vec<f64>, Vec<f64>) {
 /// The shading of one (receiver, VPL) pair written as a plain scalar formula: the reference
 /// that the evaluator, the refit's matrix and the view efficiency are tested against.
 ///
-/// The receiver is at `position` with the unit (or zero) normal `n`. Returns `Phi * I(cos_e) * max(0, n . l) * F(r) * V` (before the BRDF), `F` the
-/// near-field term [`near_field`] with radius `r_min`, `V` one shadow ray from the receiver
-/// pushed off its surface by [`Scene::ray_epsilon`] to the VPL, traced against every triangle
+/// The receiver is at `position` with the unit (or zero) normal `n`. Returns
+/// `Phi * I(cos_e) * max(0, n . l) * F(r) * V` (before the BRDF), `F` the near-field term
+/// [`near_field`] with radius `r_min`, `V` one shadow ray from the receiver pushed off its
+/// surface by [`Scene::ray_epsilon`] to the VPL, traced against every triangle
 /// ([`Scene::occluded_brute_force`]) when `scene` is given; without a scene `V = 1`. `None`
 /// when the pair gives nothing without a ray: `r = 0`, the VPL behind the receiver, the
 /// receiver behind a cosine VPL, or a zero product. `Some` means exactly one ray (the value is
