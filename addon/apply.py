@@ -9,33 +9,17 @@ custom cutoff distance of twice the scene's diagonal, so EEVEE never culls it in
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import bpy
 import numpy as np
 from mathutils import Vector
 
+from .errors import WriteBackError
 from .export import VPL_MARKER
+from .native import vplace
 
 COLLECTION_NAME = "vplace VPLs"
 #: EEVEE renders 8,192 lights; beyond 65,536 it drops them (DESIGN). We refuse more than this.
 MAX_VPLS = 8192
-
-
-class WriteBackError(ValueError):
-    """The VPLs cannot be written; the message says why."""
-
-
-@dataclass
-class VplSet:
-    """VPLs as arrays: positions (N, 3), unit normals (N, 3), reflected flux (N, 3) watts."""
-
-    position: np.ndarray
-    normal: np.ndarray
-    flux: np.ndarray
-
-    def __len__(self) -> int:
-        return int(self.position.shape[0])
 
 
 def find_collection(name: str = COLLECTION_NAME) -> bpy.types.Collection | None:
@@ -85,14 +69,16 @@ _DOWN = Vector((0.0, 0.0, -1.0))
 def _new_vpl_object(
     coll: bpy.types.Collection,
     i: int,
-    vpls: VplSet,
+    position: np.ndarray,
+    normal: np.ndarray,
+    flux: np.ndarray,
     power: np.ndarray,
     profile: str,
     size: float,
     cutoff: float,
     shadows: bool,
 ) -> bpy.types.Object:
-    """Light ``i`` of ``vpls`` as a new light object in ``coll``."""
+    """VPL ``i`` as a new light object in ``coll``."""
     energy = float(power.max())
     light = bpy.data.lights.new(f"vplace VPL {i:04d}", "AREA" if profile == "cosine" else "POINT")
     light.energy = energy
@@ -107,49 +93,55 @@ def _new_vpl_object(
         light.shadow_soft_size = 0.0
         light.use_soft_falloff = False
     obj = bpy.data.objects.new(light.name, light)
-    obj.location = tuple(float(c) for c in vpls.position[i])
+    obj.location = tuple(float(c) for c in position)
     obj.rotation_mode = "QUATERNION"
-    obj.rotation_quaternion = _DOWN.rotation_difference(Vector(vpls.normal[i].tolist()))
+    obj.rotation_quaternion = _DOWN.rotation_difference(Vector(normal.tolist()))
     obj[VPL_MARKER] = True
     obj["vplace_index"] = i
-    obj["vplace_flux"] = [float(c) for c in vpls.flux[i]]
+    obj["vplace_flux"] = [float(c) for c in flux]
     coll.objects.link(obj)
     return obj
 
 
 def write_vpls(
     scene: bpy.types.Scene,
-    vpls: VplSet,
+    vpls: vplace.VplSet,
     *,
-    profile: str = "cosine",
     disk_size: float | None = None,
     shadows: bool = True,
     scene_diagonal: float = 10.0,
     name: str = COLLECTION_NAME,
 ) -> bpy.types.Collection:
-    """Writes ``vpls`` as lights in a fresh VPL collection linked to ``scene``.
+    """Writes ``vpls`` as lights (by their profile) in a fresh VPL collection linked to ``scene``.
 
     ``disk_size`` is the AREA disk diameter (default: 0.2% of ``scene_diagonal``).
     """
     n = len(vpls)
-    if profile not in {"cosine", "omni"}:
-        raise WriteBackError(f"profile must be 'cosine' or 'omni', got {profile!r}")
     if n > MAX_VPLS:
         raise WriteBackError(
             f"{n} VPLs is more than EEVEE can render ({MAX_VPLS}); lower the VPL budget"
         )
-    for what, arr in (("position", vpls.position), ("normal", vpls.normal), ("flux", vpls.flux)):
-        if arr.shape != (n, 3) or not np.isfinite(arr).all():
-            raise WriteBackError(f"VPL {what} must be a finite (N, 3) array")
     find_collection(name)  # refuses a foreign collection of that name before any change
     size = disk_size if disk_size is not None else 2e-3 * scene_diagonal
-    power = vpls.flux * (2.0 if profile == "omni" else 1.0)
+    position, normal, flux = vpls.position, vpls.normal, vpls.flux
+    power = vpls.blender_power
     # Build the new collection unlinked; only a complete one replaces the old one.
     coll = bpy.data.collections.new(name + " (writing)")
     coll[VPL_MARKER] = True
     try:
         for i in range(n):
-            _new_vpl_object(coll, i, vpls, power[i], profile, size, 2.0 * scene_diagonal, shadows)
+            _new_vpl_object(
+                coll,
+                i,
+                position[i],
+                normal[i],
+                flux[i],
+                power[i],
+                vpls.profile,
+                size,
+                2.0 * scene_diagonal,
+                shadows,
+            )
     except BaseException:
         _remove_collection(coll)
         raise

@@ -1,7 +1,9 @@
 """Capture: one Cycles render per view gives the G-buffer and the lighting passes (DESIGN: Capture).
 
 Render settings are changed through :func:`settings.override` and restored however the render
-ends. Results are cached on disk as ``.npz`` keyed by the scene's content, the camera, the
+ends. The lights vplace wrote (the ``vplace VPLs`` collection) are hidden from the render, so a
+capture never sees bounce light it would then count twice. Results are cached on disk as
+``.npz`` keyed by the exported scene's content (without vplace's lights), the camera, the
 resolution, the samples and the seed.
 """
 
@@ -19,11 +21,12 @@ import bpy
 import numpy as np
 import OpenEXR
 
-from .export import export_scene
-from .settings import SettingsGuard, override
+from .errors import CaptureError
+from .export import VPL_MARKER, ExportedScene, export_scene
+from .settings import SettingsGuard, override, standard_view
 
 #: Bump when the capture's content or layout changes, to invalidate caches.
-CAPTURE_VERSION = 1
+CAPTURE_VERSION = 2
 #: Planar depth of pixels that see no geometry (Cycles writes 1e10).
 BACKGROUND_DEPTH = 1e9
 
@@ -48,8 +51,7 @@ PASS_FLAGS = {
 IMAGE_SETTINGS = ("media_type", "file_format", "color_mode", "color_depth", "exr_codec")
 
 
-class CaptureError(RuntimeError):
-    """The capture could not be made; the message says why and what to do."""
+__all__ = ["Capture", "CaptureError", "camera_matrices", "capture", "capture_key"]
 
 
 @dataclass
@@ -71,6 +73,10 @@ class Capture:
     samples: int
     render_seconds: float
     key: str
+    #: The camera object's name, its world position (3,) and world-to-clip matrix (4, 4).
+    camera: str
+    camera_position: np.ndarray
+    world_to_clip: np.ndarray
 
     @property
     def height(self) -> int:
@@ -125,6 +131,7 @@ class Capture:
         kw["samples"] = int(kw["samples"])
         kw["render_seconds"] = float(kw["render_seconds"])
         kw["key"] = str(kw["key"])
+        kw["camera"] = str(kw["camera"])
         return cls(**kw)
 
 
@@ -160,10 +167,7 @@ def _configure(
     g.set(r, "use_single_layer", True)
     g.set(r, "use_compositing", False)
     g.set(r, "use_sequencer", False)
-    g.set(scene.view_settings, "view_transform", "Standard")
-    g.set(scene.view_settings, "look", "None")
-    g.set(scene.view_settings, "exposure", 0.0)
-    g.set(scene.view_settings, "gamma", 1.0)
+    standard_view(g, scene)
     for flag in PASS_FLAGS.values():
         g.set(view_layer, flag, True)
     ims = r.image_settings
@@ -195,36 +199,70 @@ def _read_exr(path: Path, layer: str) -> dict[str, np.ndarray]:
     return out
 
 
+def camera_matrices(
+    scene: bpy.types.Scene, camera: bpy.types.Object, resolution: tuple[int, int]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The camera's world position (3,) and world-to-clip matrix (4, 4, OpenGL conventions) for
+    an image of ``resolution``."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    w, h = resolution
+    projection = camera.calc_matrix_camera(depsgraph, x=w, y=h)
+    world_to_clip = np.array(projection @ camera.matrix_world.inverted(), dtype=np.float64)
+    return np.array(camera.matrix_world.translation, dtype=np.float64), world_to_clip
+
+
 def capture_key(
-    scene: bpy.types.Scene, resolution: tuple[int, int], samples: int, seed: int
+    exported: ExportedScene,
+    camera: bpy.types.Object,
+    resolution: tuple[int, int],
+    samples: int,
+    seed: int,
 ) -> str:
-    """The cache key: scene content, camera, resolution, samples, seed."""
+    """The cache key: the exported scene's content (without vplace's own lights, which a capture
+    hides), the camera, resolution, samples and seed."""
     h = hashlib.sha256()
-    h.update(export_scene(scene, include_vpls=True).fingerprint().encode())
-    cam = scene.camera
-    h.update(repr([list(row) for row in cam.matrix_world]).encode())
-    h.update(repr((cam.data.lens, cam.data.sensor_width, cam.data.sensor_fit)).encode())
-    h.update(repr((cam.data.shift_x, cam.data.shift_y, cam.data.type)).encode())
+    h.update(exported.fingerprint().encode())
+    h.update(repr([list(row) for row in camera.matrix_world]).encode())
+    data = camera.data
+    h.update(repr((data.lens, data.sensor_width, data.sensor_fit)).encode())
+    h.update(repr((data.shift_x, data.shift_y, data.type)).encode())
     h.update(repr((resolution, samples, seed, CAPTURE_VERSION)).encode())
     return h.hexdigest()[:24]
 
 
+def _hide_vpls(g: SettingsGuard) -> None:
+    """Hides every collection vplace wrote from the render (restored by the guard)."""
+    for coll in bpy.data.collections:
+        if coll.get(VPL_MARKER, False):
+            g.set(coll, "hide_render", True)
+
+
 def capture(
     scene: bpy.types.Scene,
+    exported: ExportedScene | None = None,
     *,
+    camera: bpy.types.Object | None = None,
     resolution: tuple[int, int] | None = None,
     samples: int = 64,
     seed: int = 0,
     cache_dir: Path | None = None,
     on_progress: Callable[[str], None] | None = None,
+    include_vpls: bool = False,
 ) -> Capture:
-    """Renders ``scene`` from its camera with Cycles CPU and returns every pass as numpy.
+    """Renders ``scene`` from ``camera`` (default: the scene camera) with Cycles CPU and returns
+    every pass as numpy.
 
+    ``exported`` is :func:`export.export_scene` of the same scene (it keys the cache; exported
+    here when not given). The lights vplace wrote are hidden from the render unless
+    ``include_vpls`` (to render what the written lights give, as a test or a comparison does).
     ``resolution`` defaults to the scene's output size. With ``cache_dir``, an identical earlier
     capture is loaded instead of rendering. ``on_progress`` receives Cycles' status lines.
     """
-    if scene.camera is None:
+    camera = camera if camera is not None else scene.camera
+    if camera is None:
         raise CaptureError("the scene has no camera: add one and make it the scene camera")
+    if camera.type != "CAMERA":
+        raise CaptureError(f"{camera.name!r} is not a camera object")
     if samples < 1:
         raise CaptureError(f"samples must be at least 1, got {samples}")
     if resolution is None:
@@ -235,7 +273,9 @@ def capture(
         )
     if min(resolution) < 1:
         raise CaptureError(f"resolution must be at least 1 x 1, got {resolution}")
-    key = capture_key(scene, resolution, samples, seed)
+    if exported is None or include_vpls:
+        exported = export_scene(scene, include_vpls=include_vpls)
+    key = capture_key(exported, camera, resolution, samples, seed)
     cached = Path(cache_dir) / f"capture-{key}.npz" if cache_dir is not None else None
     if cached is not None and cached.exists():
         return Capture.load(cached)
@@ -253,6 +293,9 @@ def capture(
         bpy.app.handlers.render_stats.append(handler)
         try:
             with override() as g:
+                g.set(scene, "camera", camera)
+                if not include_vpls:
+                    _hide_vpls(g)
                 _configure(g, scene, view_layer, resolution, samples, seed)
                 start = time.perf_counter()
                 _render(scene, view_layer)
@@ -265,6 +308,7 @@ def capture(
     if missing:
         raise CaptureError(f"the render is missing the passes {missing}")
     rgb = {k: v[..., :3].astype(np.float32) for k, v in passes.items() if v.ndim == 3}
+    camera_position, world_to_clip = camera_matrices(scene, camera, resolution)
     result = Capture(
         combined=rgb["Combined"],
         depth=passes["Depth"].astype(np.float32),
@@ -281,6 +325,9 @@ def capture(
         samples=samples,
         render_seconds=seconds,
         key=key,
+        camera=camera.name,
+        camera_position=camera_position,
+        world_to_clip=world_to_clip,
     )
     if cached is not None:
         cached.parent.mkdir(parents=True, exist_ok=True)

@@ -1,5 +1,8 @@
 """Headless entry: ``python -m addon.cli demo`` (bpy module) or, with an installed Blender,
 ``blender --background --python addon/cli.py -- demo`` (arguments after ``--``).
+
+A problem the user can fix (a bad scene, a bad option) prints one line, ``vplace: error: ...``,
+and exits with status 2; ``--debug`` prints the traceback instead.
 """
 
 from __future__ import annotations
@@ -7,44 +10,12 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from collections.abc import Callable
+import traceback
 from pathlib import Path
 
 import bpy
 
 REPO = Path(__file__).resolve().parent.parent
-CORNELL_OBJ = REPO / "blend_scenes" / "cornell_box" / "CornellBox-Original.obj"
-CORNELL_BLEND = REPO / "blend_scenes" / "cornell_box" / "cornell_box.blend"
-SPONZA_GLTF = REPO / "blend_scenes" / "sponza" / "Sponza.gltf"
-SPONZA_BLEND = REPO / "blend_scenes" / "sponza" / "sponza.blend"
-
-
-def _ensure_blend(blend: Path, sources: list[Path], build: Callable[[], Path]) -> Path:
-    """``blend``, rebuilt by ``build`` when missing or older than any of ``sources``."""
-    if not blend.exists() or any(src.stat().st_mtime > blend.stat().st_mtime for src in sources):
-        print(f"[vplace] building {blend.relative_to(REPO)}")
-        build()
-    return blend
-
-
-def builtin_scene(name: str) -> Path:
-    """The .blend of a built-in scene (``cornell`` or ``sponza``), built on first use."""
-    from . import default_scene
-
-    script = Path(default_scene.__file__)
-    if name == "cornell":
-        return _ensure_blend(
-            CORNELL_BLEND,
-            [CORNELL_OBJ, script],
-            lambda: default_scene.write_cornell_blend(CORNELL_OBJ, CORNELL_BLEND),
-        )
-    if name == "sponza":
-        return _ensure_blend(
-            SPONZA_BLEND,
-            [SPONZA_GLTF, script],
-            lambda: default_scene.write_sponza_blend(SPONZA_GLTF, SPONZA_BLEND),
-        )
-    raise SystemExit(f"unknown built-in scene {name!r}: use cornell, sponza or a .blend path")
 
 
 def output_size(scene: bpy.types.Scene) -> tuple[int, int]:
@@ -55,6 +26,7 @@ def output_size(scene: bpy.types.Scene) -> tuple[int, int]:
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="vplace", description=__doc__)
+    p.add_argument("--debug", action="store_true", help="print tracebacks of errors")
     sub = p.add_subparsers(dest="command", required=True)
     demo = sub.add_parser("demo", help="run the main job on a scene (default: the Cornell box)")
     demo.add_argument(
@@ -82,7 +54,10 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     demo.add_argument("--feature-mode", choices=("auto", "all"), default="auto")
     demo.add_argument("--profile", choices=("cosine", "omni"), default="cosine")
     demo.add_argument(
-        "--r-min", type=float, default=None, help="distance clamp, m (default: 1%% of the scene)"
+        "--radius",
+        type=float,
+        default=None,
+        help="near-field radius of the VPLs, m (default: 1%% of the scene's diagonal)",
     )
     demo.add_argument("--no-eevee", action="store_true", help="skip the EEVEE preview render")
     rep = sub.add_parser(
@@ -138,13 +113,11 @@ def run_par2d_demo(out: Path, size: int, method: str) -> None:
     print(f"[vplace] EEVEE render {seconds:.1f} s -> {out / 'eevee.png'}")
 
 
-def main(argv: list[str] | None = None) -> int:
-    if argv is None:
-        argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else sys.argv[1:]
-    args = parse_args(argv)
+def run(args: argparse.Namespace) -> None:
+    """Runs the chosen command."""
     if args.command == "par2d":
         run_par2d_demo(args.out, args.size, args.method)
-        return 0
+        return
     if args.command == "report":
         from .report import ReportConfig, run_report
 
@@ -164,10 +137,17 @@ def main(argv: list[str] | None = None) -> int:
             cache_dir=args.cache,
         )
         run_report(config, args.out)
-        return 0
-    from .pipeline import Job, run_main_job
+        return
+    from .default_scene import builtin_scene
+    from .errors import AddonError
+    from .pipeline import Job, method_name, run_main_job
 
-    blend = Path(args.scene) if args.scene.endswith(".blend") else builtin_scene(args.scene)
+    if args.scene.endswith(".blend"):
+        blend = Path(args.scene)
+        if not blend.is_file():
+            raise AddonError(f"no such .blend file: {blend}")
+    else:
+        blend = builtin_scene(args.scene)
     bpy.ops.wm.open_mainfile(filepath=str(blend))
     job = Job(
         n_vpls=args.vpls,
@@ -175,16 +155,31 @@ def main(argv: list[str] | None = None) -> int:
         samples=args.samples,
         seed=args.seed,
         profile=args.profile,
-        r_min=args.r_min,
+        radius=args.radius,
         cell_px=args.cell_px,
-        method=args.method,
+        method=method_name(args.method, not args.no_refit),
         alpha=args.alpha,
-        refit=not args.no_refit,
         iterations=args.iterations,
         feature_mode=args.feature_mode,
     )
     run_main_job(bpy.context.scene, args.out, job=job, eevee=not args.no_eevee)
     print(f"[vplace] results in {args.out}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    if argv is None:
+        argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else sys.argv[1:]
+    args = parse_args(argv)
+    from .native import vplace
+
+    try:
+        run(args)
+    except vplace.VplaceError as exc:
+        if args.debug:
+            traceback.print_exc()
+        else:
+            print(f"vplace: error: {exc}", file=sys.stderr)
+        return 2
     return 0
 
 

@@ -1,4 +1,5 @@
-"""The built-in default scene: the Cornell box (Williams College OBJ, public domain).
+"""The built-in scenes and their registry (:func:`builtin_scene`): the Cornell box (the default;
+Williams College OBJ, public domain) and Sponza (glTF, CC BY 3.0).
 
 Geometry and materials come from ``CornellBox-Original.obj`` / ``.mtl`` (OBJ Y-up is turned into
 Blender Z-up: ``(x, y, z) -> (x, -z, y)``; the OBJ unit is taken as the metre). The emissive
@@ -10,10 +11,20 @@ camera (position (278, 273, -800) mm, 35 mm lens, 25 mm film) mapped into the OB
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import bpy
 import numpy as np
+
+from .errors import AddonError
+
+REPO = Path(__file__).resolve().parent.parent
+SCENES = REPO / "blend_scenes"
+CORNELL_OBJ = SCENES / "cornell_box" / "CornellBox-Original.obj"
+CORNELL_BLEND = SCENES / "cornell_box" / "cornell_box.blend"
+SPONZA_GLTF = SCENES / "sponza" / "Sponza.gltf"
+SPONZA_BLEND = SCENES / "sponza" / "sponza.blend"
 
 #: The published Cornell camera in the OBJ's frame, converted to Blender axes.
 CORNELL_CAMERA_LOCATION = (0.0, -3.894, 0.99)
@@ -288,3 +299,36 @@ def build_par2d_demo(scene: bpy.types.Scene | None = None) -> bpy.types.Collecti
     scene.render.resolution_x = scene.render.resolution_y = 256
     scene.eevee.taa_render_samples = 4
     return coll
+
+
+def _ensure_blend(blend: Path, sources: list[Path], build: Callable[[], Path]) -> Path:
+    """``blend``, rebuilt by ``build`` when missing or older than any of ``sources``."""
+    if not blend.exists() or any(src.stat().st_mtime > blend.stat().st_mtime for src in sources):
+        print(f"[vplace] building {blend.relative_to(REPO)}")
+        build()
+    return blend
+
+
+#: The built-in scenes: name -> (.blend, its sources, how to build it).
+BUILTIN: dict[str, tuple[Path, list[Path], Callable[[], Path]]] = {
+    "cornell": (
+        CORNELL_BLEND,
+        [CORNELL_OBJ, Path(__file__)],
+        lambda: write_cornell_blend(CORNELL_OBJ, CORNELL_BLEND),
+    ),
+    "sponza": (
+        SPONZA_BLEND,
+        [SPONZA_GLTF, Path(__file__)],
+        lambda: write_sponza_blend(SPONZA_GLTF, SPONZA_BLEND),
+    ),
+}
+
+
+def builtin_scene(name: str) -> Path:
+    """The .blend of a built-in scene (see :data:`BUILTIN`), built on first use."""
+    if name not in BUILTIN:
+        raise AddonError(
+            f"unknown built-in scene {name!r}: use {', '.join(sorted(BUILTIN))} or a .blend path"
+        )
+    blend, sources, build = BUILTIN[name]
+    return _ensure_blend(blend, sources, build)

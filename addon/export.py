@@ -18,14 +18,14 @@ from typing import Any
 import bpy
 import numpy as np
 
+from .errors import ExportError
+
+__all__ = ["ExportError", "ExportedScene", "export_scene", "light_info", "material_info"]
+
 #: Custom property that marks the objects and the collection vplace writes.
 VPL_MARKER = "vplace_vpl"
 #: Albedo of a slot without a material (Blender's default grey).
 DEFAULT_ALBEDO = (0.8, 0.8, 0.8)
-
-
-class ExportError(ValueError):
-    """The scene cannot be exported as it is; the message says what to change."""
 
 
 @dataclass

@@ -2,7 +2,8 @@
 
 When the add-on is installed as an extension, Blender installs the bundled ``vplace`` wheel
 (``wheels/`` in the manifest); in development the package comes from the virtual environment.
-Every other module reaches the native library through this one.
+Every other module reaches the native library through this one: the ``vplace`` package itself,
+and the conversions from the add-on's exported scene and captures to ``vplace`` objects.
 """
 
 from __future__ import annotations
@@ -10,11 +11,13 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import vplace
+import vplace.bench_par2d as bench_par2d
 
 if TYPE_CHECKING:
+    from .capture import Capture
     from .export import ExportedScene, LightInfo
 
-__all__ = ["build_scene", "native_light", "vplace"]
+__all__ = ["bench_par2d", "build_scene", "native_light", "view_of", "vplace"]
 
 
 def native_light(info: LightInfo) -> vplace.Light:
@@ -46,4 +49,24 @@ def build_scene(exported: ExportedScene) -> vplace.Scene:
         exported.material_ids,
         exported.albedo,
         [native_light(light) for light in exported.lights],
+    )
+
+
+def view_of(cap: Capture, *, held_out: bool = False) -> vplace.View:
+    """The ``vplace.View`` of a capture; ``held_out`` leaves out its global-illumination passes
+    (what a view the model has not seen provides)."""
+    return vplace.View(
+        position=cap.position,
+        normal=cap.normal,
+        albedo=cap.albedo,
+        covered=cap.covered,
+        depth=cap.depth,
+        direct=cap.direct,
+        diffuse_direct=cap.diffuse_direct,
+        diffuse_indirect=None if held_out else cap.diffuse_indirect,
+        indirect=None if held_out else cap.indirect,
+        specular=cap.glossy_color,
+        camera_position=cap.camera_position,
+        world_to_clip=cap.world_to_clip,
+        name=cap.camera,
     )

@@ -1,35 +1,24 @@
-"""Operators. Thin: ``poll`` guards the context, ``execute`` calls the pipeline and reports errors.
+"""Operators. Thin: ``poll`` guards the context, ``execute`` calls the pipeline and reports
+``vplace.VplaceError`` (the one error family: the add-on's own errors derive from it) with
+``self.report``; anything else is a bug and keeps its traceback.
 
-"Lay out and apply" runs interactively as a modal operator: the Blender side (export, capture)
-runs on the main thread, the native side (VPLs, evaluator) on a worker thread whose progress
-shows in the status bar and the window's progress indicator; Esc cancels it, and a cancelled
-run leaves the scene as it was (the write-back only happens after success).
+"Lay out and apply" runs as a modal operator (``modal.BackgroundOperator``): export and capture
+on the main thread, the layout and evaluator on a worker thread with progress in the status bar,
+Esc cancels it, and a cancelled run leaves the scene as it was.
 """
 
 from __future__ import annotations
 
 import json
 import tempfile
-import threading
 from pathlib import Path
 from typing import Any, ClassVar
 
 import bpy
 
-from . import apply, capture, export, par2d_bake, pipeline
+from . import apply, par2d_bake, pipeline
+from .modal import BackgroundOperator
 from .native import vplace
-
-#: Errors an operator reports to the user instead of raising.
-USER_ERRORS = (
-    vplace.VplaceError,
-    apply.WriteBackError,
-    capture.CaptureError,
-    export.ExportError,
-)
-
-
-def _store_report(scene: bpy.types.Scene, report: dict[str, Any]) -> None:
-    scene.vplace.last_report = json.dumps(report)
 
 
 def cache_dir() -> Path:
@@ -41,6 +30,28 @@ def _job(scene: bpy.types.Scene) -> pipeline.Job:
     return pipeline.Job.from_settings(scene.vplace, cache_dir())
 
 
+def _model_key(job: pipeline.Job, prepared: pipeline.Prepared) -> str:
+    """What a stored model was fitted on: the captures and the fit's settings."""
+    return json.dumps([[c.key for c in prepared.captures], job.cell_px, job.feature_mode])
+
+
+def _stored_fit(scene: bpy.types.Scene, key: str) -> vplace.Fit | None:
+    """The model the panel's Fit stored, if it was fitted on exactly these captures."""
+    settings = scene.vplace
+    if settings.model_json and settings.model_key == key:
+        return vplace.Fit.from_json(settings.model_json)
+    return None
+
+
+def _store_fit(scene: bpy.types.Scene, fitted: vplace.Fit, key: str) -> None:
+    scene.vplace.model_json = fitted.to_json()
+    scene.vplace.model_key = key
+
+
+def _has_camera(context: bpy.types.Context) -> bool:
+    return context.scene is not None and context.scene.camera is not None
+
+
 class VPLACE_OT_capture(bpy.types.Operator):
     """Render the G-buffer and lighting passes of the camera view with Cycles (cached)"""
 
@@ -50,13 +61,12 @@ class VPLACE_OT_capture(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
-        return context.scene is not None and context.scene.camera is not None
+        return _has_camera(context)
 
     def execute(self, context: bpy.types.Context) -> set[str]:
-        timer = pipeline.StageTimer(log=lambda _line: None)
         try:
-            prepared = pipeline.prepare(context.scene, _job(context.scene), timer)
-        except USER_ERRORS as exc:
+            prepared = pipeline.prepare(context.scene, _job(context.scene), pipeline.quiet_timer())
+        except vplace.VplaceError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         cap = prepared.capture
@@ -69,7 +79,8 @@ class VPLACE_OT_capture(bpy.types.Operator):
 
 
 class VPLACE_OT_fit(bpy.types.Operator):
-    """Fit the regression of indirect light on the view's features; the table shows in the panel"""
+    """Fit the regression of indirect light on the view's features; the table shows in the panel
+    and "Lay out and apply" uses this model while the captures it was fitted on are current"""
 
     bl_idname = "vplace.fit"
     bl_label = "Fit"
@@ -77,28 +88,24 @@ class VPLACE_OT_fit(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
-        return context.scene is not None and context.scene.camera is not None
+        return _has_camera(context)
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         scene = context.scene
         job = _job(scene)
-        timer = pipeline.StageTimer(log=lambda _line: None)
+        timer = pipeline.quiet_timer()
         try:
             prepared = pipeline.prepare(scene, job, timer)
             with timer.stage("fit regression"):
-                fitted = vplace.fit(
-                    pipeline.fit_input(prepared),
-                    cell_px=job.cell_px,
-                    select=job.feature_mode == "auto",
-                )
-        except USER_ERRORS as exc:
+                fitted = pipeline.fit(prepared, job)
+        except vplace.VplaceError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        scene.vplace.model_json = fitted.to_json()
+        _store_fit(scene, fitted, _model_key(job, prepared))
         report = scene.vplace.report()
         report["fit"] = pipeline.fit_summary(fitted)
         report["stage_seconds"] = dict(timer.seconds)
-        _store_report(scene, report)
+        scene.vplace.last_report = json.dumps(report)
         self.report({"INFO"}, f"R² {fitted.r2:.3f} with {len(fitted.kept)} features")
         return {"FINISHED"}
 
@@ -117,7 +124,7 @@ class VPLACE_OT_report(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
-        return context.scene is not None and context.scene.camera is not None
+        return _has_camera(context)
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         out = (
@@ -133,122 +140,45 @@ class VPLACE_OT_report(bpy.types.Operator):
                 write_back=False,
                 log=lambda _line: None,
             )
-        except USER_ERRORS as exc:
+        except vplace.VplaceError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         self.report({"INFO"}, f"report written to {out}")
         return {"FINISHED"}
 
 
-class VPLACE_OT_apply(bpy.types.Operator):
+class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
     """Capture the view with Cycles, place VPLs and write them as lights for EEVEE"""
 
     bl_idname = "vplace.apply"
     bl_label = "Lay out and apply"
     bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
-
-    _thread: threading.Thread | None = None
-    _timer: Any = None
+    status_text = "placing VPLs"
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
-        return context.scene is not None and context.scene.camera is not None
+        return _has_camera(context)
 
-    def _start(self, context: bpy.types.Context) -> bool:
+    def start(self, context: bpy.types.Context) -> None:
         scene = context.scene
         self.job = _job(scene)
-        self.timer = pipeline.StageTimer(log=lambda _line: None)
-        try:
-            self.prepared = pipeline.prepare(scene, self.job, self.timer)
-        except USER_ERRORS as exc:
-            self.report({"ERROR"}, str(exc))
-            return False
-        return True
+        self.timer = pipeline.quiet_timer()
+        self.prepared = pipeline.prepare(scene, self.job, self.timer)
+        self.key = _model_key(self.job, self.prepared)
+        self.fitted = _stored_fit(scene, self.key)
 
-    def _finish(self, context: bpy.types.Context, computed: pipeline.Computed) -> set[str]:
-        scene = context.scene
-        try:
-            apply.write_vpls(
-                scene,
-                computed.vpls,
-                profile=self.job.profile,
-                scene_diagonal=self.prepared.scene.diagonal,
-            )
-        except USER_ERRORS as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        _store_report(scene, pipeline.summary(scene, self.job, self.prepared, computed, self.timer))
+    def work(self, progress: vplace.Progress | None) -> Any:
+        return pipeline.compute(self.prepared, self.job, self.timer, progress, self.fitted)
+
+    def finish(self, context: bpy.types.Context, result: Any) -> set[str]:
+        scene, computed = context.scene, result
+        apply.write_vpls(scene, computed.vpls, scene_diagonal=self.prepared.scene.diagonal)
+        summary = pipeline.summary(scene, self.job, self.prepared, computed, self.timer)
+        scene.vplace.last_report = json.dumps(summary)
         if computed.fit is not None:
-            scene.vplace.model_json = computed.fit.to_json()
+            _store_fit(scene, computed.fit, self.key)
         self.report({"INFO"}, f"wrote {len(computed.vpls)} VPL lights")
         return {"FINISHED"}
-
-    def execute(self, context: bpy.types.Context) -> set[str]:
-        if not self._start(context):
-            return {"CANCELLED"}
-        try:
-            computed = pipeline.compute(self.prepared, self.job, self.timer)
-        except USER_ERRORS as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        return self._finish(context, computed)
-
-    def invoke(self, context: bpy.types.Context, _event: bpy.types.Event) -> set[str]:
-        if context.window is None:  # headless: nothing to be modal in
-            return self.execute(context)
-        if not self._start(context):
-            return {"CANCELLED"}
-        self.progress = vplace.Progress()
-        self.result: list[Any] = []
-
-        def work() -> None:
-            try:
-                self.result.append(
-                    pipeline.compute(self.prepared, self.job, self.timer, self.progress)
-                )
-            except Exception as exc:  # handed to the main thread, re-raised or reported there
-                self.result.append(exc)
-
-        self._thread = threading.Thread(target=work, daemon=True)
-        self._thread.start()
-        wm = context.window_manager
-        wm.progress_begin(0, 100)
-        self._timer = wm.event_timer_add(0.1, window=context.window)
-        wm.modal_handler_add(self)
-        return {"RUNNING_MODAL"}
-
-    def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
-        if event.type == "ESC":
-            self.progress.cancel()
-        if event.type != "TIMER":
-            return {"RUNNING_MODAL"}
-        total = max(self.progress.total, 1)
-        context.window_manager.progress_update(int(100 * self.progress.done / total))
-        if context.workspace is not None:
-            context.workspace.status_text_set(
-                f"vplace: evaluating VPLs {self.progress.done}/{self.progress.total} tiles "
-                "(Esc to cancel)"
-            )
-        if self._thread is not None and self._thread.is_alive():
-            return {"RUNNING_MODAL"}
-        self._cleanup(context)
-        outcome = self.result[0]
-        if isinstance(outcome, vplace.CancelledError):
-            self.report({"WARNING"}, "vplace: cancelled; the scene is unchanged")
-            return {"CANCELLED"}
-        if isinstance(outcome, USER_ERRORS):
-            self.report({"ERROR"}, str(outcome))
-            return {"CANCELLED"}
-        if isinstance(outcome, BaseException):
-            raise outcome
-        return self._finish(context, outcome)
-
-    def _cleanup(self, context: bpy.types.Context) -> None:
-        wm = context.window_manager
-        wm.event_timer_remove(self._timer)
-        wm.progress_end()
-        if context.workspace is not None:
-            context.workspace.status_text_set(None)
 
 
 class VPLACE_OT_clear_vpls(bpy.types.Operator):
@@ -261,7 +191,7 @@ class VPLACE_OT_clear_vpls(bpy.types.Operator):
     def execute(self, context: bpy.types.Context) -> set[str]:
         try:
             n = apply.clear_vpls()
-        except USER_ERRORS as exc:
+        except vplace.VplaceError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         self.report({"INFO"}, f"removed {n} VPL lights")
@@ -300,7 +230,7 @@ class VPLACE_OT_bake_par2d(bpy.types.Operator):
             return {"CANCELLED"}
         try:
             par2d_bake.bake_to_scene(context.scene, source, self.width, self.height, self.method)
-        except USER_ERRORS as exc:
+        except vplace.VplaceError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         self.report({"INFO"}, f"baked the PAR light map of {source.name!r}")

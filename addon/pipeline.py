@@ -1,17 +1,24 @@
-"""The main job: capture -> scene export -> VPLs -> evaluator -> write-back -> report.
+"""The one job pipeline: export -> capture -> fit -> VPLs -> evaluator -> write-back -> report.
 
-Every stage is timed and announced through ``log``. Used by the CLI (``python -m addon.cli``)
-and by the operators.
+Used by the operators, the command line (``python -m addon.cli``) and the report, which only
+loops over views, budgets and seeds. The stages:
+
+- :func:`prepare` (Blender, main thread): export the scene, build the native scene with its BVH,
+  capture every view with Cycles (cached).
+- :func:`lay_out` (no bpy: safe on a worker thread): the one method dispatch of :data:`METHODS`.
+- :func:`compute`: :func:`lay_out`, then the evaluator and the metrics on the first view.
+- :func:`run_main_job`: all of it, the write-back, and the files of the report.
+
+Every stage is timed and announced through a :class:`StageTimer`.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -19,8 +26,13 @@ import bpy
 import numpy as np
 
 from . import apply, capture, export, images
-from .native import build_scene, vplace
+from .errors import AddonError, CaptureError, ExportError
+from .native import build_scene, view_of, vplace
 from .settings import override
+
+#: The layout methods, in the report's order: Keller's light paths, reflective shadow maps, the
+#: regression-guided layout, and the same with its VPL powers refitted to the captured light.
+METHODS = ("uniform", "rsm", "vplace", "vplace+refit")
 
 
 @dataclass
@@ -41,35 +53,273 @@ class StageTimer:
             self.log(f"[vplace] {name}: {self.seconds[name]:.2f} s")
 
 
-def vpl_set(d: dict[str, np.ndarray]) -> apply.VplSet:
-    """A write-back VPL set from the native dict of arrays."""
-    return apply.VplSet(d["position"], d["normal"], d["flux"])
+def quiet_timer() -> StageTimer:
+    """A timer that logs nothing."""
+    return StageTimer(log=lambda _line: None)
 
 
-def evaluate_capture(
-    scene: vplace.Scene,
-    cap: capture.Capture,
-    vpls: apply.VplSet,
-    *,
-    profile: str = "cosine",
-    r_min: float = 0.01,
-    progress: vplace.Progress | None = None,
-) -> tuple[np.ndarray, dict[str, Any]]:
-    """The evaluator's indirect image of ``vpls`` over the capture's G-buffer."""
-    covered = cap.covered & np.isfinite(cap.position).all(axis=-1)
-    return vplace.evaluate(
-        scene,
-        np.ascontiguousarray(cap.position),
-        np.ascontiguousarray(cap.normal),
-        np.ascontiguousarray(cap.albedo),
-        np.ascontiguousarray(covered),
-        np.ascontiguousarray(vpls.position, dtype=np.float32),
-        np.ascontiguousarray(vpls.normal, dtype=np.float32),
-        np.ascontiguousarray(vpls.flux, dtype=np.float32),
-        profile=profile,
-        r_min=r_min,
-        progress=progress,
+def method_name(method: str, refit: bool) -> str:
+    """The :data:`METHODS` name of a layout method with or without the power refit (the panel and
+    the command line set them apart)."""
+    return "vplace+refit" if method == "vplace" and refit else method
+
+
+@dataclass
+class Job:
+    """The parameters of one run. The panel (``properties.py``), the command line and the report
+    build it from their settings; its defaults are theirs."""
+
+    n_vpls: int = 128
+    resolution: tuple[int, int] = (160, 160)
+    samples: int = 256
+    seed: int = 0
+    profile: str = "cosine"
+    #: Near-field radius of the VPLs (m); None: the scene's (``NEAR_FIELD_FRACTION`` of its
+    #: diagonal: VPL spacing grows with the scene).
+    radius: float | None = None
+    cell_px: int = 16
+    #: One of :data:`METHODS`. The default is ``vplace+refit``: it beats the others in the
+    #: report at equal N.
+    method: str = "vplace+refit"
+    alpha: float = 1.0
+    iterations: int = 3
+    #: "auto": drop features that do not raise CV R^2; "all": keep every usable feature.
+    feature_mode: str = "auto"
+    cache_dir: Path | None = None
+
+    def validate(self) -> None:
+        """Raises :class:`AddonError` for settings no stage can run with."""
+        if self.method not in METHODS:
+            raise AddonError(f"method must be one of {list(METHODS)}, got {self.method!r}")
+        if self.n_vpls < 1 or self.n_vpls > apply.MAX_VPLS:
+            raise AddonError(f"the VPL budget must be 1 to {apply.MAX_VPLS}, got {self.n_vpls}")
+        if self.feature_mode not in ("auto", "all"):
+            raise AddonError(f"feature mode must be 'auto' or 'all', got {self.feature_mode!r}")
+
+    @classmethod
+    def from_settings(cls, settings: Any, cache_dir: Path | None = None) -> Job:
+        """A job from ``Scene.vplace`` (see properties.py)."""
+        return cls(
+            n_vpls=settings.vpl_budget,
+            resolution=(settings.resolution_x, settings.resolution_y),
+            samples=settings.samples,
+            seed=settings.seed,
+            profile=settings.profile,
+            cell_px=settings.cell_px,
+            method=method_name(settings.method, settings.refit),
+            alpha=settings.alpha,
+            iterations=settings.iterations,
+            feature_mode=settings.feature_mode,
+            cache_dir=cache_dir,
+        )
+
+
+@dataclass
+class Prepared:
+    """What the Blender side hands to the native side: the scene and the captured views."""
+
+    scene: vplace.Scene
+    exported: export.ExportedScene
+    captures: list[capture.Capture]
+    views: list[vplace.View]
+
+    @property
+    def capture(self) -> capture.Capture:
+        """The first (main) view's capture."""
+        return self.captures[0]
+
+    def radius(self, job: Job) -> float:
+        """The job's near-field radius in this scene."""
+        return job.radius if job.radius is not None else self.scene.near_field_radius
+
+
+def check_lights(exported: export.ExportedScene) -> None:
+    """Refuses a scene whose lights cannot make VPLs."""
+    if not exported.lights:
+        raise ExportError(
+            "the scene has no lights that render: VPLs are traced from light objects "
+            "(emissive meshes are not light sources for vplace yet)"
+        )
+    if all(max(light.power) <= 0.0 for light in exported.lights):
+        raise ExportError("every light has zero power: there is no light to bounce")
+
+
+def prepare(
+    bl_scene: bpy.types.Scene,
+    job: Job,
+    timer: StageTimer,
+    cameras: Sequence[bpy.types.Object] | None = None,
+) -> Prepared:
+    """Export, BVH and a capture of each camera (default: the scene camera). Uses bpy: call it
+    on Blender's main thread."""
+    job.validate()
+    with timer.stage("export scene"):
+        exported = export.export_scene(bl_scene)
+    check_lights(exported)
+    with timer.stage("build BVH"):
+        scene = build_scene(exported)
+    cams = list(cameras) if cameras is not None else [bl_scene.camera]
+    last = [0.0]
+
+    def on_progress(line: str) -> None:
+        now = time.perf_counter()
+        if now - last[0] > 2.0:
+            last[0] = now
+            timer.log(f"[vplace]   {line}")
+
+    captures = []
+    for cam in cams:
+        with timer.stage(f"capture {cam.name if cam else '(no camera)'} (Cycles)"):
+            cap = capture.capture(
+                bl_scene,
+                exported,
+                camera=cam,
+                resolution=job.resolution,
+                samples=job.samples,
+                seed=job.seed,
+                cache_dir=job.cache_dir,
+                on_progress=on_progress,
+            )
+        if not cap.covered.any():
+            raise CaptureError(
+                f"the camera {cap.camera!r} sees no geometry (only background): aim it at the scene"
+            )
+        captures.append(cap)
+    return Prepared(scene, exported, captures, [view_of(c) for c in captures])
+
+
+def fit(prepared: Prepared, job: Job, views: Sequence[vplace.View] | None = None) -> vplace.Fit:
+    """The regression on ``views`` (default: every prepared view)."""
+    return vplace.fit(
+        prepared.scene,
+        list(views if views is not None else prepared.views),
+        cell_px=job.cell_px,
+        select=job.feature_mode == "auto",
     )
+
+
+@dataclass
+class Laid:
+    """The VPLs of one method, and how they were made."""
+
+    vpls: vplace.VplSet
+    #: The regression-guided layout before the refit (vplace methods).
+    layout: vplace.Layout | None = None
+    refit: vplace.Refit | None = None
+    #: Seconds of the layout (placement) and of the refit.
+    layout_seconds: float = 0.0
+    refit_seconds: float = 0.0
+
+
+def lay_out(
+    prepared: Prepared,
+    job: Job,
+    *,
+    fitted: vplace.Fit | None = None,
+    views: Sequence[vplace.View] | None = None,
+    timer: StageTimer | None = None,
+    progress: vplace.Progress | None = None,
+) -> Laid:
+    """The VPLs of ``job.method`` (the one method dispatch). ``views`` (default: every prepared
+    view) are what the regression-guided layout places for and iterates against (views without
+    an indirect image give a one-shot layout); ``fitted`` is the model (fitted here when None).
+    No bpy: safe on a worker thread; ``progress`` cancels it."""
+    job.validate()
+    timer = timer or quiet_timer()
+    scene, n, radius = prepared.scene, job.n_vpls, prepared.radius(job)
+    views = list(views if views is not None else prepared.views)
+    kind = dict(profile=job.profile, radius=radius)
+    start = time.perf_counter()
+    if job.method == "uniform":
+        with timer.stage(f"uniform VPLs (n={n})"):
+            vpls = vplace.uniform_vpls(scene, n, seed=job.seed, bounces=vplace.MAX_BOUNCES, **kind)
+        return Laid(vpls, layout_seconds=time.perf_counter() - start)
+    if job.method == "rsm":
+        with timer.stage(f"RSM VPLs (n={n})"):
+            vpls = vplace.rsm_vpls(scene, n, **kind)
+        return Laid(vpls, layout_seconds=time.perf_counter() - start)
+    if fitted is None:
+        with timer.stage("fit regression"):
+            fitted = fit(prepared, job, views)
+    with timer.stage(f"layout (n={n}, alpha={job.alpha:g})"):
+        laid = vplace.layout(
+            scene,
+            views,
+            fit=fitted,
+            budget=n,
+            alpha=job.alpha,
+            cell_px=job.cell_px,
+            iterate=job.iterations > 0,
+            iterations=max(job.iterations, 1),
+            seed=job.seed,
+            progress=progress,
+            **kind,
+        )
+    out = Laid(laid.vpls, layout=laid, layout_seconds=time.perf_counter() - start)
+    if job.method == "vplace+refit" and all(v.has_indirect for v in views):
+        with timer.stage("refit VPL powers"):
+            start = time.perf_counter()
+            out.refit = vplace.refit(scene, views, laid.vpls, progress=progress)
+            out.refit_seconds = time.perf_counter() - start
+        out.vpls = out.refit.vpls
+    return out
+
+
+def score(image: np.ndarray, truth: np.ndarray) -> dict[str, float]:
+    """RMSE, relative MSE (linear HDR) and SSIM (display luminance) of ``image`` against
+    ``truth``; SSIM is NaN below 11 x 11 pixels."""
+    image = np.ascontiguousarray(image, dtype=np.float32)
+    truth = np.ascontiguousarray(truth, dtype=np.float32)
+    ssim = vplace.ssim(image, truth) if min(truth.shape[:2]) >= 11 else float("nan")
+    return {
+        "rmse": vplace.rmse(image, truth),
+        "relative_mse": vplace.relative_mse(image, truth),
+        "ssim": ssim,
+    }
+
+
+@dataclass
+class Computed:
+    """A method's VPLs, their indirect image on the first view, evaluator stats and metrics."""
+
+    laid: Laid
+    indirect: np.ndarray
+    stats: vplace.EvalStats
+    metrics: dict[str, float]
+    fit: vplace.Fit | None = None
+
+    @property
+    def vpls(self) -> vplace.VplSet:
+        return self.laid.vpls
+
+
+def compute(
+    prepared: Prepared,
+    job: Job,
+    timer: StageTimer,
+    progress: vplace.Progress | None = None,
+    fitted: vplace.Fit | None = None,
+) -> Computed:
+    """:func:`lay_out`, the evaluator on the first view and the metrics against its capture.
+    No bpy: safe on a worker thread; ``progress`` cancels it."""
+    if fitted is None:
+        with timer.stage("fit regression"):
+            fitted = fit(prepared, job)
+    laid = lay_out(prepared, job, fitted=fitted, timer=timer, progress=progress)
+    with timer.stage("evaluate VPLs"):
+        indirect, stats = vplace.evaluate(
+            prepared.scene, prepared.views[0], laid.vpls, progress=progress
+        )
+    cap = prepared.capture
+    direct, gi = cap.direct, cap.gi
+    ours = score(direct + indirect, gi)
+    base = score(direct, gi)
+    metrics = {
+        **ours,
+        **{f"{k}_direct_only": v for k, v in base.items()},
+        "rmse_indirect": vplace.rmse(indirect, cap.indirect),
+    }
+    return Computed(laid, indirect, stats, metrics, fitted)
 
 
 def render_eevee_preview(
@@ -98,222 +348,15 @@ def render_eevee_preview(
         return time.perf_counter() - start
 
 
-#: Default distance clamp as a fraction of the scene diagonal.
-R_MIN_FRACTION = 0.01
-
-
-@dataclass
-class Job:
-    """The parameters of one run (the panel's settings, or the CLI's options)."""
-
-    n_vpls: int = 128
-    resolution: tuple[int, int] = (160, 160)
-    samples: int = 256
-    seed: int = 0
-    profile: str = "cosine"
-    #: Distance clamp (m); None: 1% of the scene's diagonal (VPL spacing grows with the scene).
-    r_min: float | None = None
-    cell_px: int = 16
-    #: "vplace" (regression-guided layout; the default: it beats the others in the report at
-    #: equal N), "uniform" (Keller's light paths) or "rsm".
-    method: str = "vplace"
-    alpha: float = 1.0
-    #: vplace only: refit the VPL powers to the captured indirect image (non-negative LS).
-    refit: bool = True
-    iterations: int = 3
-    #: "auto": drop features that do not raise CV R^2; "all": keep every usable feature.
-    feature_mode: str = "auto"
-    cache_dir: Path | None = None
-
-    @classmethod
-    def from_settings(cls, settings: Any, cache_dir: Path | None = None) -> Job:
-        """A job from ``Scene.vplace`` (see properties.py)."""
-        return cls(
-            n_vpls=settings.vpl_budget,
-            resolution=(settings.resolution_x, settings.resolution_y),
-            samples=settings.samples,
-            seed=settings.seed,
-            profile=settings.profile,
-            cell_px=settings.cell_px,
-            method=settings.method,
-            alpha=settings.alpha,
-            refit=settings.refit,
-            iterations=settings.iterations,
-            feature_mode=settings.feature_mode,
-            cache_dir=cache_dir,
-        )
-
-
-@dataclass
-class Prepared:
-    """What the Blender side hands to the native side: the core scene and the capture."""
-
-    scene: vplace.Scene
-    capture: capture.Capture
-    exported: export.ExportedScene
-    camera_position: np.ndarray
-    world_to_clip: np.ndarray
-
-
-@dataclass
-class Computed:
-    """The native side's results: VPLs, their indirect image, evaluator stats, metrics."""
-
-    vpls: apply.VplSet
-    indirect: np.ndarray
-    stats: dict[str, Any]
-    metrics: dict[str, float]
-    fit: vplace.FitResult | None = None
-
-
-def prepare(bl_scene: bpy.types.Scene, job: Job, timer: StageTimer) -> Prepared:
-    """Export, BVH and capture. Uses bpy: call it on Blender's main thread."""
-    with timer.stage("export scene"):
-        exported = export.export_scene(bl_scene)
-    if not exported.lights:
-        raise export.ExportError(
-            "the scene has no lights that render: VPLs are traced from light objects "
-            "(emissive meshes are not light sources for vplace yet)"
-        )
-    if all(max(light.power) <= 0.0 for light in exported.lights):
-        raise export.ExportError("every light has zero power: there is no light to bounce")
-    with timer.stage("build BVH"):
-        scene = build_scene(exported)
-    with timer.stage("capture (Cycles)"):
-        last = [0.0]
-
-        def on_progress(line: str) -> None:
-            now = time.perf_counter()
-            if now - last[0] > 2.0:
-                last[0] = now
-                timer.log(f"[vplace]   {line}")
-
-        cap = capture.capture(
-            bl_scene,
-            resolution=job.resolution,
-            samples=job.samples,
-            seed=job.seed,
-            cache_dir=job.cache_dir,
-            on_progress=on_progress,
-        )
-    if not cap.covered.any():
-        raise capture.CaptureError(
-            "the camera sees no geometry (only background): aim it at the scene"
-        )
-    cam = bl_scene.camera
-    w, h = job.resolution
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    projection = cam.calc_matrix_camera(depsgraph, x=w, y=h)
-    world_to_clip = np.array(projection @ cam.matrix_world.inverted(), dtype=np.float64)
-    camera_position = np.array(cam.matrix_world.translation, dtype=np.float64)
-    return Prepared(scene, cap, exported, camera_position, world_to_clip)
-
-
-def compute(
-    prepared: Prepared,
-    job: Job,
-    timer: StageTimer,
-    progress: vplace.Progress | None = None,
-) -> Computed:
-    """VPLs, evaluator and metrics. No bpy: safe on a worker thread; ``progress`` cancels it."""
-    scene, cap = prepared.scene, prepared.capture
-    r_min = job.r_min if job.r_min is not None else R_MIN_FRACTION * scene.diagonal
-    layout_info: dict[str, Any] = {}
-    with timer.stage("fit regression"):
-        fitted = vplace.fit(
-            fit_input(prepared), cell_px=job.cell_px, select=job.feature_mode == "auto"
-        )
-    if job.method == "vplace":
-        with timer.stage(f"layout (n={job.n_vpls}, alpha={job.alpha:g})"):
-            laid = vplace.layout(
-                scene,
-                layout_input(prepared),
-                camera_position=prepared.camera_position,
-                world_to_clip=prepared.world_to_clip,
-                fit=fitted,
-                budget=job.n_vpls,
-                alpha=job.alpha,
-                cell_px=job.cell_px,
-                iterate=job.iterations > 0,
-                iterations=max(job.iterations, 1),
-                seed=job.seed,
-                profile=job.profile,
-                r_min=r_min,
-                progress=progress,
-            )
-        vpls = apply.VplSet(laid.position, laid.normal, laid.flux)
-        layout_info = {"iteration_errors": list(laid.errors), "best_iteration": laid.best}
-        if job.refit:
-            with timer.stage("refit VPL powers"):
-                refitted = vplace.refit(
-                    scene, layout_input(prepared), laid, profile=job.profile, r_min=r_min
-                )
-            vpls = apply.VplSet(refitted.position, refitted.normal, refitted.flux)
-            layout_info["refit_error"] = [refitted.error_before, refitted.error_after]
-    elif job.method == "uniform":
-        with timer.stage(f"uniform VPLs (n={job.n_vpls})"):
-            vpls = vpl_set(
-                vplace.uniform_vpls(scene, job.n_vpls, job.seed, bounces=vplace.MAX_BOUNCES)
-            )
-    elif job.method == "rsm":
-        with timer.stage(f"RSM VPLs (n={job.n_vpls})"):
-            vpls = vpl_set(vplace.rsm_vpls(scene, job.n_vpls))
-    else:
-        raise vplace.InputError(f"method must be vplace, uniform or rsm, got {job.method!r}")
-    with timer.stage("evaluate VPLs"):
-        indirect, stats = evaluate_capture(
-            scene, cap, vpls, profile=job.profile, r_min=r_min, progress=progress
-        )
-    stats["r_min"] = r_min
-    stats.update(layout_info)
-    direct, gi = cap.direct, cap.gi
-    estimate = (direct + indirect).astype(np.float32)
-    metrics = {
-        "rmse": vplace.rmse(estimate, gi),
-        "relative_mse": vplace.relative_mse(estimate, gi),
-        "ssim": vplace.ssim(estimate, gi) if min(gi.shape[:2]) >= 11 else float("nan"),
-        "rmse_direct_only": vplace.rmse(direct, gi),
-        "relative_mse_direct_only": vplace.relative_mse(direct, gi),
-        "ssim_direct_only": vplace.ssim(direct, gi) if min(gi.shape[:2]) >= 11 else float("nan"),
-        "rmse_indirect": vplace.rmse(indirect, cap.indirect),
-    }
-    return Computed(vpls, indirect, stats, metrics, fitted)
-
-
-def layout_input(prepared: Prepared) -> dict[str, Any]:
-    """The capture as ``vplace.layout`` reads it (with the fit's passes)."""
-    cap = prepared.capture
-    return {
-        **fit_input(prepared),
-        "diffuse_direct": cap.diffuse_direct,
-        "diffuse_indirect": cap.diffuse_indirect,
-    }
-
-
-def fit_input(prepared: Prepared) -> dict[str, Any]:
-    """The capture as ``vplace.fit`` reads it, with the scene's lights."""
-    cap = prepared.capture
-    return {
-        "position": cap.position,
-        "normal": cap.normal,
-        "albedo": cap.albedo,
-        "specular": cap.glossy_color,
-        "depth": cap.depth,
-        "direct": cap.direct,
-        "gi": cap.gi,
-        "covered": cap.covered,
-        "lights": prepared.exported.lights,
-    }
-
-
-def fit_summary(fitted: vplace.FitResult) -> dict[str, Any]:
+def fit_summary(fitted: vplace.Fit) -> dict[str, Any]:
     """The fit's figures for reports and the panel."""
     return {
         "r2": fitted.r2,
         "adjusted_r2": fitted.adjusted_r2,
-        "kept": list(fitted.kept),
-        "weights": dict(fitted.weights),
-        "dropped": dict(fitted.dropped),
+        "view_r2": fitted.view_r2,
+        "kept": fitted.kept,
+        "weights": fitted.weights,
+        "dropped": fitted.dropped,
     }
 
 
@@ -321,22 +364,35 @@ def summary(
     bl_scene: bpy.types.Scene, job: Job, prepared: Prepared, computed: Computed, timer: StageTimer
 ) -> dict[str, Any]:
     """The run's report as a JSON-ready dict."""
+    laid, stats = computed.laid, computed.stats
+    evaluator: dict[str, Any] = {
+        "shadow_rays": stats.shadow_rays,
+        "pairs": stats.pairs,
+        "seconds": stats.seconds,
+        "rays_per_second": stats.rays_per_second,
+    }
+    if laid.layout is not None:
+        evaluator["iteration_errors"] = laid.layout.errors
+        evaluator["best_iteration"] = laid.layout.best
+    if laid.refit is not None:
+        evaluator["refit_error"] = [laid.refit.error_before, laid.refit.error_after]
     return {
         "scene": bl_scene.name,
         "triangles": prepared.scene.triangle_count,
         "lights": prepared.scene.light_count,
+        "views": [c.camera for c in prepared.captures],
         "resolution": list(job.resolution),
         "samples": job.samples,
-        "capture_render_seconds": prepared.capture.render_seconds,
+        "capture_render_seconds": sum(c.render_seconds for c in prepared.captures),
         "n_vpls": job.n_vpls,
         "method": job.method,
         "alpha": job.alpha,
         "iterations": job.iterations,
         "profile": job.profile,
-        "r_min": computed.stats["r_min"],
+        "radius": computed.vpls.radius,
         "seed": job.seed,
         "stage_seconds": dict(timer.seconds),
-        "evaluator": computed.stats,
+        "evaluator": evaluator,
         "metrics": computed.metrics,
         "fit": None if computed.fit is None else fit_summary(computed.fit),
     }
@@ -349,15 +405,16 @@ def run_main_job(
     job: Job | None = None,
     eevee: bool = True,
     write_back: bool = True,
-    baselines: tuple[str, ...] = ("uniform", "vplace", "rsm"),
+    baselines: Sequence[str] = METHODS,
     log: Callable[[str], None] = print,
     **job_options: Any,
 ) -> dict[str, Any]:
     """Runs the whole pipe on ``bl_scene`` and writes the results into ``out_dir``.
 
-    ``job_options`` are :class:`Job` fields, for a job built on the spot. Without
-    ``write_back`` the scene is left as it is (a report only; no EEVEE preview then, as it
-    would show the scene without the new VPLs).
+    ``job_options`` are :class:`Job` fields, for a job built on the spot. ``baselines``: the
+    methods scored beside the job's at the same budget. Without ``write_back`` the scene is left
+    as it is (a report only; no EEVEE preview then, as it would show the scene without the new
+    VPLs).
     """
     if job is None:
         job = Job(**job_options)
@@ -369,14 +426,12 @@ def run_main_job(
     computed = compute(prepared, job, timer)
     compared = {}
     for method in (b for b in baselines if b != job.method):
-        quiet = StageTimer(log=lambda _line: None)
-        other = compute(prepared, dataclasses.replace(job, method=method), quiet)
+        quiet = quiet_timer()
+        other = compute(prepared, replace(job, method=method), quiet, fitted=computed.fit)
         compared[method] = {"metrics": other.metrics, "seconds": sum(quiet.seconds.values())}
     if write_back:
         with timer.stage("write back"):
-            apply.write_vpls(
-                bl_scene, computed.vpls, profile=job.profile, scene_diagonal=prepared.scene.diagonal
-            )
+            apply.write_vpls(bl_scene, computed.vpls, scene_diagonal=prepared.scene.diagonal)
             bpy.ops.wm.save_as_mainfile(filepath=str(out_dir / "scene.blend"), copy=True)
     cap, vpls = prepared.capture, computed.vpls
     images.save_png(out_dir / "cycles_gi.png", cap.gi)
@@ -415,7 +470,7 @@ def report_markdown(report: dict[str, Any]) -> str:
         f"{report['triangles']} triangles, {report['lights']} lights, "
         f"{report['resolution'][0]}x{report['resolution'][1]} px, {report['samples']} spp Cycles, "
         f"{report['n_vpls']} VPLs by {report['method']} ({report['profile']}, "
-        f"r_min {report['r_min']:.3g} m)",
+        f"near-field radius {report['radius']:.3g} m)",
         "",
         "| stage | seconds |",
         "|---|---|",

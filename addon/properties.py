@@ -15,6 +15,11 @@ from bpy.props import (
     StringProperty,
 )
 
+from .pipeline import Job
+
+#: The job's defaults: the panel starts where the command line does.
+_DEFAULT = Job()
+
 PROFILE_ITEMS = [
     ("cosine", "Cosine (area disk)", "Lambertian VPLs as small AREA disk lights (exact)"),
     ("omni", "Omni (point)", "VPLs as POINT lights of twice the flux (cheaper in EEVEE)"),
@@ -34,29 +39,44 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
     """vplace settings of a scene and the results of its last run."""
 
     vpl_budget: IntProperty(  # type: ignore[valid-type]
-        name="VPL budget", description="Number of VPLs to place", default=128, min=1, max=8192
+        name="VPL budget",
+        description="Number of VPLs to place",
+        default=_DEFAULT.n_vpls,
+        min=1,
+        max=8192,
     )
     cell_px: IntProperty(  # type: ignore[valid-type]
-        name="Cell size", description="Grid cell side, pixels", default=16, min=1, max=256
+        name="Cell size",
+        description="Grid cell side, pixels",
+        default=_DEFAULT.cell_px,
+        min=1,
+        max=256,
     )
     alpha: FloatProperty(  # type: ignore[valid-type]
         name="Alpha",
         description="0: uniform layout, 1: fully regression-guided",
-        default=1.0,
+        default=_DEFAULT.alpha,
         min=0.0,
         max=1.0,
     )
     iterations: IntProperty(  # type: ignore[valid-type]
-        name="Iterations", description="Cap on layout iterations", default=3, min=0, max=32
+        name="Iterations",
+        description="Cap on layout iterations",
+        default=_DEFAULT.iterations,
+        min=0,
+        max=32,
     )
     resolution_x: IntProperty(  # type: ignore[valid-type]
-        name="Capture width", default=160, min=8, max=4096, subtype="PIXEL"
+        name="Capture width", default=_DEFAULT.resolution[0], min=8, max=4096, subtype="PIXEL"
     )
     resolution_y: IntProperty(  # type: ignore[valid-type]
-        name="Capture height", default=160, min=8, max=4096, subtype="PIXEL"
+        name="Capture height", default=_DEFAULT.resolution[1], min=8, max=4096, subtype="PIXEL"
     )
     samples: IntProperty(  # type: ignore[valid-type]
-        name="Capture samples", description="Cycles samples of the capture", default=64, min=1
+        name="Capture samples",
+        description="Cycles samples of the capture",
+        default=_DEFAULT.samples,
+        min=1,
     )
     profile: EnumProperty(  # type: ignore[valid-type]
         name="Emission profile", items=PROFILE_ITEMS, default="cosine"
@@ -75,6 +95,9 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
     # Results of the last run, as JSON (kept in the .blend).
     last_report: StringProperty(name="Last report", default="")  # type: ignore[valid-type]
     model_json: StringProperty(name="Fitted model", default="")  # type: ignore[valid-type]
+    #: What the stored model was fitted on (capture keys and fit settings): "Lay out and apply"
+    #: uses the model while they match, and fits again when they do not.
+    model_key: StringProperty(name="Fitted on", default="")  # type: ignore[valid-type]
 
     def report(self) -> dict[str, Any]:
         """The last run's report, or an empty dict."""

@@ -31,7 +31,7 @@ import math
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -39,7 +39,8 @@ import bpy
 import numpy as np
 
 from . import apply, capture, default_scene, pipeline
-from .native import vplace
+from .errors import ReportError
+from .native import bench_par2d, view_of, vplace
 from .settings import override
 
 #: Seeds of the renders: the user's capture, the ground truth, Cycles at rising sample counts.
@@ -47,15 +48,11 @@ CAPTURE_SEED = 0
 TRUTH_SEED = 7919
 CURVE_SEED = 104729
 
-METHODS = ("uniform", "rsm", "vplace", "vplace+refit")
+METHODS = pipeline.METHODS
 #: The budget the image grids and the targets use (the nearest one run).
 GRID_BUDGET = 256
 #: The issue's target: vplace SSIM at least this much above each baseline at GRID_BUDGET.
 SSIM_MARGIN = 0.05
-
-
-class ReportError(RuntimeError):
-    """The report cannot run as configured; the message says why."""
 
 
 @dataclass(frozen=True)
@@ -154,16 +151,7 @@ class Row:
         return 1.0 - self.ssim
 
 
-def score(image: np.ndarray, truth: np.ndarray) -> dict[str, float]:
-    """RMSE, relative MSE (linear HDR) and SSIM (display luminance) against ``truth``."""
-    image = np.ascontiguousarray(image, dtype=np.float32)
-    truth = np.ascontiguousarray(truth, dtype=np.float32)
-    ssim = vplace.ssim(image, truth) if min(truth.shape[:2]) >= 11 else float("nan")
-    return {
-        "rmse": vplace.rmse(image, truth),
-        "relative_mse": vplace.relative_mse(image, truth),
-        "ssim": ssim,
-    }
+score = pipeline.score
 
 
 @contextmanager
@@ -179,25 +167,34 @@ def camera_view(bl_scene: bpy.types.Scene, camera_name: str) -> Iterator[bpy.typ
 
 @dataclass
 class ViewData:
-    """A view's capture (the user's input), ground truth and Cycles curve."""
+    """A view of the scene: the user's capture as a ``vplace.View`` (without its GI passes on
+    the held-out view), its ground truth and the Cycles curve."""
 
     name: str
     role: str
-    prepared: pipeline.Prepared
+    capture: capture.Capture
+    view: vplace.View
     truth: capture.Capture
     curve: list[capture.Capture]
 
 
-def load_view(
+@dataclass
+class SceneData:
+    """A scene exported once, its job settings and its fit and held-out views."""
+
+    prepared: pipeline.Prepared
+    job: pipeline.Job
+    views: list[ViewData]
+
+
+def load_scene(
     bl_scene: bpy.types.Scene,
     preset: ScenePreset,
     config: ReportConfig,
-    role: str,
     cache_dir: Path,
     log: Callable[[str], None],
-) -> ViewData:
-    """Exports, captures and renders the ground truth and the Cycles curve of one view."""
-    name = preset.fit_view if role == "fit" else preset.held_out_view
+) -> SceneData:
+    """Exports the scene once and captures each view, its ground truth and its Cycles curve."""
     resolution = config.resolution or preset.resolution
     truth_samples = config.truth_samples or preset.truth_samples
     job = pipeline.Job(
@@ -205,39 +202,42 @@ def load_view(
         samples=config.capture_samples or preset.capture_samples,
         seed=CAPTURE_SEED,
         cell_px=config.cell_px,
+        alpha=config.alpha,
+        iterations=config.iterations,
         cache_dir=cache_dir,
     )
+    names = [(preset.fit_view, "fit"), (preset.held_out_view, "held-out")]
+    cams = []
+    for name, _ in names:
+        cam = bpy.data.objects.get(name)
+        if cam is None or cam.type != "CAMERA":
+            raise ReportError(f"the scene has no camera object named {name!r}")
+        cams.append(cam)
     timer = pipeline.StageTimer(log)
-    with camera_view(bl_scene, name):
-        prepared = pipeline.prepare(bl_scene, job, timer)
-        with timer.stage(f"ground truth {name} ({truth_samples} spp, cached)"):
-            truth = capture.capture(
+    prepared = pipeline.prepare(bl_scene, job, timer, cameras=cams)
+    views = []
+    for (name, role), cam, cap in zip(names, cams, prepared.captures, strict=True):
+
+        def render(samples: int, seed: int, cam: bpy.types.Object = cam) -> capture.Capture:
+            return capture.capture(
                 bl_scene,
+                prepared.exported,
+                camera=cam,
                 resolution=resolution,
-                samples=truth_samples,
-                seed=TRUTH_SEED,
+                samples=samples,
+                seed=seed,
                 cache_dir=cache_dir,
             )
+
+        with timer.stage(f"ground truth {name} ({truth_samples} spp, cached)"):
+            truth = render(truth_samples, TRUTH_SEED)
         curve = []
         for spp in config.cycles_samples:
             with timer.stage(f"Cycles {name} at {spp} spp (cached)"):
-                curve.append(
-                    capture.capture(
-                        bl_scene,
-                        resolution=resolution,
-                        samples=spp,
-                        seed=CURVE_SEED,
-                        cache_dir=cache_dir,
-                    )
-                )
-    return ViewData(name, role, prepared, truth, curve)
-
-
-def held_out_input(prepared: pipeline.Prepared) -> dict[str, Any]:
-    """The layout input of a held-out view: G-buffer and direct passes, no GI."""
-    data = pipeline.layout_input(prepared)
-    del data["gi"], data["diffuse_indirect"]
-    return data
+                curve.append(render(spp, CURVE_SEED))
+        view = view_of(cap, held_out=role != "fit")
+        views.append(ViewData(name, role, cap, view, truth, curve))
+    return SceneData(prepared, job, views)
 
 
 def _timed(fn: Callable[[], Any]) -> tuple[float, Any]:
@@ -247,86 +247,70 @@ def _timed(fn: Callable[[], Any]) -> tuple[float, Any]:
 
 
 def run_methods(
+    data: SceneData,
     view: ViewData,
-    fitted: vplace.FitResult,
+    fitted: vplace.Fit,
     fit_seconds: float,
     config: ReportConfig,
     scene_name: str,
     log: Callable[[str], None],
-) -> tuple[list[Row], dict[str, np.ndarray], dict[str, apply.VplSet]]:
+) -> tuple[list[Row], dict[str, np.ndarray], dict[str, vplace.VplSet]]:
     """Every method at every budget on one view; returns the rows, and the images and VPLs of
-    the first seed at the grid budget (keyed by method)."""
-    prepared = view.prepared
+    the first seed at the grid budget (keyed by method).
+
+    On the fit view the regression-guided layout iterates against the view's indirect image;
+    ``vplace+refit`` is the same layout with its powers refitted (one layout serves both rows).
+    On the held-out view the fit's model lays out VPLs from that view's G-buffer and direct
+    passes alone (no iteration, no refit)."""
+    prepared = data.prepared
     scene = prepared.scene
-    r_min = pipeline.R_MIN_FRACTION * scene.diagonal
     truth_gi, truth_direct = view.truth.gi, view.truth.direct
     grid_n = grid_budget(config.budgets)
     fit_view = view.role == "fit"
-    layout_in = pipeline.layout_input(prepared) if fit_view else held_out_input(prepared)
+    methods = [m for m in config.methods if fit_view or m != "vplace+refit"]
     rows: list[Row] = []
     images: dict[str, np.ndarray] = {}
-    grid_vpls: dict[str, apply.VplSet] = {}
+    grid_vpls: dict[str, vplace.VplSet] = {}
     for n in config.budgets:
         for seed in config.seeds:
-            laid: vplace.Layout | None = None
-            laid_seconds = 0.0
-            for method in config.methods:
-                if method == "vplace+refit" and not fit_view:
-                    continue  # the refit needs the view's indirect image
+            guided: pipeline.Laid | None = None
+            for method in methods:
                 if method == "rsm" and seed != config.seeds[0]:
                     continue  # deterministic: one run
+                job = replace(data.job, n_vpls=n, seed=seed, method=method)
                 extra: dict[str, Any] = {}
-                if method == "uniform":
-                    t, d = _timed(
-                        lambda n=n, seed=seed: vplace.uniform_vpls(
-                            scene, n, seed, bounces=vplace.MAX_BOUNCES
-                        )
-                    )
-                    vpls = pipeline.vpl_set(d)
-                elif method == "rsm":
-                    t, d = _timed(lambda n=n: vplace.rsm_vpls(scene, n))
-                    vpls = pipeline.vpl_set(d)
+                if method in ("uniform", "rsm"):
+                    laid = pipeline.lay_out(prepared, job, views=[view.view])
+                    t, vpls = laid.layout_seconds, laid.vpls
                 else:
-                    if laid is None:
-                        laid_seconds, laid = _timed(
-                            lambda n=n, seed=seed: vplace.layout(
-                                scene,
-                                layout_in,
-                                camera_position=prepared.camera_position,
-                                world_to_clip=prepared.world_to_clip,
-                                fit=fitted,
-                                budget=n,
-                                alpha=config.alpha,
-                                cell_px=config.cell_px,
-                                iterate=fit_view and config.iterations > 0,
-                                iterations=max(config.iterations, 1),
-                                seed=seed,
-                                r_min=r_min,
-                            )
+                    if guided is None:
+                        both = "vplace+refit" in methods
+                        guided = pipeline.lay_out(
+                            prepared,
+                            replace(job, method="vplace+refit" if both else "vplace"),
+                            fitted=fitted,
+                            views=[view.view],
                         )
-                        if fit_view:
-                            laid_seconds += fit_seconds
-                    t = laid_seconds
+                    layout = guided.layout
+                    assert layout is not None
+                    t = guided.layout_seconds + (fit_seconds if fit_view else 0.0)
                     extra = {
-                        "iteration_errors": list(laid.errors),
-                        "best_iteration": laid.best,
-                        "indirect_source": laid.indirect_source,
+                        "iteration_errors": layout.errors,
+                        "best_iteration": layout.best,
+                        "indirect_source": layout.indirect_source[0],
                     }
-                    vpls = apply.VplSet(laid.position, laid.normal, laid.flux)
+                    vpls = layout.vpls
                     if method == "vplace+refit":
-                        refit_seconds, refitted = _timed(
-                            lambda laid=laid: vplace.refit(scene, layout_in, laid, r_min=r_min)
-                        )
-                        t += refit_seconds
-                        vpls = apply.VplSet(refitted.position, refitted.normal, refitted.flux)
+                        refitted = guided.refit
+                        assert refitted is not None
+                        t += guided.refit_seconds
+                        vpls = refitted.vpls
                         extra.update(
-                            refit_seconds=refit_seconds,
+                            refit_seconds=guided.refit_seconds,
                             refit_error_before=refitted.error_before,
                             refit_error_after=refitted.error_after,
                         )
-                indirect, stats = pipeline.evaluate_capture(
-                    scene, prepared.capture, vpls, r_min=r_min
-                )
+                indirect, stats = vplace.evaluate(scene, view.view, vpls)
                 estimate = truth_direct + indirect
                 row = Row(
                     scene_name,
@@ -336,9 +320,9 @@ def run_methods(
                     n,
                     None,
                     layout_seconds=t,
-                    evaluate_seconds=float(stats["seconds"]),
-                    seconds=t + float(stats["seconds"]),
-                    shadow_rays=int(stats["shadow_rays"]),
+                    evaluate_seconds=stats.seconds,
+                    seconds=t + stats.seconds,
+                    shadow_rays=stats.shadow_rays,
                     seed=seed if method != "rsm" else None,
                     extra=extra,
                     **score(estimate, truth_gi),
@@ -420,7 +404,7 @@ class Preview:
 
     scene: str
     camera: str
-    vpls: apply.VplSet
+    vpls: vplace.VplSet
     diagonal: float
     resolution: tuple[int, int]
 
@@ -449,11 +433,9 @@ def run_scene(
     log: Callable[[str], None],
 ) -> tuple[list[Row], dict[str, Any]]:
     """Both views of one scene: rows, plus the fit summary and image paths."""
-    fit_view = load_view(bl_scene, preset, config, "fit", cache_dir, log)
-    held_out = load_view(bl_scene, preset, config, "held-out", cache_dir, log)
-    fit_seconds, fitted = _timed(
-        lambda: vplace.fit(pipeline.fit_input(fit_view.prepared), cell_px=config.cell_px)
-    )
+    data = load_scene(bl_scene, preset, config, cache_dir, log)
+    fit_view, held_out = data.views
+    fit_seconds, fitted = _timed(lambda: pipeline.fit(data.prepared, data.job, [fit_view.view]))
     log(f"[vplace] {preset.name}: fitted on {fit_view.name} in {fit_seconds:.2f} s\n{fitted}")
     info: dict[str, Any] = {
         "fit": pipeline.fit_summary(fitted),
@@ -461,18 +443,18 @@ def run_scene(
         "views": {},
     }
     rows: list[Row] = []
-    preview_vpls: apply.VplSet | None = None
+    preview_vpls: vplace.VplSet | None = None
     from . import report_plots
 
     for view in (fit_view, held_out):
         rows += reference_rows(view, preset.name)
         method_rows, images, grid_vpls = run_methods(
-            view, fitted, fit_seconds, config, preset.name, log
+            data, view, fitted, fit_seconds, config, preset.name, log
         )
         if view is fit_view and "vplace" in grid_vpls:
             preview_vpls = grid_vpls["vplace"]
         rows += method_rows
-        cap = view.prepared.capture
+        cap = view.capture
         info["views"][view.name] = {
             "role": view.role,
             "resolution": [cap.width, cap.height],
@@ -480,7 +462,7 @@ def run_scene(
             "capture_seconds": cap.render_seconds,
             "truth_samples": view.truth.samples,
             "truth_seconds": view.truth.render_seconds,
-            "triangles": view.prepared.scene.triangle_count,
+            "triangles": data.prepared.scene.triangle_count,
         }
         stem = f"{preset.name}_{report_plots.slug(view.name)}"
         grid = report_plots.image_grid(
@@ -492,13 +474,13 @@ def run_scene(
         )
         info["views"][view.name]["grid"] = grid.name
     if config.eevee and preview_vpls is not None and preset.eevee_scale > 0:
-        cap = fit_view.prepared.capture
+        cap = fit_view.capture
         scale = preset.eevee_scale
         info["preview"] = Preview(
             preset.name,
             fit_view.name,
             preview_vpls,
-            fit_view.prepared.scene.diagonal,
+            data.prepared.scene.diagonal,
             (max(1, round(cap.width * scale)), max(1, round(cap.height * scale))),
         )
     return rows, info
@@ -562,7 +544,7 @@ def run_report(
 ) -> dict[str, Any]:
     """Runs the report and writes its files into ``out``. Opens each built-in scene's .blend
     (the current file is replaced in memory, never saved)."""
-    from . import cli, report_plots
+    from . import report_plots
 
     config.validate()
     out.mkdir(parents=True, exist_ok=True)
@@ -572,7 +554,7 @@ def run_report(
     scenes: dict[str, Any] = {}
     for name in config.scenes:
         preset = PRESETS[name]
-        blend = cli.builtin_scene(name)
+        blend = default_scene.builtin_scene(name)
         bpy.ops.wm.open_mainfile(filepath=str(blend))
         log(f"[vplace] report: {name} ({blend.name})")
         scene_rows, info = run_scene(bpy.context.scene, preset, config, out, cache_dir, log)
@@ -580,8 +562,6 @@ def run_report(
         scenes[name] = info
     par_rows: list[dict[str, Any]] = []
     if config.par2d:
-        from vplace import bench_par2d
-
         # The benchmark scene of vplace.bench_par2d: 512x512, 8 lights, 64 occluders.
         par_rows, _ = bench_par2d.measure(size=512, rays=(4, 16, 64, 256))
         report_plots.par2d_plot(out / "par2d_speed_error.png", par_rows)
@@ -606,7 +586,7 @@ def run_report(
     _write(out, result, means)
     # EEVEE last: the slowest step, and the tables are on disk before it starts.
     for preview in previews:
-        blend = cli.builtin_scene(preview.scene)
+        blend = default_scene.builtin_scene(preview.scene)
         bpy.ops.wm.open_mainfile(filepath=str(blend))
         path = out / f"eevee_{preview.scene}.png"
         log(f"[vplace] EEVEE preview of {preview.scene} ({len(preview.vpls)} VPLs) ...")

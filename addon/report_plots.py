@@ -13,6 +13,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from . import images
+from .native import vplace
 
 if TYPE_CHECKING:
     from .report import Row
@@ -25,7 +26,7 @@ COLOURS = {
     "cycles": "black",
     "direct": "tab:gray",
 }
-_LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+_LUMINANCE = np.array(vplace.LUMINANCE)
 
 
 def _views(rows: Sequence[Row]) -> list[tuple[str, str, str]]:

@@ -49,6 +49,16 @@ class SettingsGuard:
             raise RuntimeError("could not restore settings: " + "; ".join(errors))
 
 
+def standard_view(g: SettingsGuard, scene: Any) -> None:
+    """The colour management a measured render needs: the Standard view transform, no look,
+    exposure 0, gamma 1 (the saved float pixels are then scene-linear)."""
+    vs = scene.view_settings
+    g.set(vs, "view_transform", "Standard")
+    g.set(vs, "look", "None")
+    g.set(vs, "exposure", 0.0)
+    g.set(vs, "gamma", 1.0)
+
+
 @contextlib.contextmanager
 def override() -> Iterator[SettingsGuard]:
     """A ``SettingsGuard`` whose changes are undone when the block ends, however it ends."""

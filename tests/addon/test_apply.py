@@ -7,16 +7,18 @@ from blender_util import cornell, data_snapshot, diff
 
 from addon import apply
 from addon.export import VPL_MARKER, export_scene
+from addon.native import vplace
 
 
-def some_vpls(n, seed=0):
+def some_vpls(n, seed=0, profile="cosine"):
     rng = np.random.default_rng(seed)
     normal = rng.normal(size=(n, 3))
     normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-    return apply.VplSet(
+    return vplace.VplSet(
         rng.uniform(-0.9, 0.9, size=(n, 3)).astype(np.float32),
         normal.astype(np.float32),
         rng.uniform(0.0, 0.1, size=(n, 3)).astype(np.float32),
+        profile=profile,
     )
 
 
@@ -25,8 +27,8 @@ def test_rerun_replaces_only_the_vpl_collection(profile):
     scene = cornell()
     before = data_snapshot()
     n_lights = len(bpy.data.lights)
-    apply.write_vpls(scene, some_vpls(10), profile=profile, scene_diagonal=3.4)
-    apply.write_vpls(scene, some_vpls(7, seed=1), profile=profile, scene_diagonal=3.4)
+    apply.write_vpls(scene, some_vpls(10, profile=profile), scene_diagonal=3.4)
+    apply.write_vpls(scene, some_vpls(7, seed=1, profile=profile), scene_diagonal=3.4)
     colls = [c for c in bpy.data.collections if c.get(VPL_MARKER)]
     assert [c.name for c in colls] == [apply.COLLECTION_NAME]
     assert len(colls[0].objects) == 7
@@ -65,11 +67,13 @@ def test_user_collection_with_our_name_is_not_touched():
 
 def test_bad_vpl_sets_are_refused():
     scene = cornell()
-    v = some_vpls(3)
-    v.flux[1, 1] = np.nan
-    with pytest.raises(apply.WriteBackError, match="flux"):
-        apply.write_vpls(scene, v)
-    too_many = apply.VplSet(*(np.zeros((apply.MAX_VPLS + 1, 3), np.float32),) * 3)
+    flux = some_vpls(3).flux
+    flux[1, 1] = np.nan
+    with pytest.raises(vplace.InputError, match="non-finite"):
+        some_vpls(3).with_flux(flux)
+    n = apply.MAX_VPLS + 1
+    up = np.tile(np.float32([0, 0, 1]), (n, 1))
+    too_many = vplace.VplSet(np.zeros((n, 3), np.float32), up, np.zeros((n, 3), np.float32))
     with pytest.raises(apply.WriteBackError, match="more than EEVEE can render"):
         apply.write_vpls(scene, too_many)
     assert bpy.data.collections.get(apply.COLLECTION_NAME) is None

@@ -59,7 +59,7 @@ def test_only_background_in_view(scene):
     scene.camera.rotation_euler = (-math.pi / 2, 0.0, 0.0)  # looking away from the box
     scene.camera.location = (0.0, -5.0, 1.0)
     bpy.context.view_layer.update()
-    fails_cleanly("the camera sees no geometry")
+    fails_cleanly("the camera 'Cornell camera' sees no geometry")
 
 
 def test_mesh_with_nan_vertices(scene):

@@ -78,3 +78,23 @@ def test_capture_errors():
     scene.camera = None
     with pytest.raises(capture.CaptureError, match="no camera"):
         capture.capture(scene, samples=1)
+
+
+def test_capture_hides_the_lights_vplace_wrote(tmp_path):
+    from addon import apply
+    from addon.native import vplace
+
+    scene = cornell()
+    first = capture.capture(scene, resolution=(16, 16), samples=4)
+    up = np.tile(np.float32([0, 0, 1]), (4, 1))
+    pos = np.float32([[0.2, 0.1, 0.3], [-0.3, 0.2, 0.5], [0.0, -0.2, 1.0], [0.1, 0.3, 0.2]])
+    vpls = vplace.VplSet(pos, up, np.full((4, 3), 5.0, np.float32))
+    coll = apply.write_vpls(scene, vpls, scene_diagonal=3.4)
+    again = capture.capture(scene, resolution=(16, 16), samples=4)
+    # The bright VPLs change nothing: the capture neither renders them nor keys on them, so a
+    # second "Lay out and apply" sees what the first saw.
+    assert again.key == first.key
+    np.testing.assert_array_equal(again.combined, first.combined)
+    assert not coll.hide_render  # shown again after the capture
+    lit = capture.capture(scene, resolution=(16, 16), samples=4, include_vpls=True)
+    assert lit.key != first.key and lit.combined.mean() > 1.05 * first.combined.mean()

@@ -1,5 +1,5 @@
-"""The headless command line: ``python -m vplace`` and the file form used by
-``blender --background --python addon/cli.py -- ...``."""
+"""The headless command line: ``python -m addon.cli`` and the file form used by
+``blender --background --python addon/cli.py -- ...``: the main job, and how errors print."""
 
 import json
 import subprocess
@@ -31,7 +31,7 @@ def test_python_m_vplace_runs_the_main_job(tmp_path):
         [
             sys.executable,
             "-m",
-            "vplace",
+            "addon.cli",
             "demo",
             "--scene",
             str(blend),
@@ -71,5 +71,18 @@ def test_cli_as_a_file_with_blender_style_arguments(tmp_path):
 
 
 def test_bad_arguments_exit_with_a_message(tmp_path):
-    r = run([sys.executable, "-m", "vplace", "demo", "--profile", "phong"], cwd=ROOT)
+    r = run([sys.executable, "-m", "addon.cli", "demo", "--profile", "phong"], cwd=ROOT)
     assert r.returncode == 2 and "invalid choice: 'phong'" in r.stderr
+
+
+def test_user_errors_are_one_line_and_tracebacks_only_with_debug(tmp_path):
+    cmd = [sys.executable, "-m", "addon.cli", "demo", "--scene", str(tmp_path / "nope.blend")]
+    r = run(cmd, cwd=ROOT)
+    assert r.returncode == 2
+    assert (
+        r.stderr.strip().splitlines()[-1]
+        == f"vplace: error: no such .blend file: {tmp_path}/nope.blend"
+    )
+    assert "Traceback" not in r.stderr
+    r = run([*cmd[:3], "--debug", *cmd[3:]], cwd=ROOT)
+    assert r.returncode == 2 and "Traceback" in r.stderr and "AddonError" in r.stderr

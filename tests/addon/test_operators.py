@@ -39,7 +39,7 @@ def test_apply_clear_and_reload(registered, tmp_path):
     assert report["n_vpls"] == 16 and report["metrics"]["rmse"] > 0
     assert report["fit"]["kept"]
     model = scene.vplace.model_json
-    assert vplace.FitResult.from_json(model).kept == report["fit"]["kept"]
+    assert vplace.Fit.from_json(model).kept == report["fit"]["kept"]
     path = tmp_path / "saved.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     bpy.ops.wm.open_mainfile(filepath=str(path))
@@ -71,7 +71,7 @@ def test_apply_with_each_layout_method(registered, method):
     scene.vplace.cell_px = 8
     assert bpy.ops.vplace.apply() == {"FINISHED"}
     report = json.loads(scene.vplace.last_report)
-    assert report["method"] == method
+    assert report["method"] == ("vplace+refit" if method == "vplace" else method)
     n = len(apply.find_collection().objects)
     assert (n == 16) if method == "vplace" else (0 < n <= 16)
     if method == "vplace":
@@ -89,10 +89,11 @@ def test_capture_fit_and_report_operators_leave_the_scene_as_it_was(registered, 
     assert bpy.ops.vplace.fit() == {"FINISHED"}
     fit = scene.vplace.report()["fit"]
     assert fit["kept"] and abs(sum(fit["weights"].values()) - 1) < 1e-9
-    assert vplace.FitResult.from_json(scene.vplace.model_json).kept == fit["kept"]
+    assert vplace.Fit.from_json(scene.vplace.model_json).kept == fit["kept"]
     assert bpy.ops.vplace.report(directory=str(tmp_path)) == {"FINISHED"}
     report = json.loads((tmp_path / "report.json").read_text())
-    assert report["method"] == "vplace" and set(report["baselines"]) == {"uniform", "rsm"}
+    assert report["method"] == "vplace+refit"
+    assert set(report["baselines"]) == {"uniform", "rsm", "vplace"}
     assert not (tmp_path / "scene.blend").exists()  # a report does not write back
     assert apply.find_collection() is None
     assert diff(before, data_snapshot()) == []

@@ -8,7 +8,7 @@ import bpy
 import numpy as np
 import pytest
 
-from addon import cli, report
+from addon import default_scene, report
 from addon.report import ReportConfig, ReportError, Row
 
 TINY = {
@@ -27,7 +27,7 @@ TINY = {
 @pytest.fixture(scope="module")
 def tiny_report(tmp_path_factory):
     out = tmp_path_factory.mktemp("report")
-    blend = cli.builtin_scene("cornell")
+    blend = default_scene.builtin_scene("cornell")
     mtime = blend.stat().st_mtime_ns
     lines: list[str] = []
     result = report.run_report(ReportConfig(**TINY), out, log=lines.append)

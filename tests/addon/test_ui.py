@@ -81,7 +81,7 @@ def test_panel_shows_settings_buttons_and_last_results(scene):
     labels = [t for kind, t in draw(scene) if kind == "label"]
     assert any(t.startswith("RMSE vs Cycles GI") for t in labels)
     assert any(t.startswith("R² ") for t in labels)
-    assert any(t.startswith("capture (Cycles):") for t in labels)
+    assert any(t.startswith("capture Cornell camera (Cycles):") for t in labels)
 
 
 def test_cancelled_compute_writes_nothing(scene):

@@ -1,5 +1,5 @@
-"""Features and regression (issue 3): the pipeline, the hard cases, and a property test against
-numpy.linalg.lstsq."""
+"""Features and regression (issue 3): the pipeline on one and several views, the hard cases, and
+a property test against numpy.linalg.lstsq."""
 
 import json
 import math
@@ -10,8 +10,15 @@ import vplace
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from vplace import _native
-from vplace.bench_fit import numpy_extract, numpy_fit, synthetic_capture
-from vplace.fit import FEATURE_NAMES
+from vplace.bench_fit import (
+    light_scene,
+    numpy_extract,
+    numpy_fit,
+    synthetic_capture,
+    synthetic_view,
+)
+
+FEATURE_NAMES = [name for name, _, _ in vplace.feature_registry()]
 
 EPS = np.finfo(np.float64).eps
 PLAIN = {"select": False, "collinear_rtol": 0.0, "ridge_above": math.inf}
@@ -52,6 +59,15 @@ def rng_design(n, p, seed):
     return rng.standard_normal((n, p)), rng
 
 
+def fit_capture(cap, **kw):
+    """The fit on the one view of a synthetic capture."""
+    return vplace.fit(light_scene(cap), [synthetic_view(cap)], **kw)
+
+
+def features(cap, **kw):
+    return vplace.extract_features(light_scene(cap), synthetic_view(cap), **kw)
+
+
 # --- the pipeline on a capture ------------------------------------------------------------
 
 
@@ -64,7 +80,7 @@ def test_registry():
 
 def test_extraction_matches_numpy():
     cap = synthetic_capture(203, 117)
-    nat = vplace.extract_features(cap, cell_px=16)
+    nat = features(cap, cell_px=16)
     ref = numpy_extract(cap, 16)
     assert np.array_equal(nat["cells"], ref["cells"])
     assert (nat["cells_x"], nat["cells_y"]) == (13, 8)
@@ -76,7 +92,7 @@ def test_extraction_matches_numpy():
 
 def test_fit_capture_table_json_predict():
     cap = synthetic_capture(320, 200)
-    r = vplace.fit(cap)
+    r = fit_capture(cap)
     check_invariants(r)
     assert r.n_cells + r.empty_cells == 20 * 13
     assert r.r2 > 0.9 and r.cv_r2 is not None and r.folds == 5
@@ -87,13 +103,14 @@ def test_fit_capture_table_json_predict():
     for name in r.kept:
         assert name in text
     # Save and load.
-    back = vplace.FitResult.from_json(r.to_json())
-    assert back == r
-    json.loads(r.to_json())
-    # Another view without GI: the same view's prediction equals the fitted values.
-    nogi = {k: v for k, v in cap.items() if k != "gi"}
-    grid = back.predict(nogi)
-    cells = vplace.extract_features(cap)
+    back = vplace.Fit.from_json(r.to_json())
+    assert back.to_json() == r.to_json() and str(back) == str(r)
+    assert back.kept == r.kept and back.coefficients == r.coefficients
+    assert json.loads(r.to_json())["views"][0]["name"] == "synthetic"
+    assert r.view_names == ["synthetic"] and r.view_r2["synthetic"] == pytest.approx(r.r2)
+    # The same view without its indirect image: the prediction equals the fitted values.
+    grid = back.predict(synthetic_view(cap, indirect=False))
+    cells = features(cap)
     assert grid.shape == (13, 20)
     np.testing.assert_allclose(grid.reshape(-1)[cells["cells"]], r.fitted, rtol=1e-9, atol=1e-12)
     empty = np.setdiff1d(np.arange(grid.size), cells["cells"])
@@ -102,8 +119,8 @@ def test_fit_capture_table_json_predict():
 
 def test_fit_capture_matches_numpy_plain_ols():
     cap = synthetic_capture(256, 160)
-    r = vplace.fit(cap, **PLAIN)
-    cells = vplace.extract_features(cap)  # the same input (extraction is compared above)
+    r = fit_capture(cap, **PLAIN)
+    cells = features(cap)  # the same input (extraction is compared above)
     ref = numpy_fit(cells["values"], cells["label"])
     # Plain OLS keeps every non-constant feature; compare with lstsq on the same columns.
     cond = r.condition_number
@@ -112,21 +129,58 @@ def test_fit_capture_matches_numpy_plain_ols():
     assert abs(r.r2 - ref["r2"]) < 1e-9
 
 
-def test_strongest_light_and_light_argument():
+def scene_with(lights):
+    v = np.array([[0, 0, -50], [0.1, 0, -50], [0, 0.1, -50]], np.float32)
+    ids, alb = np.zeros(1, np.uint32), np.full((1, 3), 0.5, np.float32)
+    return vplace.Scene(v, np.array([[0, 1, 2]], np.uint32), ids, alb, lights)
+
+
+def test_strongest_light_comes_from_the_scene():
     cap = synthetic_capture(64, 48)
-    del cap["light_position"]
-    no_light = vplace.fit(cap)
+    view = synthetic_view(cap)
+    no_light = vplace.fit(scene_with([]), [view])
+    assert no_light.light is None
     assert no_light.dropped["light_cosine"].startswith("unavailable")
-    cap["lights"] = [
-        {"type": "POINT", "power": [1.0, 1.0, 1.0], "position": [0, 1, 2.5]},
-        {"type": "SUN", "power": [3.0, 3.0, 3.0], "direction": [0, 0, -1]},
-    ]
-    r = vplace.fit(cap)
+    point = vplace.Light.point([0, 1, 2.5], [1.0, 1.0, 1.0])
+    sun = vplace.Light.sun([0, 0, -2], [3.0, 3.0, 3.0])
+    r = vplace.fit(scene_with([point, sun]), [view])
     assert r.light == ("direction", [0.0, 0.0, -1.0])
-    r2 = vplace.fit(cap, light=("position", [0.0, 1.0, 2.5]))
-    assert r2.light == ("position", [0.0, 1.0, 2.5])
-    with pytest.raises(vplace.InputError):
-        vplace.fit(cap, light=("spot", [0, 0, 0]))
+    # A point light whose irradiance at the mean covered position beats the sun's 3 W/m^2.
+    strong = vplace.Light.point([0, 1, 2.5], [1000.0, 1000.0, 1000.0])
+    r = vplace.fit(scene_with([sun, strong]), [view])
+    assert r.light == ("position", [0.0, 1.0, 2.5])
+
+
+def test_one_fit_over_several_views():
+    a = synthetic_capture(96, 64, seed=1)
+    b = synthetic_capture(64, 96, seed=2)
+    scene = light_scene(a)
+    va, vb = synthetic_view({**a, "name": "a"}), synthetic_view({**b, "name": "b"})
+    both = vplace.fit(scene, [va, vb], **PLAIN)
+    check_invariants(both)
+    ca, cb = vplace.extract_features(scene, va), vplace.extract_features(scene, vb)
+    assert both.n_cells == len(ca["cells"]) + len(cb["cells"])
+    assert both.view_names == ["a", "b"]
+    # One design matrix: the same fit as numpy's on the stacked cells, one Min-Max range.
+    ref = numpy_fit(
+        np.vstack([ca["values"], cb["values"]]), np.concatenate([ca["label"], cb["label"]])
+    )
+    assert abs(both.r2 - ref["r2"]) < 1e-9
+    lo = np.minimum(ca["values"].min(0), cb["values"].min(0))
+    np.testing.assert_allclose(both.feature_min, lo)
+    # R^2 per view, over each view's own cells.
+    fitted = both.fitted
+    for name, c, part in (
+        ("a", ca, fitted[: len(ca["cells"])]),
+        ("b", cb, fitted[len(ca["cells"]) :]),
+    ):
+        y = c["label"]
+        r2 = 1 - ((y - part) ** 2).sum() / ((y - y.mean()) ** 2).sum()
+        assert both.view_r2[name] == pytest.approx(r2, abs=1e-12)
+    with pytest.raises(vplace.InputError, match="views is empty"):
+        vplace.fit(scene, [])
+    with pytest.raises(vplace.InputError, match="it has no indirect image"):
+        vplace.fit(scene, [va, synthetic_view(b, indirect=False)])
 
 
 # --- hard cases ---------------------------------------------------------------------------
@@ -194,7 +248,7 @@ def test_single_cell():
     assert all(v == "constant over the cells" for v in r.dropped.values())
     # A capture of a single one-pixel cell.
     cap = synthetic_capture(1, 1)
-    rc = vplace.fit(cap, cell_px=1)
+    rc = fit_capture(cap, cell_px=1)
     check_invariants(rc)
     assert rc.n_cells == 1 and rc.kept == []
 
@@ -206,8 +260,8 @@ def test_all_labels_zero():
     assert r.kept == [] and r.intercept == 0.0 and r.r2 == 1.0
     assert all(v == "the label is constant" for v in r.dropped.values())
     cap = synthetic_capture(64, 48)
-    cap["gi"] = cap["direct"].copy()
-    rc = vplace.fit(cap)
+    cap["indirect"] = np.zeros_like(cap["direct"])
+    rc = fit_capture(cap)
     check_invariants(rc)
     assert rc.kept == [] and all(w == 0 for w in rc.weights.values())
 
@@ -225,20 +279,25 @@ def test_non_finite_design_is_an_error():
         vplace.fit_design(x, y_inf)
 
 
-def test_non_finite_passes_are_masked_and_counted():
+def test_non_finite_lighting_is_masked_and_a_non_finite_gbuffer_refused():
     cap = synthetic_capture(64, 48)
-    cap["gi"][0, 0, 1] = np.nan
-    cap["position"][5, 7, 0] = np.inf
-    cap["depth"][10, 10] = np.nan
+    cap["indirect"][0, 0, 1] = np.nan
     cap["direct"][47, 0] = -np.inf
-    r = vplace.fit(cap)
+    cap["diffuse_direct"] = cap["diffuse_direct"].copy()
+    cap["diffuse_direct"][20, 20, 2] = np.nan
+    r = fit_capture(cap)
     check_invariants(r)
-    assert r.masked_pixels == 4
-    assert "4 non-finite pixels masked" in str(r)
+    assert r.masked_pixels == 3
+    assert "3 non-finite pixels masked" in str(r)
+    for name, index in (("position", (5, 7, 0)), ("depth", (10, 10))):
+        bad = synthetic_capture(16, 16)
+        bad[name][index] = np.inf
+        with pytest.raises(vplace.InputError, match=f"{name} \\(covered pixel"):
+            synthetic_view(bad)
     everything = synthetic_capture(8, 8)
-    everything["gi"][:] = np.nan
+    everything["indirect"][:] = np.nan
     with pytest.raises(vplace.InputError, match="usable pixels is empty"):
-        vplace.fit(everything)
+        fit_capture(everything)
 
 
 def test_features_spanning_1e_8_to_1e8():
@@ -284,23 +343,23 @@ def test_condition_number_1e12():
 def test_cells_with_no_geometry():
     cap = synthetic_capture(96, 64)
     cap["covered"][:, :48] = False  # left half is background
-    r = vplace.fit(cap)
+    r = fit_capture(cap)
     check_invariants(r)
     assert r.empty_cells >= 3 * 4 and r.n_cells + r.empty_cells == 6 * 4
     cap["covered"][:] = False
     with pytest.raises(vplace.InputError, match="usable pixels is empty"):
-        vplace.fit(cap)
+        fit_capture(cap)
 
 
 def test_one_pixel_cells():
     cap = synthetic_capture(24, 16)
-    cells = vplace.extract_features(cap, cell_px=1)
+    cells = features(cap, cell_px=1)
     assert (cells["cells_x"], cells["cells_y"]) == (24, 16)
     assert np.all(cells["pixels"] == 1)
     ys, xs = np.divmod(cells["cells"], 24)
     np.testing.assert_allclose(cells["values"][:, 5], cap["position"][ys, xs, 0], rtol=1e-7)
     assert np.all(cells["values"][:, [12, 13]] == 0)  # variances of one pixel
-    r = vplace.fit(cap, cell_px=1)
+    r = fit_capture(cap, cell_px=1)
     check_invariants(r)
     assert "coverage" in r.dropped  # every non-empty one-pixel cell is fully covered
 
@@ -315,12 +374,14 @@ def test_bad_arguments_are_input_errors():
         vplace.fit_design(x, np.ones(10), ridge_above=0.5)
     cap = synthetic_capture(8, 8)
     with pytest.raises(vplace.InputError, match="cell_px"):
-        vplace.fit(cap, cell_px=0)
+        fit_capture(cap, cell_px=0)
     cap["depth"] = cap["depth"][:4]
     with pytest.raises(vplace.InputError, match="depth must have shape"):
-        vplace.fit(cap)
+        fit_capture(cap)
     with pytest.raises(vplace.InputError, match=r"not a vplace\.fit"):
-        vplace.FitResult.from_json('{"format": "other"}')
+        vplace.Fit.from_json('{"format": "other"}')
+    with pytest.raises(vplace.InputError, match="fitted on a design matrix"):
+        vplace.fit_design(x, np.arange(10.0)).predict(synthetic_view(synthetic_capture(8, 8)))
 
 
 # --- property test --------------------------------------------------------------------------

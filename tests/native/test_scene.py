@@ -1,8 +1,10 @@
-"""The native scene, uniform VPLs, evaluator and metrics: results and bad input."""
+"""The native scene, views, VPL sets, uniform VPLs, evaluator and metrics: results and bad
+input."""
 
 import numpy as np
 import pytest
 import vplace
+from views import view
 
 
 def quad_scene(lights=None):
@@ -22,47 +24,82 @@ def floor_gbuffer(w=8):
     nor = np.zeros_like(pos)
     nor[..., 2] = 1
     alb = np.full_like(pos, 0.5)
-    return pos, nor, alb, np.ones((w, w), dtype=bool)
+    return {"position": pos, "normal": nor, "albedo": alb, "covered": np.ones((w, w), bool)}
+
+
+def one_vpl(profile="cosine", radius=0.0):
+    return vplace.VplSet(
+        np.array([[0.2, -0.1, 1.0]], np.float32),
+        np.array([[0, 0, -1]], np.float32),
+        np.array([[1.0, 2.0, 0.5]], np.float32),
+        profile=profile,
+        radius=radius,
+    )
 
 
 def test_scene_and_vpls():
     scene = vplace.Scene(*quad_scene())
     assert scene.triangle_count == 2 and scene.light_count == 1
     assert scene.diagonal == pytest.approx(np.sqrt(8), rel=1e-6)
+    assert scene.near_field_radius == pytest.approx(vplace.NEAR_FIELD_FRACTION * scene.diagonal)
     v = vplace.uniform_vpls(scene, 50, seed=1)
-    assert v["position"].shape == (50, 3) and v["position"].dtype == np.float32
-    np.testing.assert_allclose(v["normal"], np.tile([0, 0, 1], (50, 1)), atol=1e-6)
+    assert len(v) == 50 and v.position.shape == (50, 3) and v.position.dtype == np.float32
+    assert v.profile == "cosine" and v.radius == pytest.approx(scene.near_field_radius)
+    np.testing.assert_allclose(v.normal, np.tile([0, 0, 1], (50, 1)), atol=1e-6)
     again = vplace.uniform_vpls(scene, 50, seed=1)
-    assert all(np.array_equal(v[k], again[k]) for k in v)
+    for k in ("position", "normal", "flux"):
+        assert np.array_equal(getattr(v, k), getattr(again, k))
+    omni = vplace.uniform_vpls(scene, 50, seed=1, profile="omni", radius=0.25)
+    assert omni.radius == 0.25 and np.array_equal(omni.blender_power, 2 * omni.flux)
+    assert np.array_equal(v.blender_power, v.flux)
+
+
+def test_vpl_set_checks_its_input():
+    p = np.zeros((2, 3), np.float32)
+    n = np.tile(np.float32([0, 0, 1]), (2, 1))
+    f = np.ones((2, 3), np.float32)
+    s = vplace.VplSet(p, n, f)
+    assert len(s) == 2 and s.radius == 0.0
+    assert np.array_equal(s.with_flux(2 * f).flux, 2 * f)
+    with pytest.raises(vplace.InputError, match="must be unit length"):
+        vplace.VplSet(p, np.zeros_like(n), f)
+    with pytest.raises(vplace.InputError, match=r"normal must have shape \(2, 3\)"):
+        vplace.VplSet(p, n[:1], f)
+    with pytest.raises(vplace.InputError, match="radius"):
+        vplace.VplSet(p, n, f, radius=-1.0)
+    with pytest.raises(vplace.InputError, match="profile must be 'cosine' or 'omni'"):
+        vplace.VplSet(p, n, f, profile="phong")
+    with pytest.raises(vplace.InputError, match="flux"):
+        vplace.VplSet(p, n, -f)
 
 
 def test_evaluate_matches_formula_for_one_vpl():
     scene = vplace.Scene(*quad_scene())
-    pos, nor, alb, cov = floor_gbuffer()
-    y = np.array([[0.2, -0.1, 1.0]], dtype=np.float32)
-    m = np.array([[0, 0, -1]], dtype=np.float32)
-    f = np.array([[1.0, 2.0, 0.5]], dtype=np.float32)
+    g = floor_gbuffer()
+    pos = g["position"]
     for profile in ("cosine", "omni"):
-        img, stats = vplace.evaluate(scene, pos, nor, alb, cov, y, m, f, profile=profile, r_min=0.0)
-        d = y[0] - pos
+        vpls = one_vpl(profile)
+        img, stats = vplace.evaluate(scene, view(g), vpls)
+        y, f = vpls.position[0], vpls.flux[0]
+        d = y - pos
         r2 = (d**2).sum(-1)
         cos = d[..., 2] / np.sqrt(r2)
         i = cos / np.pi if profile == "cosine" else 0.5 / np.pi
-        expect = 0.5 / np.pi * f[0] * (i * cos / r2)[..., None]
+        expect = 0.5 / np.pi * f * (i * cos / r2)[..., None]
         np.testing.assert_allclose(img, expect, rtol=1e-5)
-        assert stats["shadow_rays"] == 64
+        assert stats.shadow_rays == 64 and stats.pairs == 64
 
 
 def test_progress_and_cancel():
     scene = vplace.Scene(*quad_scene())
-    pos, nor, alb, cov = floor_gbuffer(32)
+    v = view(floor_gbuffer(32))
     vpls = vplace.uniform_vpls(scene, 4)
     p = vplace.Progress()
-    vplace.evaluate(scene, pos, nor, alb, cov, *vpls.values(), tile=8, progress=p)
+    vplace.evaluate(scene, v, vpls, tile=8, progress=p)
     assert p.total == 16 and p.done == 16
     p.cancel()
     with pytest.raises(vplace.CancelledError):
-        vplace.evaluate(scene, pos, nor, alb, cov, *vpls.values(), progress=p)
+        vplace.evaluate(scene, v, vpls, progress=p)
 
 
 @pytest.mark.parametrize(
@@ -103,33 +140,50 @@ def test_zero_lights_and_bad_vpl_calls():
         vplace.Scene(*quad_scene(lights=[vplace.Light.spot((0, 0, 1), (0, 0, -1), 0.0, (1, 1, 1))]))
 
 
-def test_evaluate_bad_input():
-    scene = vplace.Scene(*quad_scene())
-    pos, nor, alb, cov = floor_gbuffer()
-    v = vplace.uniform_vpls(scene, 4)
-    vp, vn, vf = v["position"], v["normal"], v["flux"]
+def test_view_checks_its_passes_once():
+    g = floor_gbuffer()
     with pytest.raises(vplace.InputError, match=r"normal must have shape \(8, 8, 3\)"):
-        vplace.evaluate(scene, pos, nor[:4], alb, cov, vp, vn, vf)
+        view(g, normal=g["normal"][:4])
     with pytest.raises(vplace.InputError, match="covered must have dtype bool"):
-        vplace.evaluate(scene, pos, nor, alb, cov.astype(np.uint8), vp, vn, vf)
-    bad = pos.copy()
-    bad[2, 3, 1] = np.inf
-    with pytest.raises(vplace.InputError, match=r"position \(covered pixel\) holds a non-finite"):
-        vplace.evaluate(scene, bad, nor, alb, cov, vp, vn, vf)
-    cov2 = cov.copy()
-    cov2[2, 3] = False  # the same NaN outside the covered pixels is ignored
-    img, _ = vplace.evaluate(scene, bad, nor, alb, cov2, vp, vn, vf)
-    assert np.isfinite(img).all() and img[2, 3].sum() == 0
-    with pytest.raises(vplace.InputError, match=r"vpl_normal must have shape \(4, 3\)"):
-        vplace.evaluate(scene, pos, nor, alb, cov, vp, vn[:2], vf)
-    with pytest.raises(vplace.InputError, match="profile must be 'cosine' or 'omni'"):
-        vplace.evaluate(scene, pos, nor, alb, cov, vp, vn, vf, profile="phong")
-    with pytest.raises(vplace.InputError, match="r_min"):
-        vplace.evaluate(scene, pos, nor, alb, cov, vp, vn, vf, r_min=-1.0)
-    with pytest.raises(vplace.InputError, match="must be unit length"):
-        vplace.evaluate(scene, pos, nor, alb, cov, vp, np.zeros_like(vn), vf)
+        vplace.View(
+            **{k: g[k] for k in ("position", "normal", "albedo")},
+            covered=g["covered"].astype(np.uint8),
+            depth=np.ones((8, 8), np.float32),
+            direct=g["albedo"],
+            diffuse_direct=g["albedo"],
+            camera_position=[0, 0, 1],
+            world_to_clip=np.eye(4).tolist(),
+        )
     with pytest.raises(vplace.InputError, match="must be C-contiguous"):
-        vplace.evaluate(scene, np.asfortranarray(pos), nor, alb, cov, vp, vn, vf)
+        vplace.View(
+            position=np.asfortranarray(g["position"]),
+            **{k: g[k] for k in ("normal", "albedo", "covered")},
+            depth=np.ones((8, 8), np.float32),
+            direct=g["albedo"],
+            diffuse_direct=g["albedo"],
+            camera_position=[0, 0, 1],
+            world_to_clip=np.eye(4).tolist(),
+        )
+    with pytest.raises(vplace.InputError, match="singular"):
+        view(g, world_to_clip=np.zeros((4, 4)))
+    # A non-finite G-buffer value on a covered pixel is an error naming the pass and pixel ...
+    bad = g["position"].copy()
+    bad[2, 3, 1] = np.inf
+    with pytest.raises(vplace.InputError, match=r'position \(covered pixel 19 of view "view"\)'):
+        view(g, position=bad)
+    # ... and ignored on an uncovered one.
+    cov = g["covered"].copy()
+    cov[2, 3] = False
+    scene = vplace.Scene(*quad_scene())
+    img, _ = vplace.evaluate(scene, view(g, position=bad, covered=cov), one_vpl())
+    assert np.isfinite(img).all() and img[2, 3].sum() == 0
+    # A non-finite lighting value masks the pixel and is counted.
+    lit = np.full_like(g["albedo"], 0.1)
+    lit[4, 4, 0] = np.nan
+    v = view(g, diffuse_direct=lit)
+    assert v.masked_pixels == 1 and not v.covered[4, 4] and v.covered.sum() == 63
+    assert not v.has_indirect and view(g, indirect=lit).has_indirect
+    assert not view(g, indirect=lit).without_indirect().has_indirect
 
 
 def test_metrics():
@@ -142,6 +196,7 @@ def test_metrics():
     a[0, 0, 0] = np.nan
     with pytest.raises(vplace.InputError, match="non-finite"):
         vplace.rmse(a, b)
+    assert list(vplace.LUMINANCE) == pytest.approx([0.2126, 0.7152, 0.0722])
 
 
 def test_errors_are_vplace_errors():

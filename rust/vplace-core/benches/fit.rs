@@ -21,7 +21,10 @@ fn bench(c: &mut Criterion) {
     });
     let cells = extract_features(&inp, 16).unwrap();
     c.bench_function("fit_cells 1920x1080 (normalize + select + fit)", |b| {
-        b.iter(|| fit_cells(black_box(&cells), &FitParams::DEFAULT).unwrap())
+        b.iter(|| {
+            let all = black_box(std::slice::from_ref(&cells));
+            fit_cells(all, &["room"], Some(p.light), &FitParams::DEFAULT).unwrap()
+        })
     });
     let (x, y) = linear_design(8100);
     c.bench_function("fit 8100x14 plain OLS", |b| {

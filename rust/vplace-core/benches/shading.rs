@@ -13,7 +13,7 @@ use vplace_core::{
     layout::{view_efficiency, Emitter},
     refit::{refit, RefitParams},
     rng::Rng,
-    test_util::{box_with, floor_gbuffer, inward_point, BLOCKER},
+    test_util::{box_with, inward_point, FloorView, BLOCKER},
     vpl::Vpl,
 };
 
@@ -35,7 +35,8 @@ fn vpls(n: usize, seed: u64) -> Vec<Vpl> {
 
 fn bench(c: &mut Criterion) {
     let scene = box_with(vec![], &[BLOCKER]);
-    let arrays = floor_gbuffer(128);
+    let floor = FloorView::new(128, Vec3::new(0.0, 0.0, 1.5), 10.0);
+    let arrays = &floor.gbuffer;
     let g = arrays.gbuffer();
     let v = vpls(256, 1);
     let mut group = c.benchmark_group("shading_box_128x128_256_vpls");
@@ -50,8 +51,9 @@ fn bench(c: &mut Criterion) {
         stride: 2,
         ..RefitParams::DEFAULT
     };
+    let view = floor.view_with(Some(&target));
     group.bench_function("refit stride 2", |b| {
-        b.iter(|| refit(&scene, black_box(&g), &v, &target, &params, None).unwrap())
+        b.iter(|| refit(&scene, black_box(&[&view]), &v, &params, None).unwrap())
     });
     let emitters: Vec<Emitter> = vpls(4096, 3)
         .into_iter()

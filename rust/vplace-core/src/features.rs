@@ -4,8 +4,13 @@
 //! may be smaller). Over the *usable* pixels of a cell (covered by geometry, every pass finite)
 //! each per-pixel feature of [`FEATURES`] is averaged; the cell-level features (coverage, normal
 //! and depth variance) are computed from the same pixels. The label of a cell is
-//! `dL = mean |L(G) - L(D)|` over its usable pixels, `L` the Rec. 709 luminance
-//! ([`crate::color::luminance`]).
+//! `dL = mean |L(I)|` over its usable pixels, `I` the view's indirect image (the light the VPLs
+//! must reproduce) and `L` the Rec. 709 luminance ([`crate::color::luminance`]); with
+//! `I = G - D` this is the paper's `mean |L(G) - L(D)|`.
+//!
+//! Several views are fitted as one model ([`fit_views`]): the cells of every view form one
+//! design matrix, normalized with one Min-Max range and fitted once; R^2 is also reported per
+//! view.
 //!
 //! Decisions recorded here:
 //! - Cells without a usable pixel are excluded and counted ([`CellFeatures::empty_cells`]).
@@ -20,8 +25,11 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::color::luminance;
+use crate::color::LUMINANCE;
 use crate::error::{Result, VplaceError};
 use crate::regression::{self, DropReason, Fit, FitParams};
+use crate::scene::{LightKind, Scene};
+use crate::view::View;
 
 /// Where a feature comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -152,8 +160,9 @@ pub struct FeatureInput<'a> {
     pub depth: &'a [f32],
     /// The direct image `D`.
     pub direct: &'a [f32],
-    /// The GI image `G`; `None` for a view that is only predicted (no label).
-    pub gi: Option<&'a [f32]>,
+    /// The indirect image `I` the label is taken from; `None` for a view that is only
+    /// predicted (no label).
+    pub indirect: Option<&'a [f32]>,
     /// Specular colour (Cycles GlossCol); `None` makes [`REFLECTANCE`] unavailable.
     pub specular: Option<&'a [f32]>,
     /// True where the pixel sees geometry.
@@ -176,7 +185,7 @@ pub struct CellFeatures {
     pub cells: Vec<usize>,
     /// Raw per-cell values, `cells.len() x FEATURE_COUNT`, row-major, columns as [`FEATURES`].
     pub values: Vec<f64>,
-    /// The label `dL` per listed cell, when the GI image was given.
+    /// The label `dL` per listed cell, when the indirect image was given.
     pub label: Option<Vec<f64>>,
     /// Usable pixels per listed cell.
     pub pixels: Vec<u32>,
@@ -246,8 +255,8 @@ impl FeatureInput<'_> {
         ] {
             check_len(what, arr, h, w, 3)?;
         }
-        if let Some(gi) = self.gi {
-            check_len("gi", gi, h, w, 3)?;
+        if let Some(ind) = self.indirect {
+            check_len("indirect", ind, h, w, 3)?;
         }
         if let Some(s) = self.specular {
             check_len("specular", s, h, w, 3)?;
@@ -308,7 +317,7 @@ pub fn extract_features(input: &FeatureInput<'_>, cell_px: usize) -> Result<Cell
         cells_y,
         cells: Vec::new(),
         values: Vec::new(),
-        label: input.gi.map(|_| Vec::new()),
+        label: input.indirect.map(|_| Vec::new()),
         pixels: Vec::new(),
         empty_cells: 0,
         masked_pixels: 0,
@@ -362,7 +371,7 @@ struct Row<'a> {
     dir: &'a [f32],
     dep: &'a [f32],
     cov: &'a [bool],
-    gi: Option<&'a [f32]>,
+    ind: Option<&'a [f32]>,
     spec: Option<&'a [f32]>,
 }
 
@@ -386,7 +395,7 @@ fn accumulate_row(
             dir: &input.direct[r3.clone()],
             dep: &input.depth[r1.clone()],
             cov: &input.covered[r1],
-            gi: input.gi.map(|g| &g[r3.clone()]),
+            ind: input.indirect.map(|g| &g[r3.clone()]),
             spec: input.specular.map(|s| &s[r3.clone()]),
         };
         for (cx, acc) in accs.iter_mut().enumerate() {
@@ -420,7 +429,7 @@ fn segment(acc: &mut Acc, row: &Row<'_>, s: usize, e: usize, light: Option<Stron
         let alb = &row.alb[j..j + 3];
         let d = &row.dir[j..j + 3];
         let depth = row.dep[x];
-        let g = row.gi.map(|g| &g[j..j + 3]);
+        let g = row.ind.map(|g| &g[j..j + 3]);
         let sp = row.spec.map(|s| &s[j..j + 3]);
         let ok = finite3(p)
             && finite3(nrm)
@@ -465,7 +474,7 @@ fn segment(acc: &mut Acc, row: &Row<'_>, s: usize, e: usize, light: Option<Stron
         dsum += dd;
         dsq += dd * dd;
         if let Some(g) = g {
-            label += (lum(g) - direct_l).abs();
+            label += lum(g).abs();
         }
     }
     if n == 0 {
@@ -539,28 +548,130 @@ impl MinMax {
     }
 }
 
-/// A regression model fitted on the cells of one view, with the Min-Max ranges that normalize
-/// the features of any other view the same way.
+impl<'a> FeatureInput<'a> {
+    /// The passes of `view` with `light`; the label comes from the view's indirect image.
+    #[must_use]
+    pub fn of(view: &'a View, light: Option<StrongestLight>) -> Self {
+        Self {
+            width: view.width,
+            height: view.height,
+            position: &view.position,
+            normal: &view.normal,
+            albedo: &view.albedo,
+            depth: &view.depth,
+            direct: &view.direct,
+            indirect: view.indirect.as_deref(),
+            specular: view.specular.as_deref(),
+            covered: &view.covered,
+            light,
+        }
+    }
+}
+
+/// The strongest light of `scene` seen from the mean covered position of `views`: the light
+/// with the largest luminance of irradiance there, `P / (4 pi r^2)` for a point or spot,
+/// `P / (pi r^2)` for an area light, `P` (W/m^2) for a sun. `None` without lights.
+#[must_use]
+pub fn strongest_light(scene: &Scene, views: &[&View]) -> Option<StrongestLight> {
+    let (mut sum, mut n) = ([0.0f64; 3], 0u64);
+    for v in views {
+        for (p, _) in v.covered.iter().enumerate().filter(|(_, &c)| c) {
+            for (s, &x) in sum.iter_mut().zip(&v.position[3 * p..3 * p + 3]) {
+                *s += f64::from(x);
+            }
+            n += 1;
+        }
+    }
+    let centre = if n > 0 {
+        sum.map(|s| s / n as f64)
+    } else {
+        [0.0; 3]
+    };
+    let mut best: Option<(f64, StrongestLight)> = None;
+    for light in &scene.lights {
+        let power = f64::from(light.power.dot(LUMINANCE));
+        let (irradiance, found) = match light.kind {
+            LightKind::Sun => (power, StrongestLight::Direction(light.direction)),
+            kind => {
+                let d = [0, 1, 2].map(|i| f64::from(light.position[i]) - centre[i]);
+                let r2 = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).max(1e-12);
+                let k = if matches!(kind, LightKind::Area { .. }) {
+                    std::f64::consts::PI
+                } else {
+                    4.0 * std::f64::consts::PI
+                };
+                (power / (k * r2), StrongestLight::Position(light.position))
+            }
+        };
+        if best.is_none_or(|(b, _)| irradiance > b) {
+            best = Some((irradiance, found));
+        }
+    }
+    best.map(|(_, l)| l)
+}
+
+/// How well the model explains one of the views it was fitted on.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewFit {
+    /// The view's name.
+    pub name: String,
+    /// Cells of the view in the design matrix.
+    pub cells: usize,
+    /// Cells of the view's grid without a usable pixel.
+    pub empty_cells: usize,
+    /// Covered pixels masked for non-finite passes (when the view was made, or by the
+    /// feature extraction).
+    pub masked_pixels: usize,
+    /// `1 - SS_res / SS_tot` over the view's cells (about its own mean); `None` when its label
+    /// is constant.
+    pub r2: Option<f64>,
+}
+
+/// A regression model of the per-cell label, fitted on the cells of one or more views, with
+/// what another view needs to be predicted the same way: the Min-Max ranges, the cell size and
+/// the light of the light-cosine feature.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CellModel {
     /// Min-Max ranges of the raw features over the fitted cells.
     pub ranges: MinMax,
     /// The fit on the normalized features (columns as [`FEATURES`]).
     pub fit: Fit,
+    /// Cell size, pixels.
+    pub cell_px: usize,
+    /// The light of [`LIGHT_COSINE`], if any.
+    pub light: Option<StrongestLight>,
+    /// The fitted views, in order; their cells are consecutive rows of the fit.
+    pub views: Vec<ViewFit>,
 }
 
-/// Normalizes the features of `cells` and fits their label (see [`crate::regression`]).
-/// Features whose input was not given are reported as [`DropReason::Unavailable`].
-pub fn fit_cells(cells: &CellFeatures, params: &FitParams) -> Result<CellModel> {
-    let label = cells.label.as_ref().ok_or_else(|| VplaceError::Invalid {
-        what: "label".into(),
-        reason: "the view has no GI image; fitting needs one (prediction does not)".into(),
-    })?;
-    let ranges = MinMax::fit(&cells.values, FEATURE_COUNT)?;
-    let x = ranges.apply(&cells.values);
-    let mut fit = regression::fit(&x, label, FEATURE_COUNT, params)?;
+/// Normalizes the features of `cells` (the cells of the views named `names`, in order) and fits
+/// their label (see [`crate::regression`]); `light` is what the light-cosine feature was computed
+/// with. Features whose input was not given are reported as [`DropReason::Unavailable`].
+pub fn fit_cells(
+    cells: &[CellFeatures],
+    names: &[&str],
+    light: Option<StrongestLight>,
+    params: &FitParams,
+) -> Result<CellModel> {
+    let mut values = Vec::new();
+    let mut label = Vec::new();
+    let mut available = [true; FEATURE_COUNT];
+    for (c, name) in cells.iter().zip(names) {
+        let l = c.label.as_ref().ok_or_else(|| VplaceError::Invalid {
+            what: format!("view {name:?}"),
+            reason: "it has no indirect image; fitting needs one (prediction does not)".into(),
+        })?;
+        values.extend_from_slice(&c.values);
+        label.extend_from_slice(l);
+        for (a, b) in available.iter_mut().zip(c.available) {
+            *a &= b;
+        }
+    }
+    let ranges = MinMax::fit(&values, FEATURE_COUNT)?;
+    let x = ranges.apply(&values);
+    let mut fit = regression::fit(&x, &label, FEATURE_COUNT, params)?;
     for (j, reason) in &mut fit.dropped {
-        if !cells.available[*j] {
+        if !available[*j] {
             *reason = DropReason::Unavailable(if *j == LIGHT_COSINE {
                 "no strongest light given"
             } else {
@@ -568,7 +679,60 @@ pub fn fit_cells(cells: &CellFeatures, params: &FitParams) -> Result<CellModel> 
             });
         }
     }
-    Ok(CellModel { ranges, fit })
+    let mut views = Vec::with_capacity(cells.len());
+    let mut row = 0;
+    for (c, name) in cells.iter().zip(names) {
+        let n = c.cells.len();
+        let y = &label[row..row + n];
+        let f = &fit.fitted[row..row + n];
+        let mean = y.iter().sum::<f64>() / n as f64;
+        let ss_tot: f64 = y.iter().map(|v| (v - mean) * (v - mean)).sum();
+        let ss_res: f64 = y.iter().zip(f).map(|(a, b)| (a - b) * (a - b)).sum();
+        views.push(ViewFit {
+            name: (*name).to_owned(),
+            cells: n,
+            empty_cells: c.empty_cells,
+            masked_pixels: c.masked_pixels,
+            r2: (ss_tot > 0.0).then(|| 1.0 - ss_res / ss_tot),
+        });
+        row += n;
+    }
+    Ok(CellModel {
+        ranges,
+        fit,
+        cell_px: cells[0].cell_px,
+        light,
+        views,
+    })
+}
+
+/// Fits one model on the cells of every view of `views` (each needs its indirect image), with
+/// `light` for the light-cosine feature (see [`strongest_light`]).
+///
+/// Errors: no views, a view without an indirect image, bad `cell_px`, no usable pixel in a
+/// view, or the regression's own errors.
+pub fn fit_views(
+    views: &[&View],
+    light: Option<StrongestLight>,
+    cell_px: usize,
+    params: &FitParams,
+) -> Result<CellModel> {
+    if views.is_empty() {
+        return Err(VplaceError::Empty {
+            what: "views".into(),
+            hint: "give at least one captured view to fit on".into(),
+        });
+    }
+    let cells = views
+        .iter()
+        .map(|v| extract_features(&FeatureInput::of(v, light), cell_px))
+        .collect::<Result<Vec<_>>>()?;
+    let names: Vec<&str> = views.iter().map(|v| v.name.as_str()).collect();
+    let mut model = fit_cells(&cells, &names, light, params)?;
+    for (f, v) in model.views.iter_mut().zip(views) {
+        f.masked_pixels += v.masked_pixels;
+    }
+    Ok(model)
 }
 
 impl CellModel {
@@ -582,6 +746,12 @@ impl CellModel {
             out[c] = self.fit.predict_row(row);
         }
         out
+    }
+
+    /// The predicted label of every cell of `view`, with the model's cell size and light.
+    pub fn predict_view(&self, view: &View) -> Result<Vec<f64>> {
+        let cells = extract_features(&FeatureInput::of(view, self.light), self.cell_px)?;
+        Ok(self.predict(&cells))
     }
 }
 
@@ -635,7 +805,7 @@ mod tests {
     #[test]
     fn non_finite_pixels_are_masked_and_counted() {
         let mut b = bufs(4, 4);
-        b.gi[0] = f32::NAN;
+        b.indirect[0] = f32::NAN;
         b.depth[1] = f32::INFINITY;
         b.gbuffer.position[3 * 6] = f32::NAN;
         b.gbuffer.position[3 * 15] = f32::NAN; // uncovered: not counted

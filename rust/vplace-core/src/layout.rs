@@ -1,19 +1,25 @@
 //! Regression-guided VPL layout (DESIGN, Layout): candidate emitters, strata, allocation by
 //! largest remainder, and flux-proportional draws inside each stratum.
 //!
-//! Candidate emitters are surface points that receive direct light:
-//! - every covered pixel `p` of the view, reflecting `Phi_p = albedo_p * pi * DiffDir_p * A_p`,
+//! The layout reads one or more [`View`]s and lays out one world-space VPL set for all of them.
+//! Candidate emitters are surface points that receive light:
+//! - every covered pixel `p` of every view, reflecting `Phi_p = albedo_p * pi * E_p * A_p`,
 //!   `A_p = r^2 * omega_p / |cos|` its world-space footprint (`r` the radial distance from the
 //!   camera, `omega_p` the pixel's solid angle from the camera matrix, `cos` between the normal
-//!   and the view ray, clamped at [`MIN_VIEW_COSINE`]);
-//! - hits of light paths (Keller's [`light_path_vpls`], every bounce by default) that the camera
-//!   does not see: they stand for the light reflected off screen.
+//!   and the view ray, clamped at [`MIN_VIEW_COSINE`]) and `E_p / pi` the irradiance / pi the
+//!   surface receives ([`emitter_irradiance`]: `DiffDir`, plus `DiffInd` or the fit's
+//!   prediction with `multi_bounce`). A surface seen by several views is counted once: a
+//!   pixel emitter of view `v` that an earlier view sees ([`View::sees`]) is dropped
+//!   ([`Strata::shared_pixels`]);
+//! - hits of light paths (Keller's [`light_path_vpls`], every bounce by default) that no view
+//!   sees: they stand for the light reflected off screen.
 //!
-//! Strata are the image cells (`cell_px` square, row-major, row 0 at the top) plus the off-screen
-//! strata (from index `cells_x * cells_y` on). Off-screen emitters differ wildly in how much of
+//! Strata are the image cells of every view (`cell_px` square, row-major, row 0 at the top; the
+//! views' grids one after the other, [`Strata::grids`]) plus the off-screen strata (from index
+//! [`Strata::offscreen`] on). Off-screen emitters differ wildly in how much of
 //! their light reaches what the camera sees (in Sponza most of the sun's reflected flux leaves
 //! the roofs toward the sky), so they are grouped by their *view efficiency* `eta_e`: the mean
-//! unshadowed irradiance-times-albedo they give a sparse grid of the view's covered pixels per
+//! unshadowed irradiance-times-albedo they give a sparse grid of the views' covered pixels per
 //! unit flux ([`view_efficiency`]). Emitters with `eta_e = 0` form a dark stratum (the last);
 //! the others [`OFFSCREEN_BINS`] strata of equal view contribution `lum(Phi_e) * eta_e`, by
 //! increasing `eta_e`. Each
@@ -32,14 +38,15 @@
 
 use glam::{Mat4, Vec3};
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::f32::consts::PI;
 
-use crate::color::luminance;
-use crate::error::{check_finite, Result, VplaceError};
-use crate::evaluator::GBuffer;
+use crate::color::{luminance, luminance_f64};
+use crate::error::{Result, VplaceError};
 use crate::rng::Rng;
 use crate::scene::Scene;
 use crate::shading::{Batch, VplSoa};
+use crate::view::View;
 use crate::vpl::{light_path_vpls, Profile, Vpl, MAX_BOUNCES};
 
 /// Off-screen strata with a non-zero view efficiency (plus the dark one).
@@ -51,20 +58,9 @@ pub const VIEW_SAMPLES: usize = 1024;
 /// the `1 / cos` of grazing pixels (about 87 degrees).
 pub const MIN_VIEW_COSINE: f32 = 0.05;
 
-/// One view of the scene as the layout sees it.
-#[derive(Debug, Clone, Copy)]
-pub struct LayoutView<'a> {
-    /// The G-buffer (position, normal, albedo, covered) of the view.
-    pub gbuffer: GBuffer<'a>,
-    /// Cycles `DiffDir` pass (irradiance / pi), `H x W x 3`.
-    pub diffuse_direct: &'a [f32],
-    /// Camera position, world space.
-    pub camera_position: Vec3,
-    /// World to clip matrix of the (perspective) camera, OpenGL conventions: NDC x to the
-    /// right, y up, both in `[-1, 1]` over the image (in Blender:
-    /// `camera.calc_matrix_camera(depsgraph, x=W, y=H) @ camera.matrix_world.inverted()`).
-    pub world_to_clip: Mat4,
-}
+/// The smallest mean albedo luminance of a cell that the predicted indirect irradiance is
+/// divided by ([`emitter_irradiance`]); darker cells get none.
+pub const MIN_CELL_ALBEDO: f64 = 1e-3;
 
 /// Settings of the layout. `Copy`, with named presets.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -82,10 +78,14 @@ pub struct LayoutParams {
     /// Surface hits per light path for the off-screen stratum (1: first bounce only; see
     /// [`light_path_vpls`]).
     pub bounces: usize,
+    /// Pixel emitters reflect all the light their surface receives (`DiffDir` plus the captured
+    /// `DiffInd` or the predicted indirect irradiance), not only the direct light.
+    pub multi_bounce: bool,
 }
 
 impl LayoutParams {
-    /// 256 VPLs, fully guided, 16-pixel cells, 4096 light rays of every bounce.
+    /// 256 VPLs, fully guided, 16-pixel cells, 4096 light rays of every bounce, multi-bounce
+    /// pixel emitters.
     pub const DEFAULT: Self = Self {
         budget: 256,
         alpha: 1.0,
@@ -93,6 +93,7 @@ impl LayoutParams {
         light_rays: 4096,
         seed: 0,
         bounces: MAX_BOUNCES,
+        multi_bounce: true,
     };
 }
 
@@ -113,28 +114,61 @@ pub struct Emitter {
     pub flux: Vec3,
 }
 
-/// The candidate emitters of a view grouped in strata.
+/// Where a view's pixel emitters got their indirect irradiance.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum IndirectSource {
+    /// The view's captured `DiffInd`.
+    Captured,
+    /// The fit's per-cell prediction (a view without a GI render).
+    Predicted,
+    /// None: the emitters reflect direct light only.
+    None,
+}
+
+/// The cell strata of one view.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Grid {
+    /// Cells per row.
+    pub cells_x: usize,
+    /// Cells per column.
+    pub cells_y: usize,
+    /// Index of the view's first cell among the strata.
+    pub start: usize,
+    /// Where the view's emitters got their indirect irradiance.
+    pub source: IndirectSource,
+}
+
+impl Grid {
+    /// Number of cells.
+    #[must_use]
+    pub fn cells(&self) -> usize {
+        self.cells_x * self.cells_y
+    }
+}
+
+/// The candidate emitters of one or more views grouped in strata.
 ///
 /// Invariants: `start.len() == strata() + 1`, non-decreasing, `start[strata()] ==
 /// emitters.len()`; stratum `k` holds `emitters[start[k]..start[k + 1]]` and `flux[k]` is their
-/// sum; the strata from [`Strata::offscreen`] on are the off-screen ones (the last one dark);
+/// sum; the grids cover the strata `0..offscreen()` one after the other; the strata from
+/// [`Strata::offscreen`] on are the off-screen ones (the last one dark);
 /// `view_weight.len() == strata()`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Strata {
     /// Cell size, pixels.
     pub cell_px: usize,
-    /// Cells per row.
-    pub cells_x: usize,
-    /// Cells per column.
-    pub cells_y: usize,
+    /// The cell grid of each view, in the order of the views.
+    pub grids: Vec<Grid>,
     /// Every candidate, grouped by stratum.
     pub emitters: Vec<Emitter>,
     /// Start of each stratum in `emitters`, plus the end.
     pub start: Vec<usize>,
     /// `F_k`: the flux of each stratum, RGB watts.
     pub flux: Vec<Vec3>,
-    /// Light-ray hits dropped because the camera sees them (their pixels stand for them).
+    /// Light-ray hits dropped because a view sees them (its pixels stand for them).
     pub light_hits_on_screen: usize,
+    /// Pixel emitters dropped because an earlier view sees their surface (counted once).
+    pub shared_pixels: usize,
     /// `v_k`: how efficiently stratum `k` lights the view relative to the on-screen emitters
     /// (1 for cells, 0 for the dark stratum).
     pub view_weight: Vec<f64>,
@@ -147,10 +181,10 @@ impl Strata {
         self.flux.len()
     }
 
-    /// Index of the first off-screen stratum (= the number of cells).
+    /// Index of the first off-screen stratum (= the number of cells of every view).
     #[must_use]
     pub fn offscreen(&self) -> usize {
-        self.cells_x * self.cells_y
+        self.grids.iter().map(Grid::cells).sum()
     }
 
     /// Total flux of the off-screen strata.
@@ -171,39 +205,6 @@ fn vec3(arr: &[f32], p: usize) -> Vec3 {
     Vec3::new(arr[3 * p], arr[3 * p + 1], arr[3 * p + 2])
 }
 
-fn check_view(view: &LayoutView<'_>) -> Result<()> {
-    let g = &view.gbuffer;
-    g.validate()?;
-    let n = g.width * g.height;
-    if view.diffuse_direct.len() != 3 * n {
-        return Err(VplaceError::Shape {
-            what: "diffuse_direct".into(),
-            expected: format!("({}, {}, 3)", g.height, g.width),
-            got: format!("{} values", view.diffuse_direct.len()),
-        });
-    }
-    check_finite("camera_position", &view.camera_position.to_array())?;
-    check_finite("world_to_clip", &view.world_to_clip.to_cols_array())?;
-    if view.world_to_clip.determinant().abs() < 1e-30 {
-        return Err(VplaceError::Invalid {
-            what: "world_to_clip".into(),
-            reason: "the camera matrix is singular".into(),
-        });
-    }
-    Ok(())
-}
-
-/// Clip space to pixel coordinates `(x, y)` (x right, y down, pixel centres at `+0.5`), or `None`
-/// behind the camera.
-fn to_pixel(m: &Mat4, p: Vec3, w: usize, h: usize) -> Option<(f32, f32)> {
-    let c = *m * p.extend(1.0);
-    if c.w <= 0.0 {
-        return None;
-    }
-    let (x, y) = (c.x / c.w, c.y / c.w);
-    Some(((x + 1.0) * 0.5 * w as f32, (1.0 - y) * 0.5 * h as f32))
-}
-
 /// The unit view direction through the image point `(x, y)` (pixels, y down), as the line
 /// through two unprojected depths (so the camera position and the depth range do not enter).
 fn corner_direction(inv: &Mat4, x: f32, y: f32, w: usize, h: usize) -> Vec3 {
@@ -219,31 +220,96 @@ fn solid_angle(d00: Vec3, d10: Vec3, d01: Vec3) -> f32 {
     (d10 - d00).cross(d01 - d00).length()
 }
 
-/// Gathers the candidate emitters of `view` into strata.
+/// The irradiance / pi that the pixel emitters of `view` reflect, and where its indirect part
+/// came from: `DiffDir` alone without `multi_bounce`; `DiffDir + max(0, DiffInd)` when the
+/// view has its `diffuse_indirect` pass; otherwise, with `predicted` (the fit's per-cell `dL`,
+/// `cells_y x cells_x`), `DiffDir` plus the grey irradiance `max(0, dL_k) / albedo_k` of each
+/// cell (`albedo_k` the mean albedo luminance of its covered pixels; cells darker than
+/// [`MIN_CELL_ALBEDO`] get none): on a view without a GI render the prediction stands in for
+/// the light the capture did not measure.
 ///
-/// Errors: bad view arrays, `cell_px == 0`, or failing light rays (see [`uniform_vpls`]). A scene
-/// without lights gets an empty off-screen stratum (its pixels still emit).
-pub fn build_strata(scene: &Scene, view: &LayoutView<'_>, params: &LayoutParams) -> Result<Strata> {
-    check_view(view)?;
-    if params.cell_px == 0 {
-        return Err(VplaceError::OutOfRange {
-            what: "cell_px".into(),
-            value: "0".into(),
-            expected: ">= 1".into(),
+/// Errors: a prediction of the wrong size.
+pub fn emitter_irradiance<'a>(
+    view: &'a View,
+    predicted: Option<&[f64]>,
+    cell_px: usize,
+    multi_bounce: bool,
+) -> Result<(Cow<'a, [f32]>, IndirectSource)> {
+    let direct = &view.diffuse_direct;
+    if !multi_bounce {
+        return Ok((Cow::Borrowed(direct), IndirectSource::None));
+    }
+    if let Some(ind) = &view.diffuse_indirect {
+        let sum = direct
+            .iter()
+            .zip(ind)
+            .map(|(d, i)| d + i.max(0.0))
+            .collect();
+        return Ok((Cow::Owned(sum), IndirectSource::Captured));
+    }
+    let Some(pred) = predicted else {
+        return Ok((Cow::Borrowed(direct), IndirectSource::None));
+    };
+    let (w, h) = (view.width, view.height);
+    let (cx, cy) = (w.div_ceil(cell_px), h.div_ceil(cell_px));
+    if pred.len() != cx * cy {
+        return Err(VplaceError::Shape {
+            what: format!("prediction of view {:?}", view.name),
+            expected: format!("({cy}, {cx}) cells"),
+            got: format!("{} values", pred.len()),
         });
     }
-    let g = &view.gbuffer;
-    let (w, h, c) = (g.width, g.height, params.cell_px);
-    let (cells_x, cells_y) = (w.div_ceil(c), h.div_ceil(c));
-    let cam = view.camera_position;
-    let inv = view.world_to_clip.inverse();
-    let offset = Vpl::SURFACE_OFFSET * scene.diagonal();
-    let cells = cells_x * cells_y;
-    let mut off: Vec<Emitter> = Vec::new();
+    let mut sum = vec![0.0f64; cx * cy];
+    let mut count = vec![0u32; cx * cy];
+    for (p, _) in view.covered.iter().enumerate().filter(|(_, &c)| c) {
+        let a = &view.albedo[3 * p..3 * p + 3];
+        let k = (p / w / cell_px) * cx + (p % w) / cell_px;
+        sum[k] += luminance_f64([f64::from(a[0]), f64::from(a[1]), f64::from(a[2])]);
+        count[k] += 1;
+    }
+    let cell: Vec<f32> = (0..cx * cy)
+        .map(|k| {
+            let mean = if count[k] > 0 {
+                sum[k] / f64::from(count[k])
+            } else {
+                0.0
+            };
+            if mean > MIN_CELL_ALBEDO {
+                (pred[k].max(0.0) / mean.max(MIN_CELL_ALBEDO)) as f32
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let out = direct
+        .iter()
+        .enumerate()
+        .map(|(i, d)| {
+            let p = i / 3;
+            d + cell[(p / w / cell_px) * cx + (p % w) / cell_px]
+        })
+        .collect();
+    Ok((Cow::Owned(out), IndirectSource::Predicted))
+}
+
+/// The pixel emitters of `view` reflecting `irradiance` (irradiance / pi, `H x W x 3`), each with
+/// its cell, in pixel order; `owned(x)` says whether the emitter at `x` belongs to this view (not
+/// already held by an earlier one).
+fn pixel_emitters(
+    view: &View,
+    irradiance: &[f32],
+    cell_px: usize,
+    offset: f32,
+    owned: impl Fn(Vec3) -> bool + Sync,
+) -> (Vec<(usize, Emitter)>, usize) {
+    let (w, h, c) = (view.width, view.height, cell_px);
+    let cells_x = w.div_ceil(c);
+    let cam = view.camera.position;
+    let inv = view.camera.world_to_clip.inverse();
     // Rows in parallel, in bands that share the view directions of their pixel corners; the
     // emitters are then appended in pixel order, as a plain row-major loop would.
     let band = 8;
-    let found: Vec<Vec<(usize, Emitter)>> = (0..h.div_ceil(band))
+    let found: Vec<(Vec<(usize, Emitter)>, usize)> = (0..h.div_ceil(band))
         .into_par_iter()
         .map(|b| {
             let (y0, y1) = (b * band, ((b + 1) * band).min(h));
@@ -255,19 +321,17 @@ pub fn build_strata(scene: &Scene, view: &LayoutView<'_>, params: &LayoutParams)
                 })
                 .collect();
             let mut out = Vec::new();
+            let mut shared = 0;
             for y in y0..y1 {
                 let (top, below) = (&corners[y - y0], &corners[y - y0 + 1]);
                 for x in 0..w {
                     let p = y * w + x;
-                    if !g.covered[p] {
+                    if !view.covered[p] {
                         continue;
                     }
-                    let dd = vec3(view.diffuse_direct, p);
-                    if !dd.is_finite() {
-                        continue;
-                    }
-                    let pos = vec3(g.position, p);
-                    let mut n = vec3(g.normal, p).normalize_or_zero();
+                    let dd = vec3(irradiance, p);
+                    let pos = vec3(&view.position, p);
+                    let mut n = vec3(&view.normal, p).normalize_or_zero();
                     let to_cam = cam - pos;
                     let r = to_cam.length();
                     if n == Vec3::ZERO || r <= 0.0 {
@@ -280,7 +344,7 @@ pub fn build_strata(scene: &Scene, view: &LayoutView<'_>, params: &LayoutParams)
                     }
                     let omega = solid_angle(top[x], top[x + 1], below[x]);
                     let area = r * r * omega / cos.max(MIN_VIEW_COSINE);
-                    let flux = vec3(g.albedo, p) * (PI * dd.max(Vec3::ZERO)) * area;
+                    let flux = vec3(&view.albedo, p) * (PI * dd.max(Vec3::ZERO)) * area;
                     let lum = luminance(flux);
                     if lum.is_nan() || lum <= 0.0 || !flux.is_finite() {
                         continue;
@@ -290,28 +354,86 @@ pub fn build_strata(scene: &Scene, view: &LayoutView<'_>, params: &LayoutParams)
                         normal: n,
                         flux,
                     };
+                    if !owned(emitter.position) {
+                        shared += 1;
+                        continue;
+                    }
                     out.push(((y / c) * cells_x + x / c, emitter));
                 }
             }
-            out
+            (out, shared)
         })
         .collect();
-    let mut per: Vec<Vec<Emitter>> = vec![Vec::new(); cells];
-    for (k, e) in found.into_iter().flatten() {
-        per[k].push(e);
+    let shared = found.iter().map(|(_, s)| s).sum();
+    (found.into_iter().flat_map(|(e, _)| e).collect(), shared)
+}
+
+/// Gathers the candidate emitters of `views` into strata (see the module docs). `predicted`,
+/// when given, holds the fit's per-cell `dL` of each view (`cells_y x cells_x`, row-major); a
+/// view without a `diffuse_indirect` pass then reflects it ([`emitter_irradiance`]).
+///
+/// Errors: no views, `cell_px == 0`, a prediction of the wrong size, or failing light rays
+/// (see [`light_path_vpls`]). A scene without lights gets empty off-screen strata (its pixels
+/// still emit).
+pub fn build_strata(
+    scene: &Scene,
+    views: &[&View],
+    predicted: Option<&[Vec<f64>]>,
+    params: &LayoutParams,
+) -> Result<Strata> {
+    if views.is_empty() {
+        return Err(VplaceError::Empty {
+            what: "views".into(),
+            hint: "give at least one view to lay out VPLs for".into(),
+        });
     }
+    if params.cell_px == 0 {
+        return Err(VplaceError::OutOfRange {
+            what: "cell_px".into(),
+            value: "0".into(),
+            expected: ">= 1".into(),
+        });
+    }
+    if let Some(p) = predicted {
+        if p.len() != views.len() {
+            return Err(VplaceError::Shape {
+                what: "predicted".into(),
+                expected: format!("one prediction per view ({})", views.len()),
+                got: format!("{}", p.len()),
+            });
+        }
+    }
+    let c = params.cell_px;
+    let offset = Vpl::SURFACE_OFFSET * scene.diagonal();
+    let occluded = |a: Vec3, b: Vec3| scene.occluded(a, b);
+    let mut grids = Vec::with_capacity(views.len());
+    let mut per: Vec<Vec<Emitter>> = Vec::new();
+    let mut shared_pixels = 0;
+    for (i, view) in views.iter().enumerate() {
+        let pred = predicted.map(|p| p[i].as_slice());
+        let (irradiance, source) = emitter_irradiance(view, pred, c, params.multi_bounce)?;
+        let earlier = &views[..i];
+        let owned = |x: Vec3| !earlier.iter().any(|u| u.sees(x, occluded));
+        let (found, shared) = pixel_emitters(view, &irradiance, c, offset, owned);
+        shared_pixels += shared;
+        let grid = Grid {
+            cells_x: view.width.div_ceil(c),
+            cells_y: view.height.div_ceil(c),
+            start: per.len(),
+            source,
+        };
+        per.resize(grid.start + grid.cells(), Vec::new());
+        for (k, e) in found {
+            per[grid.start + k].push(e);
+        }
+        grids.push(grid);
+    }
+    let cells = per.len();
+    let mut off: Vec<Emitter> = Vec::new();
     let mut light_hits_on_screen = 0;
     if params.light_rays > 0 && !scene.lights.is_empty() {
         for v in light_path_vpls(scene, params.light_rays, params.seed, params.bounces)? {
-            let seen = to_pixel(&view.world_to_clip, v.position, w, h).is_some_and(|(px, py)| {
-                px >= 0.0
-                    && py >= 0.0
-                    && px < w as f32
-                    && py < h as f32
-                    && g.covered[py as usize * w + px as usize]
-                    && !scene.occluded(cam, v.position)
-            });
-            if seen {
+            if views.iter().any(|view| view.sees(v.position, occluded)) {
                 light_hits_on_screen += 1;
             } else if luminance(v.flux) > 0.0 {
                 off.push(Emitter {
@@ -322,7 +444,7 @@ pub fn build_strata(scene: &Scene, view: &LayoutView<'_>, params: &LayoutParams)
             }
         }
     }
-    let samples = view_samples(view);
+    let samples: Vec<(Vec3, Vec3, f32)> = views.iter().flat_map(|v| view_samples(v)).collect();
     let r_min = scene.near_field_radius();
     let on_screen: Vec<&Emitter> = per.iter().flatten().collect();
     let step = on_screen.len().div_ceil(VIEW_SAMPLES).max(1);
@@ -368,21 +490,21 @@ pub fn build_strata(scene: &Scene, view: &LayoutView<'_>, params: &LayoutParams)
     start.push(emitters.len());
     Ok(Strata {
         cell_px: c,
-        cells_x,
-        cells_y,
+        grids,
         emitters,
         start,
         flux,
         light_hits_on_screen,
+        shared_pixels,
         view_weight,
     })
 }
 
 /// About [`VIEW_SAMPLES`] covered pixels of the view on a regular grid: (position, unit
 /// normal facing the camera, albedo luminance).
-fn view_samples(view: &LayoutView<'_>) -> Vec<(Vec3, Vec3, f32)> {
-    let g = &view.gbuffer;
-    let covered = g.covered.iter().filter(|&&c| c).count();
+fn view_samples(view: &View) -> Vec<(Vec3, Vec3, f32)> {
+    let g = view.gbuffer();
+    let covered = view.covered_count();
     let stride = ((covered as f64 / VIEW_SAMPLES as f64).sqrt().floor() as usize).max(1);
     let mut out = Vec::new();
     for y in (stride / 2..g.height).step_by(stride) {
@@ -397,7 +519,7 @@ fn view_samples(view: &LayoutView<'_>) -> Vec<(Vec3, Vec3, f32)> {
             if n == Vec3::ZERO || !pos.is_finite() || !albedo.is_finite() {
                 continue;
             }
-            if n.dot(view.camera_position - pos) < 0.0 {
+            if n.dot(view.camera.position - pos) < 0.0 {
                 n = -n;
             }
             out.push((pos, n, albedo.max(0.0)));
@@ -493,11 +615,11 @@ pub fn largest_remainder(weights: &[f64], budget: usize) -> Vec<usize> {
 
 /// The share of each stratum: `lerp(u_k, m_k, alpha)`, summing to 1.
 ///
-/// `predicted` is the predicted `dL` per cell (`cells_y x cells_x`, row-major) or `None`
-/// (uniform); negative predictions count as 0 and the off-screen strata get the flux-weighted
-/// mean prediction of the cells times their view weight. When every `m_k` is 0 the uniform
-/// share is used.
-pub fn shares(strata: &Strata, predicted: Option<&[f64]>, alpha: f32) -> Result<Vec<f64>> {
+/// `predicted` holds the predicted `dL` per cell of each view (`cells_y x cells_x`, row-major,
+/// in the order of [`Strata::grids`]) or is `None` (uniform); negative predictions count as 0 and
+/// the off-screen strata get the flux-weighted mean prediction of the cells times their view
+/// weight. When every `m_k` is 0 the uniform share is used.
+pub fn shares(strata: &Strata, predicted: Option<&[Vec<f64>]>, alpha: f32) -> Result<Vec<f64>> {
     if !(0.0..=1.0).contains(&alpha) {
         return Err(VplaceError::OutOfRange {
             what: "alpha".into(),
@@ -518,14 +640,23 @@ pub fn shares(strata: &Strata, predicted: Option<&[f64]>, alpha: f32) -> Result<
     let Some(pred) = predicted else {
         return Ok(u);
     };
-    let cells = strata.offscreen();
-    if pred.len() != cells {
+    if pred.len() != strata.grids.len() {
         return Err(VplaceError::Shape {
             what: "predicted".into(),
-            expected: format!("({}, {})", strata.cells_y, strata.cells_x),
-            got: format!("{} values", pred.len()),
+            expected: format!("one prediction per view ({})", strata.grids.len()),
+            got: format!("{}", pred.len()),
         });
     }
+    for (p, g) in pred.iter().zip(&strata.grids) {
+        if p.len() != g.cells() {
+            return Err(VplaceError::Shape {
+                what: "predicted".into(),
+                expected: format!("({}, {})", g.cells_y, g.cells_x),
+                got: format!("{} values", p.len()),
+            });
+        }
+    }
+    let pred = pred.concat();
     if let Some(index) = pred.iter().position(|v| !v.is_finite()) {
         return Err(VplaceError::NonFinite {
             what: "predicted".into(),
@@ -534,7 +665,7 @@ pub fn shares(strata: &Strata, predicted: Option<&[f64]>, alpha: f32) -> Result<
     }
     Ok(blend(
         &u,
-        &importance(&lum, pred, &strata.view_weight),
+        &importance(&lum, &pred, &strata.view_weight),
         f64::from(alpha),
     ))
 }
@@ -742,14 +873,16 @@ pub fn draw(strata: &Strata, allocation: &Allocation, seed: u64) -> Vec<Vpl> {
     out
 }
 
-/// The one-shot layout: strata, shares, allocation and draw. Returns the VPLs and the allocation.
+/// The one-shot layout for `views`: strata, shares, allocation and draw. `predicted` holds the
+/// fit's per-cell `dL` of each view (see [`shares`]). Returns the VPLs, the allocation and the
+/// strata.
 pub fn layout(
     scene: &Scene,
-    view: &LayoutView<'_>,
-    predicted: Option<&[f64]>,
+    views: &[&View],
+    predicted: Option<&[Vec<f64>]>,
     params: &LayoutParams,
 ) -> Result<(Vec<Vpl>, Allocation, Strata)> {
-    let strata = build_strata(scene, view, params)?;
+    let strata = build_strata(scene, views, predicted, params)?;
     let s = shares(&strata, predicted, params.alpha)?;
     let a = allocate(&strata, &s, params.budget)?;
     Ok((draw(&strata, &a, params.seed), a, strata))
@@ -776,7 +909,8 @@ mod tests {
     fn prediction(s: &Strata) -> Vec<f64> {
         (0..s.offscreen())
             .map(|c| {
-                let (x, y) = (c % s.cells_x, c / s.cells_x);
+                let cells_x = s.grids[0].cells_x;
+                let (x, y) = (c % cells_x, c / cells_x);
                 1.0 / (1.0 + (x + y) as f64)
             })
             .collect()
@@ -791,7 +925,7 @@ mod tests {
             cell_px: 8,
             ..LayoutParams::DEFAULT
         };
-        let s = build_strata(&scene, &fv.view(), &params).unwrap();
+        let s = build_strata(&scene, &[&fv.view()], None, &params).unwrap();
         assert_eq!(s.strata(), 4 * 4 + OFFSCREEN_BINS + 1);
         assert_eq!(s.emitters.len(), 32 * 32);
         // Reference by fine numerical integration over the floor.
@@ -830,12 +964,12 @@ mod tests {
                 light_rays,
                 ..LayoutParams::DEFAULT
             };
-            let s = build_strata(&scene, &fv.view(), &params).unwrap();
+            let s = build_strata(&scene, &[&fv.view()], None, &params).unwrap();
             let pred = prediction(&s);
             let total = s.luminance().iter().sum::<f64>();
             for budget in [1, 3, 16, 100, 256] {
                 for alpha in [0.0, 0.3, 1.0] {
-                    let sh = shares(&s, Some(&pred), alpha).unwrap();
+                    let sh = shares(&s, Some(std::slice::from_ref(&pred)), alpha).unwrap();
                     let a = allocate(&s, &sh, budget).unwrap();
                     assert_eq!(a.counts.iter().sum::<usize>() + a.pool_count, budget);
                     let lum = s.luminance();
@@ -863,10 +997,15 @@ mod tests {
             bounces: 1,
             ..LayoutParams::DEFAULT
         };
-        let s = build_strata(&scene, &fv.view(), &params).unwrap();
+        let s = build_strata(&scene, &[&fv.view()], None, &params).unwrap();
         let pred = prediction(&s);
         let uniform = allocate(&s, &shares(&s, None, 1.0).unwrap(), 256).unwrap();
-        let a0 = allocate(&s, &shares(&s, Some(&pred), 0.0).unwrap(), 256).unwrap();
+        let a0 = allocate(
+            &s,
+            &shares(&s, Some(std::slice::from_ref(&pred)), 0.0).unwrap(),
+            256,
+        )
+        .unwrap();
         assert_eq!(a0, uniform);
         // Uniform counts follow the flux.
         let lum = s.luminance();
@@ -875,7 +1014,12 @@ mod tests {
             assert!((n as f64 - 256.0 * lum[k] / total).abs() <= 1.0);
         }
         // Guided: the favoured top-left cell gains, the bottom-right one loses.
-        let a1 = allocate(&s, &shares(&s, Some(&pred), 1.0).unwrap(), 256).unwrap();
+        let a1 = allocate(
+            &s,
+            &shares(&s, Some(std::slice::from_ref(&pred)), 1.0).unwrap(),
+            256,
+        )
+        .unwrap();
         let last = s.offscreen() - 1;
         assert!(a1.counts[0] > uniform.counts[0]);
         assert!(a1.counts[last] < uniform.counts[last]);
@@ -890,10 +1034,10 @@ mod tests {
             budget: 64,
             ..LayoutParams::DEFAULT
         };
-        let (a, _, _) = layout(&scene, &fv.view(), None, &params).unwrap();
-        let (b, _, _) = layout(&scene, &fv.view(), None, &params).unwrap();
+        let (a, _, _) = layout(&scene, &[&fv.view()], None, &params).unwrap();
+        let (b, _, _) = layout(&scene, &[&fv.view()], None, &params).unwrap();
         params.seed = 9;
-        let (c, _, _) = layout(&scene, &fv.view(), None, &params).unwrap();
+        let (c, _, _) = layout(&scene, &[&fv.view()], None, &params).unwrap();
         assert_eq!(a, b);
         assert_ne!(a, c);
         for v in &a {
@@ -911,7 +1055,7 @@ mod tests {
             bounces: 1,
             ..LayoutParams::DEFAULT
         };
-        let s = build_strata(&scene, &fv.view(), &params).unwrap();
+        let s = build_strata(&scene, &[&fv.view()], None, &params).unwrap();
         let k = s.offscreen();
         let off = &s.emitters[s.start[k]..s.start[k + 1]];
         assert!(!off.is_empty());
@@ -921,7 +1065,8 @@ mod tests {
         // Later bounces add the light the walls and the ceiling pass on.
         let all = build_strata(
             &scene,
-            &fv.view(),
+            &[&fv.view()],
+            None,
             &LayoutParams {
                 bounces: MAX_BOUNCES,
                 ..params
@@ -1031,7 +1176,7 @@ mod tests {
             light_rays: 2000,
             ..LayoutParams::DEFAULT
         };
-        let mut s = build_strata(&scene, &fv.view(), &params).unwrap();
+        let mut s = build_strata(&scene, &[&fv.view()], None, &params).unwrap();
         let k0 = s.offscreen();
         assert_eq!(s.view_weight.len(), s.strata());
         assert!(s.view_weight[..k0].iter().all(|&v| v == 1.0));
@@ -1051,7 +1196,12 @@ mod tests {
             .sum();
         s.flux[last - 1] = Vec3::ZERO;
         let pred = vec![1.0; k0];
-        let a = allocate(&s, &shares(&s, Some(&pred), 1.0).unwrap(), 64).unwrap();
+        let a = allocate(
+            &s,
+            &shares(&s, Some(std::slice::from_ref(&pred)), 1.0).unwrap(),
+            64,
+        )
+        .unwrap();
         assert_eq!(a.counts[last], 1);
         let v = draw(&s, &a, 3);
         let total: f64 = v.iter().map(|v| f64::from(luminance(v.flux))).sum();
@@ -1074,30 +1224,29 @@ mod tests {
             light_rays: 0,
             ..LayoutParams::DEFAULT
         };
-        let s = build_strata(&scene, &fv.view(), &params).unwrap();
+        let s = build_strata(&scene, &[&fv.view()], None, &params).unwrap();
         assert!(shares(&s, None, 1.5).is_err());
-        assert!(shares(&s, Some(&[1.0]), 0.5).is_err());
+        assert!(shares(&s, Some(&[vec![1.0]]), 0.5).is_err());
+        assert!(shares(&s, Some(&[]), 0.5).is_err());
         let nan = vec![f64::NAN; s.offscreen()];
-        assert!(shares(&s, Some(&nan), 0.5).is_err());
+        assert!(shares(&s, Some(&[nan]), 0.5).is_err());
         assert!(allocate(&s, &[1.0], 5).is_err());
         assert!(allocate(&s, &vec![1.0; s.strata()], 0).is_err());
-        let mut v = fv.view();
-        v.diffuse_direct = &fv.diffuse_direct[..3];
         assert!(matches!(
-            build_strata(&scene, &v, &params),
+            build_strata(&scene, &[], None, &params),
+            Err(VplaceError::Empty { .. })
+        ));
+        let short = vec![vec![1.0; 3]];
+        assert!(matches!(
+            build_strata(&scene, &[&fv.view()], Some(&short), &params),
             Err(VplaceError::Shape { .. })
         ));
-        let v = LayoutView {
-            world_to_clip: Mat4::ZERO,
-            ..fv.view()
+        let dark = FloorView {
+            diffuse_direct: vec![0.0; fv.diffuse_direct.len()],
+            ..fv.clone()
         };
-        assert!(build_strata(&scene, &v, &params).is_err());
-        let dark = vec![0.0; fv.diffuse_direct.len()];
-        let v = LayoutView {
-            diffuse_direct: &dark,
-            ..fv.view()
-        };
-        let s = build_strata(&scene, &v, &params).unwrap();
+        let v = dark.view();
+        let s = build_strata(&scene, &[&v], None, &params).unwrap();
         assert!(matches!(
             shares(&s, None, 0.0),
             Err(VplaceError::Invalid { .. })

@@ -57,6 +57,7 @@ pub mod shading;
 mod shadow_cache;
 #[cfg(any(test, feature = "test-util"))]
 pub mod test_util;
+pub mod view;
 pub mod vpl;
 
 pub use color::{luminance, LUMINANCE};

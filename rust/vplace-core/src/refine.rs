@@ -2,8 +2,9 @@
 //! captured indirect image `I`, move budget toward cells with a high residual, repeat.
 //!
 //! Each iteration renders the VPL indirect image with [`evaluate`] on every `stride`-th pixel of
-//! the view (rows and columns), measures the error (RMSE over the covered pixels of that grid,
-//! RGB, linear) and the mean absolute luminance residual `r_k` of each cell. The shares move
+//! every view (rows and columns), measures the error (RMSE over the covered pixels of those
+//! grids, RGB, linear, all views together) and the mean absolute luminance residual `r_k` of each
+//! cell of each view. The shares move
 //! toward the residual-guided target `t_k ∝ lum(F_k) * r_k` (the off-screen stratum gets the
 //! flux-weighted mean residual): `q <- lerp(q, t, step)`. The loop stops when the error improves
 //! by less than `tolerance` (relative to the best so far) or after `max_iterations` evaluations,
@@ -19,14 +20,14 @@ use glam::Vec3;
 use std::time::Instant;
 
 use crate::color::luminance;
-use crate::error::{check_finite, Result, VplaceError};
+use crate::error::{Result, VplaceError};
 use crate::evaluator::{evaluate_cached, EvalParams, GBuffer, Progress};
 use crate::layout::{
-    allocate, blend, build_strata, draw, importance, shares, Allocation, LayoutParams, LayoutView,
-    Strata,
+    allocate, blend, build_strata, draw, importance, shares, Allocation, Grid, LayoutParams, Strata,
 };
 use crate::scene::Scene;
 use crate::shadow_cache::ShadowCache;
+use crate::view::View;
 use crate::vpl::Vpl;
 
 /// Settings of the iteration. `Copy`, with named presets.
@@ -101,7 +102,8 @@ impl Refined {
     }
 }
 
-/// The strided sub-image of a G-buffer: owned arrays plus the full-resolution cell of each pixel.
+/// The strided sub-image of a view: owned arrays plus the stratum index of each pixel's
+/// full-resolution cell.
 struct Strided {
     width: usize,
     height: usize,
@@ -113,66 +115,85 @@ struct Strided {
     cell: Vec<usize>,
 }
 
-fn strided(g: &GBuffer<'_>, indirect: &[f32], stride: usize, cell_px: usize) -> Strided {
-    let (w, h) = (g.width.div_ceil(stride), g.height.div_ceil(stride));
-    let cells_x = g.width.div_ceil(cell_px);
-    let mut s = Strided {
-        width: w,
-        height: h,
-        position: Vec::with_capacity(3 * w * h),
-        normal: Vec::with_capacity(3 * w * h),
-        albedo: Vec::with_capacity(3 * w * h),
-        covered: Vec::with_capacity(w * h),
-        indirect: Vec::with_capacity(3 * w * h),
-        cell: Vec::with_capacity(w * h),
-    };
-    for y in (0..g.height).step_by(stride) {
-        for x in (0..g.width).step_by(stride) {
-            let p = y * g.width + x;
-            let rgb = 3 * p..3 * p + 3;
-            s.position.extend_from_slice(&g.position[rgb.clone()]);
-            s.normal.extend_from_slice(&g.normal[rgb.clone()]);
-            s.albedo.extend_from_slice(&g.albedo[rgb.clone()]);
-            s.indirect.extend_from_slice(&indirect[rgb]);
-            s.covered.push(g.covered[p]);
-            s.cell.push((y / cell_px) * cells_x + x / cell_px);
+impl Strided {
+    /// Every `stride`-th pixel of `view` (which has its indirect image), rows and columns; the
+    /// cells of `grid`.
+    fn new(view: &View, indirect: &[f32], stride: usize, cell_px: usize, grid: &Grid) -> Self {
+        let (w, h) = (view.width.div_ceil(stride), view.height.div_ceil(stride));
+        let mut s = Self {
+            width: w,
+            height: h,
+            position: Vec::with_capacity(3 * w * h),
+            normal: Vec::with_capacity(3 * w * h),
+            albedo: Vec::with_capacity(3 * w * h),
+            covered: Vec::with_capacity(w * h),
+            indirect: Vec::with_capacity(3 * w * h),
+            cell: Vec::with_capacity(w * h),
+        };
+        for y in (0..view.height).step_by(stride) {
+            for x in (0..view.width).step_by(stride) {
+                let p = y * view.width + x;
+                let rgb = 3 * p..3 * p + 3;
+                s.position.extend_from_slice(&view.position[rgb.clone()]);
+                s.normal.extend_from_slice(&view.normal[rgb.clone()]);
+                s.albedo.extend_from_slice(&view.albedo[rgb.clone()]);
+                s.indirect.extend_from_slice(&indirect[rgb]);
+                s.covered.push(view.covered[p]);
+                s.cell
+                    .push(grid.start + (y / cell_px) * grid.cells_x + x / cell_px);
+            }
+        }
+        s
+    }
+
+    fn gbuffer(&self) -> GBuffer<'_> {
+        GBuffer {
+            width: self.width,
+            height: self.height,
+            position: &self.position,
+            normal: &self.normal,
+            albedo: &self.albedo,
+            covered: &self.covered,
         }
     }
-    s
 }
 
-/// Lays out VPLs for `view` and refines the allocation against the indirect image `indirect`
-/// (`I = G - D`, `H x W x 3`, finite on covered pixels). `predicted` is the predicted `dL` per
-/// cell (`cells_y x cells_x`) or `None` for the uniform start.
+/// The indirect image of each view, or an error naming the first view without one.
+pub(crate) fn targets<'a>(views: &[&'a View]) -> Result<Vec<&'a [f32]>> {
+    views
+        .iter()
+        .map(|v| {
+            v.indirect.as_deref().ok_or_else(|| VplaceError::Invalid {
+                what: format!("view {:?}", v.name),
+                reason: "it has no indirect image to compare the VPLs with".into(),
+            })
+        })
+        .collect()
+}
+
+/// Lays out VPLs for `views` and refines the allocation against their indirect images (each
+/// view needs one). `predicted` holds the fit's per-cell `dL` of each view, or is `None` for
+/// the uniform start.
 pub fn refine(
     scene: &Scene,
-    view: &LayoutView<'_>,
-    indirect: &[f32],
-    predicted: Option<&[f64]>,
+    views: &[&View],
+    predicted: Option<&[Vec<f64>]>,
     params: &RefineParams,
     progress: Option<&Progress>,
 ) -> Result<Refined> {
-    refine_with(scene, view, indirect, predicted, params, progress, true)
+    refine_with(scene, views, predicted, params, progress, true)
 }
 
 /// [`refine`], with (`reuse`) or without the reuse of shadow rays between iterations.
 fn refine_with(
     scene: &Scene,
-    view: &LayoutView<'_>,
-    indirect: &[f32],
-    predicted: Option<&[f64]>,
+    views: &[&View],
+    predicted: Option<&[Vec<f64>]>,
     params: &RefineParams,
     progress: Option<&Progress>,
     reuse: bool,
 ) -> Result<Refined> {
-    let g = &view.gbuffer;
-    if indirect.len() != 3 * g.width * g.height {
-        return Err(VplaceError::Shape {
-            what: "indirect".into(),
-            expected: format!("({}, {}, 3)", g.height, g.width),
-            got: format!("{} values", indirect.len()),
-        });
-    }
+    let indirect = targets(views)?;
     for (what, value, ok) in [
         ("stride", params.stride as f64, params.stride >= 1),
         (
@@ -191,47 +212,50 @@ fn refine_with(
             });
         }
     }
-    let strata = build_strata(scene, view, &params.layout)?;
+    let strata = build_strata(scene, views, predicted, &params.layout)?;
     let lp = &params.layout;
-    let sub = strided(g, indirect, params.stride, lp.cell_px);
-    for (i, _) in sub.covered.iter().enumerate().filter(|(_, &c)| c) {
-        check_finite("indirect (covered pixel)", &sub.indirect[3 * i..3 * i + 3])?;
-    }
-    let sub_g = GBuffer {
-        width: sub.width,
-        height: sub.height,
-        position: &sub.position,
-        normal: &sub.normal,
-        albedo: &sub.albedo,
-        covered: &sub.covered,
-    };
-    let covered = sub.covered.iter().filter(|&&c| c).count().max(1) as f64;
+    let subs: Vec<Strided> = views
+        .iter()
+        .zip(&indirect)
+        .zip(&strata.grids)
+        .map(|((v, ind), g)| Strided::new(v, ind, params.stride, lp.cell_px, g))
+        .collect();
+    let covered = subs
+        .iter()
+        .map(|s| s.covered.iter().filter(|&&c| c).count())
+        .sum::<usize>()
+        .max(1) as f64;
     let cells = strata.offscreen();
     let lum = strata.luminance();
     let mut q = shares(&strata, predicted, lp.alpha)?;
     let mut iterations: Vec<Iteration> = Vec::new();
     let mut best_vpls = Vec::new();
     let mut best = 0;
-    let mut cache = ShadowCache::default();
+    let mut caches: Vec<ShadowCache> = subs.iter().map(|_| ShadowCache::default()).collect();
     loop {
         let allocation = allocate(&strata, &q, lp.budget)?;
         let vpls = draw(&strata, &allocation, lp.seed);
         let start = Instant::now();
-        if !reuse {
-            cache = ShadowCache::default();
-        }
-        let (image, stats) =
-            evaluate_cached(scene, &sub_g, &vpls, &params.eval, progress, &mut cache)?;
         let mut sq = 0.0f64;
         let mut residual = vec![0.0f64; cells];
         let mut pixels = vec![0u32; cells];
-        for (p, _) in sub.covered.iter().enumerate().filter(|(_, &c)| c) {
-            let e = Vec3::from_slice(&image[3 * p..]);
-            let i = Vec3::from_slice(&sub.indirect[3 * p..]);
-            let d = e - i;
-            sq += f64::from(d.dot(d));
-            residual[sub.cell[p]] += f64::from(luminance(d).abs());
-            pixels[sub.cell[p]] += 1;
+        let (mut rays, mut reused) = (0, 0);
+        for (sub, cache) in subs.iter().zip(&mut caches) {
+            if !reuse {
+                *cache = ShadowCache::default();
+            }
+            let (image, stats) =
+                evaluate_cached(scene, &sub.gbuffer(), &vpls, &params.eval, progress, cache)?;
+            rays += stats.shadow_rays;
+            reused += cache.reused;
+            for (p, _) in sub.covered.iter().enumerate().filter(|(_, &c)| c) {
+                let e = Vec3::from_slice(&image[3 * p..]);
+                let i = Vec3::from_slice(&sub.indirect[3 * p..]);
+                let d = e - i;
+                sq += f64::from(d.dot(d));
+                residual[sub.cell[p]] += f64::from(luminance(d).abs());
+                pixels[sub.cell[p]] += 1;
+            }
         }
         let error = (sq / (3.0 * covered)).sqrt();
         let n = iterations.len();
@@ -243,8 +267,8 @@ fn refine_with(
         };
         iterations.push(Iteration {
             error,
-            shadow_rays: stats.shadow_rays,
-            reused_rays: cache.reused,
+            shadow_rays: rays,
+            reused_rays: reused,
             seconds: start.elapsed().as_secs_f64(),
             allocation,
         });
@@ -285,9 +309,15 @@ mod tests {
     /// A reference indirect image: the floor lit by many uniform VPLs.
     fn reference(scene: &Scene, fv: &FloorView) -> Vec<f32> {
         let vpls = crate::vpl::uniform_vpls(scene, 4000, 77).unwrap();
-        evaluate(scene, &fv.view().gbuffer, &vpls, &EvalParams::PREVIEW, None)
-            .unwrap()
-            .0
+        evaluate(
+            scene,
+            &fv.view().gbuffer(),
+            &vpls,
+            &EvalParams::PREVIEW,
+            None,
+        )
+        .unwrap()
+        .0
     }
 
     #[test]
@@ -312,7 +342,8 @@ mod tests {
                 ..RefineParams::DEFAULT
             };
             let pred: Vec<f64> = (0..16).map(|c| (c % 4) as f64).collect();
-            let r = refine(&scene, &fv.view(), &indirect, Some(&pred), &params, None).unwrap();
+            let v = fv.view_with(Some(&indirect));
+            let r = refine(&scene, &[&v], Some(&[pred]), &params, None).unwrap();
             assert!(!r.iterations.is_empty() && r.iterations.len() <= 5);
             let min = r
                 .iterations
@@ -338,7 +369,7 @@ mod tests {
     fn stops_on_tolerance_and_cap() {
         let scene = closed_box(vec![Light::point(LIGHT, Vec3::splat(20.0))]);
         let fv = FloorView::new(16, LIGHT, 20.0);
-        let indirect = reference(&scene, &fv);
+        let v = fv.view_with(Some(&reference(&scene, &fv)));
         let base = RefineParams {
             layout: LayoutParams {
                 budget: 16,
@@ -354,13 +385,13 @@ mod tests {
             max_iterations: 10,
             ..base
         };
-        let r = refine(&scene, &fv.view(), &indirect, None, &p, None).unwrap();
+        let r = refine(&scene, &[&v], None, &p, None).unwrap();
         assert_eq!(r.iterations.len(), 2);
         let p = RefineParams {
             max_iterations: 1,
             ..base
         };
-        let r = refine(&scene, &fv.view(), &indirect, None, &p, None).unwrap();
+        let r = refine(&scene, &[&v], None, &p, None).unwrap();
         assert_eq!(r.iterations.len(), 1);
         assert_eq!(r.best, 0);
         // Step 0: the allocation never moves, the error is constant: stops at the second.
@@ -369,7 +400,7 @@ mod tests {
             max_iterations: 10,
             ..base
         };
-        let r = refine(&scene, &fv.view(), &indirect, None, &p, None).unwrap();
+        let r = refine(&scene, &[&v], None, &p, None).unwrap();
         assert_eq!(r.iterations.len(), 2);
         assert_eq!(r.iterations[0].error, r.iterations[1].error);
     }
@@ -379,8 +410,16 @@ mod tests {
         let scene = closed_box(vec![Light::point(LIGHT, Vec3::splat(20.0))]);
         let fv = FloorView::new(8, LIGHT, 20.0);
         let indirect = vec![0.0; 8 * 8 * 3];
+        let v = fv.view_with(Some(&indirect));
         let ok = RefineParams::DEFAULT;
-        assert!(refine(&scene, &fv.view(), &indirect[..3], None, &ok, None).is_err());
+        assert!(matches!(
+            refine(&scene, &[&fv.view()], None, &ok, None),
+            Err(VplaceError::Invalid { .. })
+        ));
+        assert!(matches!(
+            refine(&scene, &[], None, &ok, None),
+            Err(VplaceError::Empty { .. })
+        ));
         for p in [
             RefineParams { stride: 0, ..ok },
             RefineParams {
@@ -394,16 +433,10 @@ mod tests {
             RefineParams { step: 2.0, ..ok },
         ] {
             assert!(matches!(
-                refine(&scene, &fv.view(), &indirect, None, &p, None),
+                refine(&scene, &[&v], None, &p, None),
                 Err(VplaceError::OutOfRange { .. })
             ));
         }
-        let mut bad = indirect.clone();
-        bad[2] = f32::NAN;
-        assert!(matches!(
-            refine(&scene, &fv.view(), &bad, None, &ok, None),
-            Err(VplaceError::NonFinite { .. })
-        ));
     }
 
     #[test]
@@ -411,7 +444,7 @@ mod tests {
         use crate::test_util::{box_with, BLOCKER};
         let scene = box_with(vec![Light::point(LIGHT, Vec3::splat(20.0))], &[BLOCKER]);
         let fv = FloorView::new(32, LIGHT, 20.0);
-        let indirect = reference(&scene, &fv);
+        let v = fv.view_with(Some(&reference(&scene, &fv)));
         let (mut reused, mut partial) = (0, false);
         for (alpha, stride, seed, budget) in [(1.0, 2, 1, 40), (0.5, 1, 7, 64), (0.0, 3, 3, 17)] {
             let params = RefineParams {
@@ -433,9 +466,8 @@ mod tests {
             let run = |reuse| {
                 refine_with(
                     &scene,
-                    &fv.view(),
-                    &indirect,
-                    Some(&pred),
+                    &[&v],
+                    Some(std::slice::from_ref(&pred)),
                     &params,
                     None,
                     reuse,

@@ -1,8 +1,8 @@
 //! Optional refit (DESIGN, Layout): non-negative least squares on the VPL powers against the
-//! captured indirect image `I`.
+//! indirect images `I` of one or more views at once.
 //!
 //! Column `j` of `A` is the contribution of VPL `j` (with its current flux) to the covered pixels
-//! of the strided grid (every `stride`-th pixel in x and y), RGB stacked, computed by the
+//! of every view's strided grid (every `stride`-th pixel in x and y), RGB stacked, computed by the
 //! evaluator's own shading term ([`crate::shading`]) with its shadow ray: entry for entry the
 //! evaluator's image before the sum over VPLs. `b` is `I` on the same rows. The refit solves
 //!
@@ -39,10 +39,12 @@ use rayon::prelude::*;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
-use crate::error::{check_finite, Result, VplaceError};
+use crate::error::{Result, VplaceError};
 use crate::evaluator::{check_r_min, validate_vpls, GBuffer, Progress};
+use crate::refine::targets;
 use crate::scene::Scene;
 use crate::shading::{Batch, Receiver, VplSoa};
+use crate::view::View;
 use crate::vpl::{Profile, Vpl};
 
 /// Settings of the refit. `Copy`, with a default.
@@ -153,10 +155,9 @@ fn pixel_rows(
 /// Traces the strided pixels `pixels` block by block and accumulates the normal equations.
 fn normal_equations(
     scene: &Scene,
-    gbuffer: &GBuffer,
+    sources: &[(GBuffer<'_>, &[f32])],
     vpls: &[Vpl],
-    target: &[f32],
-    pixels: &[usize],
+    pixels: &[(usize, usize)],
     params: &RefitParams,
     progress: Option<&Progress>,
 ) -> Result<Normal> {
@@ -195,8 +196,8 @@ fn normal_equations(
                 task_rows
                     .chunks_mut(3 * n)
                     .zip(task_pixels)
-                    .map(|(px_rows, &p)| {
-                        let recv = gbuffer.receiver(p, eps);
+                    .map(|(px_rows, &(v, p))| {
+                        let recv = sources[v].0.receiver(p, eps);
                         let occluded = |ray: &_| scene.occluded_ray(&mut state, ray);
                         pixel_rows(
                             &recv,
@@ -211,9 +212,9 @@ fn normal_equations(
                     .sum::<u64>()
             })
             .sum::<u64>();
-        for (k, &p) in chunk.iter().enumerate() {
+        for (k, &(v, p)) in chunk.iter().enumerate() {
             for c in 0..3 {
-                let b = f64::from(target[3 * p + c]);
+                let b = f64::from(sources[v].1[3 * p + c]);
                 out.btb += b * b;
                 let row = &rows[(3 * k + c) * n..(3 * k + c + 1) * n];
                 for (acc, &a) in out.atb.iter_mut().zip(row) {
@@ -364,14 +365,19 @@ fn nnls_bpp(
 /// errors 0.
 pub fn refit(
     scene: &Scene,
-    gbuffer: &GBuffer,
+    views: &[&View],
     vpls: &[Vpl],
-    indirect: &[f32],
     params: &RefitParams,
     progress: Option<&Progress>,
 ) -> Result<Refitted> {
     let start = Instant::now();
-    gbuffer.validate()?;
+    if views.is_empty() {
+        return Err(VplaceError::Empty {
+            what: "views".into(),
+            hint: "the refit needs at least one view with its indirect image".into(),
+        });
+    }
+    let targets = targets(views)?;
     validate_vpls(vpls)?;
     check_r_min(params.r_min)?;
     if vpls.is_empty() {
@@ -401,29 +407,21 @@ pub fn refit(
             expected: ">= 0 and finite".into(),
         });
     }
-    let (w, h) = (gbuffer.width, gbuffer.height);
-    if indirect.len() != 3 * w * h {
-        return Err(VplaceError::Shape {
-            what: "indirect".into(),
-            expected: format!("({h}, {w}, 3)"),
-            got: format!("{} values", indirect.len()),
-        });
-    }
-    for (p, _) in gbuffer.covered.iter().enumerate().filter(|(_, &c)| c) {
-        check_finite("indirect", &indirect[3 * p..3 * p + 3]).map_err(|_| {
-            VplaceError::NonFinite {
-                what: "indirect (covered pixel)".into(),
-                index: 3 * p,
-            }
-        })?;
-    }
-    let pixels: Vec<usize> = (0..h)
-        .step_by(params.stride)
-        .flat_map(|y| (0..w).step_by(params.stride).map(move |x| y * w + x))
-        .filter(|&p| gbuffer.covered[p])
+    let sources: Vec<(GBuffer<'_>, &[f32])> =
+        views.iter().map(|v| v.gbuffer()).zip(targets).collect();
+    let pixels: Vec<(usize, usize)> = views
+        .iter()
+        .enumerate()
+        .flat_map(|(v, view)| {
+            let (w, stride) = (view.width, params.stride);
+            (0..view.height)
+                .step_by(stride)
+                .flat_map(move |y| (0..w).step_by(stride).map(move |x| (v, y * w + x)))
+                .filter(|&(_, p)| view.covered[p])
+        })
         .collect();
     let n = vpls.len();
-    let ne = normal_equations(scene, gbuffer, vpls, indirect, &pixels, params, progress)?;
+    let ne = normal_equations(scene, &sources, vpls, &pixels, params, progress)?;
     let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
     let trace: f64 = (0..n).map(|i| ne.gram[i * n + i]).sum();
     let ones = vec![1.0f64; n];
@@ -517,9 +515,15 @@ mod tests {
     }
 
     fn render(scene: &Scene, fv: &FloorView, vpls: &[Vpl]) -> Vec<f32> {
-        evaluate(scene, &fv.view().gbuffer, vpls, &EvalParams::PREVIEW, None)
-            .unwrap()
-            .0
+        evaluate(
+            scene,
+            &fv.view().gbuffer(),
+            vpls,
+            &EvalParams::PREVIEW,
+            None,
+        )
+        .unwrap()
+        .0
     }
 
     fn params(stride: usize, ridge: f64) -> RefitParams {
@@ -543,15 +547,8 @@ mod tests {
             (2, 1e-5, 1e-3),
             (2, 1e-3, 5e-2),
         ] {
-            let r = refit(
-                &scene,
-                &fv.view().gbuffer,
-                &base,
-                &target,
-                &params(stride, ridge),
-                None,
-            )
-            .unwrap();
+            let v = fv.view_with(Some(&target));
+            let r = refit(&scene, &[&v], &base, &params(stride, ridge), None).unwrap();
             assert_eq!(r.pixels, 32usize.div_ceil(stride).pow(2));
             for (s, &t) in r.scales.iter().zip(&truth).take(6) {
                 assert!(
@@ -596,15 +593,8 @@ mod tests {
             }
         }
         let rmse = (sq / (3.0 * count as f64)).sqrt();
-        let r = refit(
-            &scene,
-            &fv.view().gbuffer,
-            &base,
-            &target,
-            &params(stride, 1e-3),
-            None,
-        )
-        .unwrap();
+        let v = fv.view_with(Some(&target));
+        let r = refit(&scene, &[&v], &base, &params(stride, 1e-3), None).unwrap();
         assert!(
             (r.error_before - rmse).abs() < 1e-5 * rmse,
             "{} {rmse}",
@@ -612,7 +602,7 @@ mod tests {
         );
         let (_, stats) = evaluate(
             &scene,
-            &fv.view().gbuffer,
+            &fv.view().gbuffer(),
             &base,
             &EvalParams::PREVIEW,
             None,
@@ -635,15 +625,8 @@ mod tests {
         let minus: Vec<f32> = all.iter().zip(&one).map(|(a, o)| a - 2.0 * o).collect();
         let negative: Vec<f32> = all.iter().map(|a| -a).collect();
         for (target, ridge) in [(&minus, 0.0), (&minus, 1e-2), (&negative, 1e-3)] {
-            let r = refit(
-                &scene,
-                &fv.view().gbuffer,
-                &base,
-                target,
-                &params(2, ridge),
-                None,
-            )
-            .unwrap();
+            let v = fv.view_with(Some(target));
+            let r = refit(&scene, &[&v], &base, &params(2, ridge), None).unwrap();
             assert!(r.scales.iter().all(|&s| s >= 0.0), "{:?}", r.scales);
             assert!(r.vpls.iter().all(|v| v.flux.min_element() >= 0.0));
             assert!(r.error_after <= r.error_before);
@@ -662,7 +645,8 @@ mod tests {
                 .map(|_| rng.next_f32() * 0.05 - 0.01)
                 .collect();
             let p = params(3, ridge);
-            let r = refit(&scene, &fv.view().gbuffer, &base, &target, &p, None).unwrap();
+            let v = fv.view_with(Some(&target));
+            let r = refit(&scene, &[&v], &base, &p, None).unwrap();
             assert!(r.error_after <= r.error_before, "{ridge}: {r:?}");
             // Same result on one thread and on three.
             for threads in [1, 3] {
@@ -671,7 +655,7 @@ mod tests {
                     .build()
                     .unwrap();
                 let again = pool
-                    .install(|| refit(&scene, &fv.view().gbuffer, &base, &target, &p, None))
+                    .install(|| refit(&scene, &[&v], &base, &p, None))
                     .unwrap();
                 assert_eq!(again.scales, r.scales);
                 assert_eq!(again.error_after, r.error_after);
@@ -740,8 +724,9 @@ mod tests {
                 }
                 // The normal equations of the reference rows (pixel-major, R G B per pixel).
                 let target: Vec<f32> = (0..3 * 144).map(|i| 0.01 * (i % 7) as f32).collect();
-                let ne =
-                    normal_equations(&scene, &g, &vpls, &target, &pixels, &params, None).unwrap();
+                let sources = [(g, &target[..])];
+                let pairs: Vec<(usize, usize)> = pixels.iter().map(|&p| (0, p)).collect();
+                let ne = normal_equations(&scene, &sources, &vpls, &pairs, &params, None).unwrap();
                 assert_eq!(ne.rays, expect_rays);
                 let (mut atb, mut gram) = (vec![0.0f64; n], vec![0.0f64; n * n]);
                 for (k, &p) in pixels.iter().enumerate() {
@@ -804,27 +789,25 @@ mod tests {
     fn bad_input_and_cancel() {
         let scene = closed_box(vec![]);
         let fv = FloorView::new(8, Vec3::new(0.0, 0.0, 1.0), 10.0);
-        let g = fv.view().gbuffer;
         let base = vpls();
         let target = vec![0.1f32; 8 * 8 * 3];
+        let v = fv.view_with(Some(&target));
         let ok = RefitParams::DEFAULT;
-        assert!(refit(&scene, &g, &base, &target, &ok, None).is_ok());
+        assert!(refit(&scene, &[&v], &base, &ok, None).is_ok());
         assert!(matches!(
-            refit(&scene, &g, &base, &target[..9], &ok, None),
-            Err(VplaceError::Shape { .. })
-        ));
-        let mut nan = target.clone();
-        nan[7] = f32::NAN;
-        assert!(matches!(
-            refit(&scene, &g, &base, &nan, &ok, None),
-            Err(VplaceError::NonFinite { index: 6, .. })
-        ));
-        assert!(matches!(
-            refit(&scene, &g, &[], &target, &ok, None),
+            refit(&scene, &[], &base, &ok, None),
             Err(VplaceError::Empty { .. })
         ));
         assert!(matches!(
-            refit(&scene, &g, &vec![base[0]; MAX_VPLS + 1], &target, &ok, None),
+            refit(&scene, &[&fv.view()], &base, &ok, None),
+            Err(VplaceError::Invalid { .. })
+        ));
+        assert!(matches!(
+            refit(&scene, &[&v], &[], &ok, None),
+            Err(VplaceError::Empty { .. })
+        ));
+        assert!(matches!(
+            refit(&scene, &[&v], &vec![base[0]; MAX_VPLS + 1], &ok, None),
             Err(VplaceError::OutOfRange { .. })
         ));
         for p in [
@@ -837,29 +820,62 @@ mod tests {
             RefitParams { r_min: -1.0, ..ok },
         ] {
             assert!(matches!(
-                refit(&scene, &g, &base, &target, &p, None),
+                refit(&scene, &[&v], &base, &p, None),
                 Err(VplaceError::OutOfRange { .. })
             ));
         }
-        // NaN on an uncovered pixel is fine; no covered pixel at all leaves the scales at 1.
-        let covered = vec![false; 64];
-        let g0 = GBuffer {
-            covered: &covered,
-            ..g
-        };
-        let r = refit(&scene, &g0, &base, &nan, &ok, None).unwrap();
+        // A NaN in the target masks its pixel when the view is made; no covered pixel at all
+        // leaves the scales at 1.
+        let mut nan = target.clone();
+        nan[7] = f32::NAN;
+        let masked = fv.view_with(Some(&nan));
+        assert_eq!(masked.masked_pixels, 1);
+        let r = refit(
+            &scene,
+            &[&masked],
+            &base,
+            &RefitParams { stride: 1, ..ok },
+            None,
+        )
+        .unwrap();
+        assert_eq!(r.pixels, 63);
+        let mut empty = v.clone();
+        empty.covered.fill(false);
+        let r = refit(&scene, &[&empty], &base, &ok, None).unwrap();
         assert!(r.scales.iter().all(|&s| s == 1.0));
         assert_eq!((r.pixels, r.error_before, r.error_after), (0, 0.0, 0.0));
         let progress = Progress::default();
         progress.cancel.store(true, Ordering::Relaxed);
         assert_eq!(
-            refit(&scene, &g, &base, &target, &ok, Some(&progress)).unwrap_err(),
+            refit(&scene, &[&v], &base, &ok, Some(&progress)).unwrap_err(),
             VplaceError::Cancelled
         );
         let progress = Progress::default();
-        refit(&scene, &g, &base, &target, &ok, Some(&progress)).unwrap();
+        refit(&scene, &[&v], &base, &ok, Some(&progress)).unwrap();
         let total = progress.total.load(Ordering::Relaxed);
         assert!(total >= 2);
         assert_eq!(progress.done.load(Ordering::Relaxed), total);
+    }
+
+    #[test]
+    fn two_views_stack_their_pixels() {
+        // The same floor seen twice is the one-view problem with every row twice: the same
+        // scales, twice the pixels.
+        let scene = closed_box(vec![]);
+        let fv = FloorView::new(16, Vec3::new(0.0, 0.0, 1.0), 10.0);
+        let base = vpls();
+        let target = render(
+            &scene,
+            &fv,
+            &scaled(&base, &[0.5, 2.0, 1.0, 0.0, 1.5, 0.8, 3.0]),
+        );
+        let v = fv.view_with(Some(&target));
+        let p = params(2, 1e-3);
+        let one = refit(&scene, &[&v], &base, &p, None).unwrap();
+        let two = refit(&scene, &[&v, &v], &base, &p, None).unwrap();
+        assert_eq!(two.pixels, 2 * one.pixels);
+        for (a, b) in one.scales.iter().zip(&two.scales) {
+            assert!((a - b).abs() < 1e-6, "{:?} {:?}", one.scales, two.scales);
+        }
     }
 }

@@ -493,8 +493,8 @@ impl Scene {
         (self.bounds_max - self.bounds_min).length().max(1e-6)
     }
 
-    /// The default near-field radius `r_min` of this scene: [`NEAR_FIELD_FRACTION`] of the
-    /// diagonal (the layout's view efficiency uses it; see [`crate::shading::near_field`]).
+    /// The default near-field radius of the scene's VPLs: [`NEAR_FIELD_FRACTION`] of the
+    /// diagonal (VPL spacing grows with the scene; see [`crate::shading::near_field`]).
     #[must_use]
     pub fn near_field_radius(&self) -> f32 {
         NEAR_FIELD_FRACTION * self.diagonal()

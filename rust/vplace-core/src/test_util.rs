@@ -10,10 +10,10 @@ use std::f32::consts::PI;
 
 use crate::evaluator::GBuffer;
 use crate::features::{FeatureInput, StrongestLight, FEATURE_COUNT};
-use crate::layout::LayoutView;
 use crate::rng::Rng;
 use crate::scene::{Light, Scene};
 use crate::shading::near_field;
+use crate::view::{Camera, View, ViewInput};
 use crate::vpl::{Profile, Vpl};
 
 /// An open box `[-1, 1]^2 x [0, 2]` (floor, four walls, ceiling) with inward-facing
@@ -201,15 +201,43 @@ impl FloorView {
         s
     }
 
-    /// The layout's view of the arrays.
+    /// The view without an indirect image: direct light `DiffDir * albedo`, depth 1.9.
     #[must_use]
-    pub fn view(&self) -> LayoutView<'_> {
-        LayoutView {
-            gbuffer: self.gbuffer.gbuffer(),
+    pub fn view(&self) -> View {
+        self.view_with(None)
+    }
+
+    /// The view with the indirect image `indirect` (`w x w x 3`), or without one.
+    #[must_use]
+    pub fn view_with(&self, indirect: Option<&[f32]>) -> View {
+        let g = &self.gbuffer;
+        let direct: Vec<f32> = self
+            .diffuse_direct
+            .iter()
+            .zip(&g.albedo)
+            .map(|(d, a)| d * a)
+            .collect();
+        let depth = vec![self.camera.z; g.width * g.height];
+        View::new(&ViewInput {
+            name: "floor",
+            width: g.width,
+            height: g.height,
+            position: &g.position,
+            normal: &g.normal,
+            albedo: &g.albedo,
+            covered: &g.covered,
+            depth: &depth,
+            direct: &direct,
             diffuse_direct: &self.diffuse_direct,
-            camera_position: self.camera,
-            world_to_clip: self.world_to_clip,
-        }
+            diffuse_indirect: None,
+            indirect,
+            specular: None,
+            camera: Camera {
+                position: self.camera,
+                world_to_clip: self.world_to_clip,
+            },
+        })
+        .expect("the floor view is a valid view")
     }
 }
 
@@ -222,8 +250,8 @@ pub struct Passes {
     pub depth: Vec<f32>,
     /// Direct light (`H x W x 3`).
     pub direct: Vec<f32>,
-    /// Direct plus indirect light (`H x W x 3`).
-    pub gi: Vec<f32>,
+    /// Indirect light (`H x W x 3`), the label's source.
+    pub indirect: Vec<f32>,
     /// The strongest light.
     pub light: StrongestLight,
 }
@@ -244,13 +272,13 @@ impl Passes {
             },
             depth: vec![1e10; n],
             direct: vec![0.0; 3 * n],
-            gi: vec![0.0; 3 * n],
+            indirect: vec![0.0; 3 * n],
             light: StrongestLight::Position(light),
         }
     }
 
     /// A flat grid: pixel `(x, y)` at world `(x, y, 0)`, normal `+Z`, albedo 0.5, depth
-    /// `2 + y`, direct 0.25, gi `0.25 + 0.01 x`; covered where `x < w / 2` or `y < h / 2`; a
+    /// `2 + y`, direct 0.25, indirect `0.01 x`; covered where `x < w / 2` or `y < h / 2`; a
     /// point light at `(0, 0, 10)`. Values simple enough to check cell means by hand.
     #[must_use]
     pub fn grid(w: usize, h: usize) -> Self {
@@ -264,14 +292,14 @@ impl Passes {
                 b.gbuffer.normal[3 * i + 2] = 1.0;
                 b.depth[i] = 2.0 + y as f32;
                 b.direct[3 * i..3 * i + 3].fill(0.25);
-                b.gi[3 * i..3 * i + 3].fill(0.25 + 0.01 * x as f32);
+                b.indirect[3 * i..3 * i + 3].fill(0.01 * x as f32);
             }
         }
         b
     }
 
     /// A synthetic room view: a floor (lower 40 %), a back wall, a checker albedo of 64-pixel
-    /// squares, 8 % background (top right), direct and gi with a little noise from a fixed seed;
+    /// squares, 8 % background (top right), direct and indirect light with a little noise from a fixed seed;
     /// a point light at `(0, 1, 2.5)`. The features benchmark's input.
     #[must_use]
     pub fn room(w: usize, h: usize) -> Self {
@@ -304,13 +332,13 @@ impl Passes {
                 p.gbuffer.albedo[3 * i..3 * i + 3].fill(alb);
                 p.depth[i] = 1.0 + 5.0 * (1.0 - v) + u;
                 p.direct[3 * i..3 * i + 3].fill(d);
-                p.gi[3 * i..3 * i + 3].fill(g);
+                p.indirect[3 * i..3 * i + 3].fill(g - d);
             }
         }
         p
     }
 
-    /// The feature extraction's view of the passes (gi given, no specular pass).
+    /// The feature extraction's view of the passes (indirect given, no specular pass).
     #[must_use]
     pub fn input(&self) -> FeatureInput<'_> {
         let g = &self.gbuffer;
@@ -322,7 +350,7 @@ impl Passes {
             albedo: &g.albedo,
             depth: &self.depth,
             direct: &self.direct,
-            gi: Some(&self.gi),
+            indirect: Some(&self.indirect),
             specular: None,
             covered: &g.covered,
             light: Some(self.light),

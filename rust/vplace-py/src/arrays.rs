@@ -5,7 +5,6 @@ use numpy::{
     PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
-use vplace_core::evaluator::GBuffer;
 
 use crate::errors::input_error;
 
@@ -85,71 +84,4 @@ pub fn array<'py, T: Element>(
 pub fn slice<'a, T: Element>(a: &'a PyReadonlyArrayDyn<'_, T>, name: &str) -> PyResult<&'a [T]> {
     a.as_slice()
         .map_err(|_| input_error(format!("{name} must be C-contiguous")))
-}
-
-/// The four arrays every G-buffer call takes, checked against each other: `position`
-/// (H, W, 3) float32 fixes H and W; `normal`, `albedo` (H, W, 3) float32; `covered` (H, W) bool.
-pub struct GBufferArrays<'py> {
-    /// Image height, pixels.
-    pub height: usize,
-    /// Image width, pixels.
-    pub width: usize,
-    position: PyReadonlyArrayDyn<'py, f32>,
-    normal: PyReadonlyArrayDyn<'py, f32>,
-    albedo: PyReadonlyArrayDyn<'py, f32>,
-    covered: PyReadonlyArrayDyn<'py, bool>,
-}
-
-impl<'py> GBufferArrays<'py> {
-    /// Reads and checks the four arrays.
-    pub fn read(
-        position: &Bound<'py, PyAny>,
-        normal: &Bound<'py, PyAny>,
-        albedo: &Bound<'py, PyAny>,
-        covered: &Bound<'py, PyAny>,
-    ) -> PyResult<Self> {
-        let pos = array::<f32>(
-            position,
-            "position",
-            &[Dim::Any, Dim::Any, Dim::Is(3)],
-            "float32",
-        )?;
-        let (height, width) = (pos.shape()[0], pos.shape()[1]);
-        let img3 = [Dim::Is(height), Dim::Is(width), Dim::Is(3)];
-        Ok(Self {
-            height,
-            width,
-            normal: array::<f32>(normal, "normal", &img3, "float32")?,
-            albedo: array::<f32>(albedo, "albedo", &img3, "float32")?,
-            covered: array::<bool>(
-                covered,
-                "covered",
-                &[Dim::Is(height), Dim::Is(width)],
-                "bool",
-            )?,
-            position: pos,
-        })
-    }
-
-    /// The expected shape of a further (H, W, 3) image.
-    pub fn img3(&self) -> [Dim; 3] {
-        [Dim::Is(self.height), Dim::Is(self.width), Dim::Is(3)]
-    }
-
-    /// The expected shape of a further (H, W) image.
-    pub fn img1(&self) -> [Dim; 2] {
-        [Dim::Is(self.height), Dim::Is(self.width)]
-    }
-
-    /// The core's view of the arrays.
-    pub fn gbuffer(&self) -> PyResult<GBuffer<'_>> {
-        Ok(GBuffer {
-            width: self.width,
-            height: self.height,
-            position: slice(&self.position, "position")?,
-            normal: slice(&self.normal, "normal")?,
-            albedo: slice(&self.albedo, "albedo")?,
-            covered: slice(&self.covered, "covered")?,
-        })
-    }
 }

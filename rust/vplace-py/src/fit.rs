@@ -1,17 +1,28 @@
-//! Features and regression: the registry, per-cell extraction, and the fits (on a capture or
-//! on a given design matrix).
+//! Features and regression: the registry, per-cell extraction, and the `Fit` model (fitted on
+//! views or on a given design matrix).
 
 use glam::Vec3;
 use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
+use std::sync::Arc;
 use vplace_core::{
-    features::{self, CellFeatures, FeatureInput, StrongestLight, FEATURES, FEATURE_COUNT},
+    features::{
+        self, CellFeatures, CellModel, FeatureInput, MinMax, StrongestLight, ViewFit, FEATURES,
+        FEATURE_COUNT,
+    },
     regression::{self, DropReason, Fit, FitParams},
+    view::View,
 };
 
-use crate::arrays::{array, slice, Dim, GBufferArrays};
+use crate::arrays::{array, slice, Dim};
 use crate::errors::{input_error, run};
+use crate::scene::PyScene;
+use crate::view::{views_of, PyView};
+
+/// Saved-model format name and version (`Fit.to_json`).
+const FORMAT: &str = "vplace.fit";
+const VERSION: u32 = 2;
 
 /// The feature registry: a list of `(name, doc, origin)` with origin `"paper"` or `"ours"`, in
 /// column order.
@@ -27,6 +38,513 @@ fn feature_registry() -> Vec<(&'static str, &'static str, &'static str)> {
             (f.name, f.doc, origin)
         })
         .collect()
+}
+
+/// What a model is fitted on.
+#[derive(Clone)]
+enum Model {
+    /// The cells of captured views: predicts other views.
+    Views(CellModel),
+    /// A given design matrix.
+    Design(Fit),
+}
+
+/// A fitted linear model of the per-cell label (or of a given design) and its diagnostics.
+#[pyclass(name = "Fit", module = "vplace._native", frozen)]
+pub struct PyFit {
+    names: Vec<String>,
+    model: Model,
+    /// `(name, why)` of every dropped column, in the order they were dropped.
+    dropped: Vec<(String, String)>,
+}
+
+fn reason_text(r: &DropReason, names: &[String]) -> String {
+    match r {
+        DropReason::Unavailable(why) => format!("unavailable: {why}"),
+        DropReason::Constant => "constant over the cells".into(),
+        DropReason::ConstantLabel => "the label is constant".into(),
+        DropReason::Collinear { residual, with } => {
+            let with: Vec<&str> = with.iter().map(|&j| names[j].as_str()).collect();
+            let with = if with.is_empty() {
+                "the intercept".to_owned()
+            } else {
+                with.join(", ")
+            };
+            format!("collinear with {with} (residual {residual:.1e})")
+        }
+        DropReason::NoCvGain {
+            cv_r2_with,
+            cv_r2_without,
+        } => format!("no CV gain (CV R^2 {cv_r2_with:.4} with, {cv_r2_without:.4} without)"),
+    }
+}
+
+impl PyFit {
+    fn new(names: Vec<String>, model: Model) -> Self {
+        let fit = match &model {
+            Model::Views(m) => &m.fit,
+            Model::Design(f) => f,
+        };
+        let dropped = fit
+            .dropped
+            .iter()
+            .map(|(j, r)| (names[*j].clone(), reason_text(r, &names)))
+            .collect();
+        Self {
+            names,
+            model,
+            dropped,
+        }
+    }
+
+    fn fit(&self) -> &Fit {
+        match &self.model {
+            Model::Views(m) => &m.fit,
+            Model::Design(f) => f,
+        }
+    }
+
+    fn cells(&self) -> PyResult<&CellModel> {
+        match &self.model {
+            Model::Views(m) => Ok(m),
+            Model::Design(_) => Err(input_error(
+                "this model was fitted on a design matrix; use predict_design",
+            )),
+        }
+    }
+
+    fn views(&self) -> &[ViewFit] {
+        match &self.model {
+            Model::Views(m) => &m.views,
+            Model::Design(_) => &[],
+        }
+    }
+
+    /// The core model, for the layout.
+    pub fn cell_model(&self) -> PyResult<&CellModel> {
+        self.cells()
+    }
+}
+
+fn light_tuple(l: StrongestLight) -> (&'static str, [f32; 3]) {
+    match l {
+        StrongestLight::Position(p) => ("position", p.to_array()),
+        StrongestLight::Direction(d) => ("direction", d.to_array()),
+    }
+}
+
+#[pymethods]
+impl PyFit {
+    /// Names of every design column (the feature registry for a fit on views).
+    #[getter]
+    fn feature_names(&self) -> Vec<String> {
+        self.names.clone()
+    }
+
+    /// The kept columns, in registry order.
+    #[getter]
+    fn kept(&self) -> Vec<String> {
+        self.fit()
+            .kept
+            .iter()
+            .map(|&j| self.names[j].clone())
+            .collect()
+    }
+
+    /// Each dropped column with the reason, in the order they were dropped.
+    #[getter]
+    fn dropped<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (name, why) in &self.dropped {
+            d.set_item(name, why)?;
+        }
+        Ok(d)
+    }
+
+    /// `b0`, on the (normalized) design scale.
+    #[getter]
+    fn intercept(&self) -> f64 {
+        self.fit().intercept
+    }
+
+    /// `b_j` of each kept column.
+    #[getter]
+    fn coefficients<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let f = self.fit();
+        let d = PyDict::new(py);
+        for &j in &f.kept {
+            d.set_item(&self.names[j], f.coefficients[j])?;
+        }
+        Ok(d)
+    }
+
+    /// `|b_j| / sum |b_k|` of each kept column: sums to 1, or all zero when every coefficient is.
+    #[getter]
+    fn weights<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let f = self.fit();
+        let d = PyDict::new(py);
+        for &j in &f.kept {
+            d.set_item(&self.names[j], f.weights[j])?;
+        }
+        Ok(d)
+    }
+
+    /// R^2 on the fitted rows.
+    #[getter]
+    fn r2(&self) -> f64 {
+        self.fit().r2
+    }
+
+    /// Adjusted R^2, or None when there are too few rows.
+    #[getter]
+    fn adjusted_r2(&self) -> Option<f64> {
+        self.fit().adjusted_r2
+    }
+
+    /// Cross-validated R^2 of the kept columns, when CV ran.
+    #[getter]
+    fn cv_r2(&self) -> Option<f64> {
+        self.fit().cv_r2
+    }
+
+    /// CV folds used (0: no CV).
+    #[getter]
+    fn folds(&self) -> usize {
+        self.fit().folds
+    }
+
+    /// Condition number of the standardized design of the kept columns.
+    #[getter]
+    fn condition_number(&self) -> f64 {
+        self.fit().condition_number
+    }
+
+    /// Numerical rank of that design.
+    #[getter]
+    fn rank(&self) -> usize {
+        self.fit().rank
+    }
+
+    /// Ridge term of the fallback solve (0 when unused).
+    #[getter]
+    fn ridge_lambda(&self) -> f64 {
+        self.fit().ridge_lambda
+    }
+
+    /// Rows fitted (cells of every view, or design rows).
+    #[getter]
+    fn n_cells(&self) -> usize {
+        self.fit().n
+    }
+
+    /// Fitted value of every row (empty for a loaded model).
+    #[getter]
+    fn fitted<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.fit().fitted)
+    }
+
+    /// Cell size in pixels, or None for a design fit.
+    #[getter]
+    fn cell_px(&self) -> Option<usize> {
+        self.cells().ok().map(|m| m.cell_px)
+    }
+
+    /// The light of the light-cosine feature, `("position" | "direction", xyz)`, or None.
+    #[getter]
+    fn light(&self) -> Option<(&'static str, [f32; 3])> {
+        self.cells().ok().and_then(|m| m.light).map(light_tuple)
+    }
+
+    /// Names of the views fitted on, in order.
+    #[getter]
+    fn view_names(&self) -> Vec<String> {
+        self.views().iter().map(|v| v.name.clone()).collect()
+    }
+
+    /// R^2 of each fitted view over its own cells (None where its label is constant).
+    #[getter]
+    fn view_r2<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for v in self.views() {
+            d.set_item(&v.name, v.r2)?;
+        }
+        Ok(d)
+    }
+
+    /// Cells without a usable pixel, over every fitted view.
+    #[getter]
+    fn empty_cells(&self) -> usize {
+        self.views().iter().map(|v| v.empty_cells).sum()
+    }
+
+    /// Covered pixels masked for non-finite passes, over every fitted view.
+    #[getter]
+    fn masked_pixels(&self) -> usize {
+        self.views().iter().map(|v| v.masked_pixels).sum()
+    }
+
+    /// Min-Max lower bound of every feature over the fitted cells, or None for a design fit.
+    #[getter]
+    fn feature_min(&self) -> Option<Vec<f64>> {
+        self.cells().ok().map(|m| m.ranges.min.clone())
+    }
+
+    /// Min-Max upper bound of every feature over the fitted cells, or None for a design fit.
+    #[getter]
+    fn feature_max(&self) -> Option<Vec<f64>> {
+        self.cells().ok().map(|m| m.ranges.max.clone())
+    }
+
+    /// The predicted label of every cell of `view` (float64 (cells_y, cells_x), 0 where a cell
+    /// sees no geometry); the view needs no indirect image.
+    fn predict<'py>(&self, py: Python<'py>, view: &PyView) -> PyResult<Bound<'py, PyAny>> {
+        let model = self.cells()?.clone();
+        let v = Arc::clone(&view.inner);
+        let c = model.cell_px;
+        let (cy, cx) = (v.height.div_ceil(c), v.width.div_ceil(c));
+        let out = run(py, move || model.predict_view(&v))?;
+        Ok(PyArray1::from_vec(py, out).reshape([cy, cx])?.into_any())
+    }
+
+    /// The prediction for rows of the design columns (float64 (n, len(feature_names))).
+    fn predict_design<'py>(
+        &self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let p = self.names.len();
+        let xa = array::<f64>(x, "x", &[Dim::Any, Dim::Is(p)], "float64")?;
+        let xs = slice(&xa, "x")?;
+        let f = self.fit().clone();
+        Ok(PyArray1::from_vec(py, run(py, move || f.predict(xs))?))
+    }
+
+    /// The model as JSON (everything but the fitted values).
+    fn to_json(&self, py: Python<'_>) -> PyResult<String> {
+        let f = self.fit();
+        let d = PyDict::new(py);
+        d.set_item("format", FORMAT)?;
+        d.set_item("version", VERSION)?;
+        d.set_item("feature_names", &self.names)?;
+        d.set_item("n", f.n)?;
+        d.set_item("intercept", f.intercept)?;
+        d.set_item("coefficients", &f.coefficients)?;
+        d.set_item("weights", &f.weights)?;
+        d.set_item("kept", &f.kept)?;
+        d.set_item("dropped", self.dropped.clone())?;
+        d.set_item("r2", f.r2)?;
+        d.set_item("adjusted_r2", f.adjusted_r2)?;
+        d.set_item("cv_r2", f.cv_r2)?;
+        d.set_item("folds", f.folds)?;
+        let cond = f.condition_number;
+        d.set_item("condition_number", cond.is_finite().then_some(cond))?;
+        d.set_item("rank", f.rank)?;
+        d.set_item("ridge_lambda", f.ridge_lambda)?;
+        if let Model::Views(m) = &self.model {
+            d.set_item("cell_px", m.cell_px)?;
+            d.set_item("feature_min", &m.ranges.min)?;
+            d.set_item("feature_max", &m.ranges.max)?;
+            d.set_item("light", m.light.map(light_tuple))?;
+            let views = PyList::empty(py);
+            for v in &m.views {
+                let e = PyDict::new(py);
+                e.set_item("name", &v.name)?;
+                e.set_item("cells", v.cells)?;
+                e.set_item("empty_cells", v.empty_cells)?;
+                e.set_item("masked_pixels", v.masked_pixels)?;
+                e.set_item("r2", v.r2)?;
+                views.append(e)?;
+            }
+            d.set_item("views", views)?;
+        }
+        let json = py.import("json")?;
+        json.call_method1("dumps", (d,))?.extract()
+    }
+
+    /// Loads a model saved by `to_json`.
+    #[staticmethod]
+    fn from_json(py: Python<'_>, text: &str) -> PyResult<Self> {
+        let bad =
+            |what: &str| input_error(format!("not a {FORMAT} version {VERSION} document: {what}"));
+        let json = py.import("json")?;
+        let d = json
+            .call_method1("loads", (text,))
+            .map_err(|_| bad("invalid JSON"))?;
+        let d = d.cast::<PyDict>().map_err(|_| bad("not an object"))?;
+        let get = |k: &str| -> PyResult<Bound<'_, PyAny>> {
+            d.get_item(k)?.ok_or_else(|| bad(&format!("no {k:?}")))
+        };
+        if get("format")?.extract::<String>().ok().as_deref() != Some(FORMAT)
+            || get("version")?.extract::<u32>().ok() != Some(VERSION)
+        {
+            return Err(bad("wrong format or version"));
+        }
+        let ex = |k: &str| -> PyResult<Bound<'_, PyAny>> { get(k) };
+        let names: Vec<String> = ex("feature_names")?.extract()?;
+        let p = names.len();
+        let coefficients: Vec<f64> = ex("coefficients")?.extract()?;
+        let weights: Vec<f64> = ex("weights")?.extract()?;
+        let kept: Vec<usize> = ex("kept")?.extract()?;
+        if coefficients.len() != p || weights.len() != p || kept.iter().any(|&j| j >= p) {
+            return Err(bad("columns do not match the feature names"));
+        }
+        let cond: Option<f64> = ex("condition_number")?.extract()?;
+        let fit = Fit {
+            p,
+            n: ex("n")?.extract()?,
+            intercept: ex("intercept")?.extract()?,
+            coefficients,
+            weights,
+            kept,
+            dropped: Vec::new(),
+            r2: ex("r2")?.extract()?,
+            adjusted_r2: ex("adjusted_r2")?.extract()?,
+            cv_r2: ex("cv_r2")?.extract()?,
+            folds: ex("folds")?.extract()?,
+            condition_number: cond.unwrap_or(f64::INFINITY),
+            rank: ex("rank")?.extract()?,
+            ridge_lambda: ex("ridge_lambda")?.extract()?,
+            fitted: Vec::new(),
+        };
+        let dropped: Vec<(String, String)> = ex("dropped")?
+            .extract::<Vec<Vec<String>>>()?
+            .into_iter()
+            .map(|pair| match <[String; 2]>::try_from(pair) {
+                Ok([name, why]) => Ok((name, why)),
+                Err(_) => Err(bad("dropped entries must be [name, reason]")),
+            })
+            .collect::<PyResult<_>>()?;
+        let model = if d.contains("cell_px")? {
+            if p != FEATURE_COUNT {
+                return Err(bad("a view model needs every registered feature"));
+            }
+            let light = ex("light")?;
+            let light = if light.is_none() {
+                None
+            } else {
+                let (k, v): (String, [f32; 3]) =
+                    (light.get_item(0)?.extract()?, light.get_item(1)?.extract()?);
+                match k.as_str() {
+                    "position" => Some(StrongestLight::Position(Vec3::from_array(v))),
+                    "direction" => Some(StrongestLight::Direction(Vec3::from_array(v))),
+                    _ => return Err(bad("light kind")),
+                }
+            };
+            let mut views = Vec::new();
+            for v in ex("views")?.cast::<PyList>()?.iter() {
+                let v = v.cast::<PyDict>()?;
+                let item = |k: &str| -> PyResult<Bound<'_, PyAny>> {
+                    v.get_item(k)?
+                        .ok_or_else(|| bad(&format!("view without {k:?}")))
+                };
+                views.push(ViewFit {
+                    name: item("name")?.extract()?,
+                    cells: item("cells")?.extract()?,
+                    empty_cells: item("empty_cells")?.extract()?,
+                    masked_pixels: item("masked_pixels")?.extract()?,
+                    r2: item("r2")?.extract()?,
+                });
+            }
+            let min: Vec<f64> = ex("feature_min")?.extract()?;
+            let max: Vec<f64> = ex("feature_max")?.extract()?;
+            if min.len() != p || max.len() != p {
+                return Err(bad("feature ranges"));
+            }
+            Model::Views(CellModel {
+                ranges: MinMax { min, max },
+                fit,
+                cell_px: ex("cell_px")?.extract()?,
+                light,
+                views,
+            })
+        } else {
+            Model::Design(fit)
+        };
+        Ok(Self {
+            names,
+            model,
+            dropped,
+        })
+    }
+
+    /// The model as a readable table.
+    fn __str__(&self) -> String {
+        let f = self.fit();
+        let num = |v: Option<f64>| v.map_or("n/a".to_owned(), |v| format!("{v:.4}"));
+        let mut head = format!("vplace fit: {} cells", f.n);
+        if let Model::Views(m) = &self.model {
+            head += &format!(
+                " of {} px from {} view(s) ({} without geometry excluded, {} non-finite pixels masked)",
+                m.cell_px,
+                m.views.len(),
+                self.empty_cells(),
+                self.masked_pixels()
+            );
+        }
+        let cv = if f.folds > 0 {
+            format!("CV R^2 ({}-fold) {}", f.folds, num(f.cv_r2))
+        } else {
+            "CV R^2 n/a".to_owned()
+        };
+        let ridge = if f.ridge_lambda > 0.0 {
+            format!("   ridge lambda {:.2e}", f.ridge_lambda)
+        } else {
+            String::new()
+        };
+        let mut lines = vec![
+            head,
+            format!(
+                "R^2 {}   adjusted R^2 {}   {cv}",
+                num(Some(f.r2)),
+                num(f.adjusted_r2)
+            ),
+            format!(
+                "condition number {:.3e}   rank {}{ridge}",
+                f.condition_number, f.rank
+            ),
+        ];
+        if self.views().len() > 1 {
+            for v in self.views() {
+                lines.push(format!(
+                    "  view {:?}: {} cells, R^2 {}",
+                    v.name,
+                    v.cells,
+                    num(v.r2)
+                ));
+            }
+        }
+        lines.push(String::new());
+        lines.push(format!(
+            "{:<20} {:>14} {:>8}",
+            "feature", "coefficient", "weight"
+        ));
+        lines.push(format!("{:<20} {:>14.6e}", "intercept", f.intercept));
+        let mut order = f.kept.clone();
+        order.sort_by(|&a, &b| f.weights[b].total_cmp(&f.weights[a]).then(a.cmp(&b)));
+        for j in order {
+            lines.push(format!(
+                "{:<20} {:>14.6e} {:>8.4}",
+                self.names[j], f.coefficients[j], f.weights[j]
+            ));
+        }
+        if !self.dropped.is_empty() {
+            lines.push(String::new());
+            lines.push("dropped:".to_owned());
+            for (name, why) in &self.dropped {
+                lines.push(format!("  {name:<20} {why}"));
+            }
+        }
+        lines.join("\n")
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Fit({} rows, kept {:?}, R^2 {:.4})",
+            self.fit().n,
+            self.kept(),
+            self.fit().r2
+        )
+    }
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -50,65 +568,14 @@ fn fit_params(
     }
 }
 
-fn light(
-    position: Option<[f32; 3]>,
-    direction: Option<[f32; 3]>,
-) -> PyResult<Option<StrongestLight>> {
-    match (position, direction) {
-        (Some(_), Some(_)) => Err(input_error(
-            "give light_position or light_direction, not both",
-        )),
-        (Some(p), None) => Ok(Some(StrongestLight::Position(Vec3::from_array(p)))),
-        (None, Some(d)) => Ok(Some(StrongestLight::Direction(Vec3::from_array(d)))),
-        (None, None) => Ok(None),
-    }
+fn registry_names() -> Vec<String> {
+    FEATURES.iter().map(|f| f.name.to_owned()).collect()
 }
 
-/// Runs `f` on a checked [`FeatureInput`] built from the numpy passes.
-#[allow(clippy::too_many_arguments)]
-fn with_input<'py, T: Send>(
-    py: Python<'py>,
-    position: &Bound<'py, PyAny>,
-    normal: &Bound<'py, PyAny>,
-    albedo: &Bound<'py, PyAny>,
-    depth: &Bound<'py, PyAny>,
-    direct: &Bound<'py, PyAny>,
-    covered: &Bound<'py, PyAny>,
-    gi: Option<&Bound<'py, PyAny>>,
-    specular: Option<&Bound<'py, PyAny>>,
-    light: Option<StrongestLight>,
-    f: impl FnOnce(&FeatureInput<'_>) -> vplace_core::Result<T> + Send,
-) -> PyResult<T> {
-    let arrays = GBufferArrays::read(position, normal, albedo, covered)?;
-    let (img3, img1) = (arrays.img3(), arrays.img1());
-    let dep = array::<f32>(depth, "depth", &img1, "float32")?;
-    let dir = array::<f32>(direct, "direct", &img3, "float32")?;
-    let gi = gi
-        .map(|g| array::<f32>(g, "gi", &img3, "float32"))
-        .transpose()?;
-    let spec = specular
-        .map(|s| array::<f32>(s, "specular", &img3, "float32"))
-        .transpose()?;
-    let g = arrays.gbuffer()?;
-    let input = FeatureInput {
-        width: g.width,
-        height: g.height,
-        position: g.position,
-        normal: g.normal,
-        albedo: g.albedo,
-        depth: slice(&dep, "depth")?,
-        direct: slice(&dir, "direct")?,
-        gi: gi.as_ref().map(|g| slice(g, "gi")).transpose()?,
-        specular: spec.as_ref().map(|s| slice(s, "specular")).transpose()?,
-        covered: g.covered,
-        light,
-    };
-    run(py, move || f(&input))
-}
-
-fn cells_to_dict<'py>(py: Python<'py>, c: CellFeatures) -> PyResult<Bound<'py, PyDict>> {
+fn cells_to_dict(py: Python<'_>, c: CellFeatures) -> PyResult<Bound<'_, PyDict>> {
     let n = c.cells.len();
     let d = PyDict::new(py);
+    d.set_item("names", registry_names())?;
     d.set_item("cell_px", c.cell_px)?;
     d.set_item("cells_x", c.cells_x)?;
     d.set_item("cells_y", c.cells_y)?;
@@ -127,118 +594,39 @@ fn cells_to_dict<'py>(py: Python<'py>, c: CellFeatures) -> PyResult<Bound<'py, P
     Ok(d)
 }
 
-fn reason_to_dict<'py>(py: Python<'py>, j: usize, r: &DropReason) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("index", j)?;
-    match r {
-        DropReason::Unavailable(why) => {
-            d.set_item("reason", "unavailable")?;
-            d.set_item("detail", *why)?;
-        }
-        DropReason::Constant => d.set_item("reason", "constant")?,
-        DropReason::ConstantLabel => d.set_item("reason", "constant_label")?,
-        DropReason::Collinear { residual, with } => {
-            d.set_item("reason", "collinear")?;
-            d.set_item("residual", *residual)?;
-            d.set_item("with", with.clone())?;
-        }
-        DropReason::NoCvGain {
-            cv_r2_with,
-            cv_r2_without,
-        } => {
-            d.set_item("reason", "no_cv_gain")?;
-            d.set_item("cv_r2_with", *cv_r2_with)?;
-            d.set_item("cv_r2_without", *cv_r2_without)?;
-        }
-    }
-    Ok(d)
+/// The strongest light of `scene` for `views`.
+fn light_for(scene: &PyScene, views: &[Arc<View>]) -> Option<StrongestLight> {
+    let refs: Vec<&View> = views.iter().map(|v| v.as_ref()).collect();
+    features::strongest_light(&scene.inner, &refs)
 }
 
-fn fit_to_dict<'py>(py: Python<'py>, f: Fit) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("n", f.n)?;
-    d.set_item("p", f.p)?;
-    d.set_item("intercept", f.intercept)?;
-    d.set_item("coefficients", PyArray1::from_vec(py, f.coefficients))?;
-    d.set_item("weights", PyArray1::from_vec(py, f.weights))?;
-    d.set_item("kept", f.kept.clone())?;
-    let dropped = PyList::empty(py);
-    for (j, r) in &f.dropped {
-        dropped.append(reason_to_dict(py, *j, r)?)?;
-    }
-    d.set_item("dropped", dropped)?;
-    d.set_item("r2", f.r2)?;
-    d.set_item("adjusted_r2", f.adjusted_r2)?;
-    d.set_item("cv_r2", f.cv_r2)?;
-    d.set_item("folds", f.folds)?;
-    d.set_item("condition_number", f.condition_number)?;
-    d.set_item("rank", f.rank)?;
-    d.set_item("ridge_lambda", f.ridge_lambda)?;
-    d.set_item("fitted", PyArray1::from_vec(py, f.fitted))?;
-    Ok(d)
-}
-
-/// Per-cell features of one view (see `vplace_core::features`). Returns a dict: `cell_px`,
-/// `cells_x`, `cells_y`, `cells` (int64, flat indices of the non-empty cells), `values`
-/// (float64, (n, 14), raw means), `label` (float64 (n,) or None without `gi`), `pixels`,
-/// `empty_cells`, `masked_pixels`, `available` (14 bools).
+/// Per-cell features of one view (see `vplace.extract_features`).
 #[pyfunction]
-#[pyo3(signature = (position, normal, albedo, depth, direct, covered, *, gi = None,
-    specular = None, light_position = None, light_direction = None, cell_px = 16))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (scene, view, *, cell_px = 16))]
 fn extract_features<'py>(
     py: Python<'py>,
-    position: &Bound<'py, PyAny>,
-    normal: &Bound<'py, PyAny>,
-    albedo: &Bound<'py, PyAny>,
-    depth: &Bound<'py, PyAny>,
-    direct: &Bound<'py, PyAny>,
-    covered: &Bound<'py, PyAny>,
-    gi: Option<&Bound<'py, PyAny>>,
-    specular: Option<&Bound<'py, PyAny>>,
-    light_position: Option<[f32; 3]>,
-    light_direction: Option<[f32; 3]>,
+    scene: &PyScene,
+    view: &PyView,
     cell_px: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let l = light(light_position, light_direction)?;
-    let cells = with_input(
-        py,
-        position,
-        normal,
-        albedo,
-        depth,
-        direct,
-        covered,
-        gi,
-        specular,
-        l,
-        |inp| features::extract_features(inp, cell_px),
-    )?;
+    let v = Arc::clone(&view.inner);
+    let light = light_for(scene, std::slice::from_ref(&v));
+    let cells = run(py, move || {
+        features::extract_features(&FeatureInput::of(&v, light), cell_px)
+    })?;
     cells_to_dict(py, cells)
 }
 
-/// Extracts the features of a view with its GI image and fits the label on them. Returns
-/// `(features, fit, feature_min, feature_max)`: the dicts of `extract_features` and
-/// `fit_design`, and the Min-Max ranges (float64 (14,)).
+/// Fits one model on the cells of every view (see `vplace.fit`).
 #[pyfunction]
-#[pyo3(signature = (position, normal, albedo, depth, direct, covered, gi, *, specular = None,
-    light_position = None, light_direction = None, cell_px = 16, folds = 5, select = true,
+#[pyo3(signature = (scene, views, *, cell_px = 16, folds = 5, select = true,
     min_cv_gain = 1e-3, collinear_rtol = 1e-6, rank_rtol = None, ridge_above = 1e6,
     seed = 0x5eed))]
 #[allow(clippy::too_many_arguments)]
-#[allow(clippy::type_complexity)]
-fn fit_capture<'py>(
-    py: Python<'py>,
-    position: &Bound<'py, PyAny>,
-    normal: &Bound<'py, PyAny>,
-    albedo: &Bound<'py, PyAny>,
-    depth: &Bound<'py, PyAny>,
-    direct: &Bound<'py, PyAny>,
-    covered: &Bound<'py, PyAny>,
-    gi: &Bound<'py, PyAny>,
-    specular: Option<&Bound<'py, PyAny>>,
-    light_position: Option<[f32; 3]>,
-    light_direction: Option<[f32; 3]>,
+fn fit(
+    py: Python<'_>,
+    scene: &PyScene,
+    views: Vec<Bound<'_, PyView>>,
     cell_px: usize,
     folds: usize,
     select: bool,
@@ -247,13 +635,9 @@ fn fit_capture<'py>(
     rank_rtol: Option<f64>,
     ridge_above: f64,
     seed: u64,
-) -> PyResult<(
-    Bound<'py, PyDict>,
-    Bound<'py, PyDict>,
-    Bound<'py, PyAny>,
-    Bound<'py, PyAny>,
-)> {
-    let l = light(light_position, light_direction)?;
+) -> PyResult<PyFit> {
+    let views = views_of(&views);
+    let light = light_for(scene, &views);
     let params = fit_params(
         folds,
         select,
@@ -263,46 +647,24 @@ fn fit_capture<'py>(
         ridge_above,
         seed,
     );
-    let (cells, model) = with_input(
-        py,
-        position,
-        normal,
-        albedo,
-        depth,
-        direct,
-        covered,
-        Some(gi),
-        specular,
-        l,
-        |inp| {
-            let cells = features::extract_features(inp, cell_px)?;
-            let model = features::fit_cells(&cells, &params)?;
-            Ok((cells, model))
-        },
-    )?;
-    let lo = PyArray1::from_vec(py, model.ranges.min).into_any();
-    let hi = PyArray1::from_vec(py, model.ranges.max).into_any();
-    Ok((
-        cells_to_dict(py, cells)?,
-        fit_to_dict(py, model.fit)?,
-        lo,
-        hi,
-    ))
+    let model = run(py, move || {
+        let refs: Vec<&View> = views.iter().map(|v| v.as_ref()).collect();
+        features::fit_views(&refs, light, cell_px, &params)
+    })?;
+    Ok(PyFit::new(registry_names(), Model::Views(model)))
 }
 
-/// Fits `y` (float64 (n,)) on the columns of `x` (float64 (n, p)); the low-level solver of
-/// `vplace_core::regression::fit`. Non-finite values are an `InputError`. Returns a dict:
-/// `intercept`, `coefficients`, `weights` (float64 (p,)), `kept` (indices), `dropped` (list of
-/// dicts with `index`, `reason` and details), `r2`, `adjusted_r2`, `cv_r2`, `folds`,
-/// `condition_number`, `rank`, `ridge_lambda`, `fitted`, `n`, `p`.
+/// Fits `y` (float64 (n,)) on the columns of `x` (float64 (n, p)) with the solver of `fit`
+/// (see `vplace.fit_design`).
 #[pyfunction]
-#[pyo3(signature = (x, y, *, folds = 5, select = true, min_cv_gain = 1e-3,
+#[pyo3(signature = (x, y, *, names = None, folds = 5, select = true, min_cv_gain = 1e-3,
     collinear_rtol = 1e-6, rank_rtol = None, ridge_above = 1e6, seed = 0x5eed))]
 #[allow(clippy::too_many_arguments)]
-fn fit_design<'py>(
-    py: Python<'py>,
-    x: &Bound<'py, PyAny>,
-    y: &Bound<'py, PyAny>,
+fn fit_design(
+    py: Python<'_>,
+    x: &Bound<'_, PyAny>,
+    y: &Bound<'_, PyAny>,
+    names: Option<Vec<String>>,
     folds: usize,
     select: bool,
     min_cv_gain: f64,
@@ -310,10 +672,17 @@ fn fit_design<'py>(
     rank_rtol: Option<f64>,
     ridge_above: f64,
     seed: u64,
-) -> PyResult<Bound<'py, PyDict>> {
+) -> PyResult<PyFit> {
     let xa = array::<f64>(x, "x", &[Dim::Any, Dim::Any], "float64")?;
     let (n, p) = (xa.shape()[0], xa.shape()[1]);
     let ya = array::<f64>(y, "y", &[Dim::Is(n)], "float64")?;
+    let names = names.unwrap_or_else(|| (0..p).map(|j| format!("x{j}")).collect());
+    if names.len() != p {
+        return Err(input_error(format!(
+            "names: expected {p} names, got {}",
+            names.len()
+        )));
+    }
     let (xs, ys) = (slice(&xa, "x")?, slice(&ya, "y")?);
     let params = fit_params(
         folds,
@@ -325,14 +694,15 @@ fn fit_design<'py>(
         seed,
     );
     let f = run(py, move || regression::fit(xs, ys, p, &params))?;
-    fit_to_dict(py, f)
+    Ok(PyFit::new(names, Model::Design(f)))
 }
 
 /// Registers this file's classes and functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyFit>()?;
     m.add_function(wrap_pyfunction!(feature_registry, m)?)?;
     m.add_function(wrap_pyfunction!(extract_features, m)?)?;
-    m.add_function(wrap_pyfunction!(fit_capture, m)?)?;
+    m.add_function(wrap_pyfunction!(fit, m)?)?;
     m.add_function(wrap_pyfunction!(fit_design, m)?)?;
     Ok(())
 }

@@ -13,12 +13,16 @@ mod layout;
 mod par2d;
 mod refit;
 mod scene;
+mod view;
+mod vpls;
 
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     errors::register(m)?;
     scene::register(m)?;
+    view::register(m)?;
+    vpls::register(m)?;
     fit::register(m)?;
     layout::register(m)?;
     par2d::register(m)?;

@@ -1,74 +1,128 @@
-//! The optional refit of VPL powers against the indirect image.
+//! The optional refit of VPL powers against the views' indirect images: `refit` and `Refit`.
 
 use numpy::PyArray1;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
 use std::sync::Arc;
-use vplace_core::refit::{refit as refit_vpls, RefitParams};
+use vplace_core::{
+    refit::{refit as refit_vpls, RefitParams, Refitted},
+    view::View,
+};
 
-use crate::arrays::{array, slice, GBufferArrays};
-use crate::errors::run;
-use crate::scene::{parse_profile, read_vpls, vpls_to_dict, PyProgress, PyScene};
+use crate::errors::{input_error, run};
+use crate::scene::{PyProgress, PyScene};
+use crate::view::{views_of, PyView};
+use crate::vpls::PyVplSet;
 
-/// Non-negative least squares on the VPL powers against `indirect` (float32 (H, W, 3), the
-/// indirect image `gi - direct`) over the covered pixels of every `stride`-th row and column,
-/// pulled toward scale 1 by `ridge` (relative to the mean diagonal of `A^T A`; the default is
-/// `RefitParams::DEFAULT.ridge`, written out for the text signature). Returns a dict:
-/// `position`, `normal`, `flux` (refitted) float32 (n, 3), `scales` float64 (n,),
-/// `error_before`, `error_after` (RMSE, linear RGB, on the strided pixels), `pixels`,
-/// `shadow_rays`, `exchanges`, `seconds`.
+/// Refitted VPLs and what the refit achieved.
+#[pyclass(name = "Refit", module = "vplace._native", frozen)]
+pub struct PyRefit {
+    vpls: PyVplSet,
+    r: Refitted,
+}
+
+#[pymethods]
+impl PyRefit {
+    /// The refitted VPLs: the original flux times `scales`, same positions, profile and radius.
+    #[getter]
+    fn vpls(&self) -> PyVplSet {
+        self.vpls.clone()
+    }
+
+    fn __len__(&self) -> usize {
+        self.r.scales.len()
+    }
+
+    /// The scale of each VPL's flux, float64 (n,), `>= 0`.
+    #[getter]
+    fn scales<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.r.scales)
+    }
+
+    /// RMSE (linear RGB) of the VPL image against the targets on the covered strided pixels.
+    #[getter]
+    fn error_before(&self) -> f64 {
+        self.r.error_before
+    }
+
+    /// The same after the refit; never above `error_before`.
+    #[getter]
+    fn error_after(&self) -> f64 {
+        self.r.error_after
+    }
+
+    /// Covered pixels on the strided grids of every view.
+    #[getter]
+    fn pixels(&self) -> usize {
+        self.r.pixels
+    }
+
+    /// Shadow rays traced.
+    #[getter]
+    fn shadow_rays(&self) -> u64 {
+        self.r.shadow_rays
+    }
+
+    /// Block exchanges of the solver (0: the unconstrained optimum was already non-negative).
+    #[getter]
+    fn exchanges(&self) -> usize {
+        self.r.exchanges
+    }
+
+    /// Wall time, seconds.
+    #[getter]
+    fn seconds(&self) -> f64 {
+        self.r.seconds
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Refit({} VPLs, RMSE {:.4e} -> {:.4e})",
+            self.r.scales.len(),
+            self.r.error_before,
+            self.r.error_after
+        )
+    }
+}
+
+/// Non-negative least squares on the VPL powers against every view's indirect image (see
+/// `vplace.refit`).
 #[pyfunction]
-#[pyo3(signature = (scene, position, normal, albedo, covered, vpl_position, vpl_normal, vpl_flux,
-    indirect, *, stride = 4, ridge = 0.1, profile = "cosine",
-    r_min = 0.01, progress = None))]
-#[allow(clippy::too_many_arguments)]
-fn refit<'py>(
-    py: Python<'py>,
+#[pyo3(signature = (scene, views, vpls, *, stride = 4, ridge = 0.1, progress = None))]
+fn refit(
+    py: Python<'_>,
     scene: &PyScene,
-    position: &Bound<'py, PyAny>,
-    normal: &Bound<'py, PyAny>,
-    albedo: &Bound<'py, PyAny>,
-    covered: &Bound<'py, PyAny>,
-    vpl_position: &Bound<'py, PyAny>,
-    vpl_normal: &Bound<'py, PyAny>,
-    vpl_flux: &Bound<'py, PyAny>,
-    indirect: &Bound<'py, PyAny>,
+    views: Vec<Bound<'_, PyView>>,
+    vpls: &PyVplSet,
     stride: usize,
     ridge: f64,
-    profile: &str,
-    r_min: f32,
     progress: Option<&PyProgress>,
-) -> PyResult<Bound<'py, PyDict>> {
-    let profile = parse_profile(profile)?;
-    let arrays = GBufferArrays::read(position, normal, albedo, covered)?;
-    let vpls = read_vpls(vpl_position, vpl_normal, vpl_flux)?;
-    let ind = array::<f32>(indirect, "indirect", &arrays.img3(), "float32")?;
-    let target = slice(&ind, "indirect")?;
-    let g = arrays.gbuffer()?;
+) -> PyResult<PyRefit> {
+    if views.is_empty() {
+        return Err(input_error("views: give at least one View"));
+    }
+    let views = views_of(&views);
     let params = RefitParams {
-        profile,
-        r_min,
+        profile: vpls.profile,
+        r_min: vpls.radius,
         stride,
         ridge,
     };
     let s = Arc::clone(&scene.inner);
+    let set = Arc::clone(&vpls.vpls);
     let prog = progress.map(|p| Arc::clone(&p.inner));
     let r = run(py, move || {
-        refit_vpls(&s, &g, &vpls, target, &params, prog.as_deref())
+        let refs: Vec<&View> = views.iter().map(|v| v.as_ref()).collect();
+        refit_vpls(&s, &refs, &set, &params, prog.as_deref())
     })?;
-    let d = vpls_to_dict(py, &r.vpls)?;
-    d.set_item("scales", PyArray1::from_vec(py, r.scales))?;
-    d.set_item("error_before", r.error_before)?;
-    d.set_item("error_after", r.error_after)?;
-    d.set_item("pixels", r.pixels)?;
-    d.set_item("shadow_rays", r.shadow_rays)?;
-    d.set_item("exchanges", r.exchanges)?;
-    d.set_item("seconds", r.seconds)?;
-    Ok(d)
+    Ok(PyRefit {
+        vpls: PyVplSet::new_checked(r.vpls.clone(), vpls.profile, vpls.radius)?,
+        r,
+    })
 }
 
-/// Registers this file's functions.
+/// Registers this file's classes and functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyRefit>()?;
     m.add_function(wrap_pyfunction!(refit, m)?)?;
     Ok(())
 }

@@ -1,20 +1,18 @@
 //! `Scene`, `Light`, `Progress`, uniform VPLs, the evaluator and the metrics.
 
 use glam::Vec3;
-use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
+use numpy::PyUntypedArrayMethods;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use vplace_core::{
-    evaluator::{self, EvalParams},
-    metrics,
+    evaluator, metrics,
     scene::{Light, LightKind, Scene},
-    vpl::{self, Profile, Vpl},
+    LUMINANCE,
 };
 
-use crate::arrays::{array, slice, Dim, GBufferArrays};
-use crate::errors::{input_error, run};
+use crate::arrays::{array, slice, Dim};
+use crate::errors::run;
 
 fn vec3(v: [f32; 3]) -> Vec3 {
     Vec3::from_array(v)
@@ -177,6 +175,13 @@ impl PyScene {
         self.inner.diagonal()
     }
 
+    /// The default near-field radius of the scene's VPLs, metres (`NEAR_FIELD_FRACTION` of
+    /// the diagonal).
+    #[getter]
+    fn near_field_radius(&self) -> f32 {
+        self.inner.near_field_radius()
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "Scene(triangles={}, lights={})",
@@ -225,128 +230,6 @@ impl PyProgress {
     }
 }
 
-pub fn parse_profile(profile: &str) -> PyResult<Profile> {
-    match profile {
-        "cosine" => Ok(Profile::Cosine),
-        "omni" => Ok(Profile::Omni),
-        other => Err(input_error(format!(
-            "profile must be 'cosine' or 'omni', got {other:?}"
-        ))),
-    }
-}
-
-pub fn vpls_to_dict<'py>(py: Python<'py>, vpls: &[Vpl]) -> PyResult<Bound<'py, PyDict>> {
-    let n = vpls.len();
-    let flat =
-        |f: fn(&Vpl) -> Vec3| -> Vec<f32> { vpls.iter().flat_map(|v| f(v).to_array()).collect() };
-    let d = PyDict::new(py);
-    d.set_item(
-        "position",
-        PyArray1::from_vec(py, flat(|v| v.position)).reshape([n, 3])?,
-    )?;
-    d.set_item(
-        "normal",
-        PyArray1::from_vec(py, flat(|v| v.normal)).reshape([n, 3])?,
-    )?;
-    d.set_item(
-        "flux",
-        PyArray1::from_vec(py, flat(|v| v.flux)).reshape([n, 3])?,
-    )?;
-    Ok(d)
-}
-
-/// Keller's instant radiosity: `n` VPLs from light paths of the scene's lights, a VPL at each
-/// of a path's first `bounces` surface hits (1: first hits only; Russian roulette ends paths).
-/// Returns a dict of float32 arrays `position`, `normal`, `flux`, each (n, 3).
-#[pyfunction]
-#[pyo3(signature = (scene, n, seed = 0, bounces = 1))]
-fn uniform_vpls<'py>(
-    py: Python<'py>,
-    scene: &PyScene,
-    n: usize,
-    seed: u64,
-    bounces: usize,
-) -> PyResult<Bound<'py, PyDict>> {
-    let s = Arc::clone(&scene.inner);
-    let vpls = run(py, move || vpl::light_path_vpls(&s, n, seed, bounces))?;
-    vpls_to_dict(py, &vpls)
-}
-
-/// Reads a VPL set given as three (N, 3) float32 arrays.
-pub fn read_vpls(
-    position: &Bound<'_, PyAny>,
-    normal: &Bound<'_, PyAny>,
-    flux: &Bound<'_, PyAny>,
-) -> PyResult<Vec<Vpl>> {
-    let p = array::<f32>(position, "vpl_position", &[Dim::Any, Dim::Is(3)], "float32")?;
-    let n = p.shape()[0];
-    let nn = array::<f32>(normal, "vpl_normal", &[Dim::Is(n), Dim::Is(3)], "float32")?;
-    let f = array::<f32>(flux, "vpl_flux", &[Dim::Is(n), Dim::Is(3)], "float32")?;
-    let (p, nn, f) = (
-        slice(&p, "vpl_position")?,
-        slice(&nn, "vpl_normal")?,
-        slice(&f, "vpl_flux")?,
-    );
-    Ok((0..n)
-        .map(|i| Vpl {
-            position: Vec3::from_slice(&p[3 * i..]),
-            normal: Vec3::from_slice(&nn[3 * i..]),
-            flux: Vec3::from_slice(&f[3 * i..]),
-        })
-        .collect())
-}
-
-/// The indirect image (H, W, 3) float32 of a VPL set over a G-buffer, and a stats dict
-/// (`shadow_rays`, `pairs`, `seconds`, `rays_per_second`). `brute_force` traces shadow rays
-/// against every triangle instead of the BVH (same image; a benchmark baseline).
-#[pyfunction]
-#[pyo3(signature = (scene, position, normal, albedo, covered, vpl_position, vpl_normal, vpl_flux,
-    profile = "cosine", r_min = 0.01, tile = 16, progress = None, brute_force = false))]
-#[allow(clippy::too_many_arguments)]
-fn evaluate<'py>(
-    py: Python<'py>,
-    scene: &PyScene,
-    position: &Bound<'py, PyAny>,
-    normal: &Bound<'py, PyAny>,
-    albedo: &Bound<'py, PyAny>,
-    covered: &Bound<'py, PyAny>,
-    vpl_position: &Bound<'py, PyAny>,
-    vpl_normal: &Bound<'py, PyAny>,
-    vpl_flux: &Bound<'py, PyAny>,
-    profile: &str,
-    r_min: f32,
-    tile: usize,
-    progress: Option<&PyProgress>,
-    brute_force: bool,
-) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyDict>)> {
-    let profile = parse_profile(profile)?;
-    let arrays = GBufferArrays::read(position, normal, albedo, covered)?;
-    let (h, w) = (arrays.height, arrays.width);
-    let vpls = read_vpls(vpl_position, vpl_normal, vpl_flux)?;
-    let g = arrays.gbuffer()?;
-    let params = EvalParams {
-        profile,
-        r_min,
-        tile,
-    };
-    let s = Arc::clone(&scene.inner);
-    let prog = progress.map(|p| Arc::clone(&p.inner));
-    let (image, stats) = run(py, move || {
-        if brute_force {
-            evaluator::evaluate_brute_force(&s, &g, &vpls, &params, prog.as_deref())
-        } else {
-            evaluator::evaluate(&s, &g, &vpls, &params, prog.as_deref())
-        }
-    })?;
-    let out = PyArray1::from_vec(py, image).reshape([h, w, 3])?.into_any();
-    let d = PyDict::new(py);
-    d.set_item("shadow_rays", stats.shadow_rays)?;
-    d.set_item("pairs", stats.pairs)?;
-    d.set_item("seconds", stats.seconds)?;
-    d.set_item("rays_per_second", stats.rays_per_second())?;
-    Ok((out, d))
-}
-
 fn pair<'py>(
     image: &Bound<'py, PyAny>,
     reference: &Bound<'py, PyAny>,
@@ -383,16 +266,40 @@ fn relative_mse(
     run(py, move || metrics::relative_mse(&a, &b))
 }
 
+/// SSIM of `image` against `reference`, both float32 (H, W, 3) linear HDR, on the display
+/// luminance (exposure 1, clamp to [0, 1], sRGB), Gaussian window 11, sigma 1.5, K1 0.01,
+/// K2 0.03. H and W must be at least 11.
+#[pyfunction]
+fn ssim(py: Python<'_>, image: &Bound<'_, PyAny>, reference: &Bound<'_, PyAny>) -> PyResult<f64> {
+    let r = array::<f32>(
+        reference,
+        "reference",
+        &[Dim::Any, Dim::Any, Dim::Is(3)],
+        "float32",
+    )?;
+    let (h, w) = (r.shape()[0], r.shape()[1]);
+    let i = array::<f32>(
+        image,
+        "image",
+        &[Dim::Is(h), Dim::Is(w), Dim::Is(3)],
+        "float32",
+    )?;
+    let (a, b) = (slice(&i, "image")?, slice(&r, "reference")?);
+    run(py, move || metrics::ssim(a, b, w, h))
+}
+
 /// Registers this file's classes and functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyLight>()?;
     m.add_class::<PyScene>()?;
     m.add_class::<PyProgress>()?;
-    m.add_function(wrap_pyfunction!(uniform_vpls, m)?)?;
-    m.add_function(wrap_pyfunction!(evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(rmse, m)?)?;
     m.add_function(wrap_pyfunction!(relative_mse, m)?)?;
-    m.add("VPL_SURFACE_OFFSET", vpl::Vpl::SURFACE_OFFSET)?;
-    m.add("MAX_BOUNCES", vpl::MAX_BOUNCES)?;
+    m.add_function(wrap_pyfunction!(ssim, m)?)?;
+    m.add("LUMINANCE", LUMINANCE.to_array())?;
+    m.add(
+        "NEAR_FIELD_FRACTION",
+        vplace_core::shading::NEAR_FIELD_FRACTION,
+    )?;
     Ok(())
 }

@@ -1,35 +1,77 @@
 """vplace: regression-guided virtual point light layout, at the numpy level.
 
-Usable without Blender. The native classes and functions come from ``vplace._native`` (Rust);
-this package re-exports them and adds the Python-level API.
+Usable without Blender. Everything here is the Rust extension ``vplace._native`` (typed in
+``_native.pyi``); this package re-exports it and adds the benchmarks (``python -m
+vplace.bench_layout``, ``bench_fit``, ``bench_par2d``) and the PAR 2D wrapper
+(:mod:`vplace.par2d`).
+
+The pieces, in pipeline order:
+
+- :class:`Scene` (triangles, per-triangle albedo, :class:`Light` objects, a BVH) and
+  :class:`View` (one captured view: G-buffer, lighting passes, camera; checked once: a
+  non-finite G-buffer value on a covered pixel is an :class:`InputError`, a non-finite lighting
+  value masks the pixel and is counted in ``View.masked_pixels``). A view's ``indirect`` image
+  is the light the VPLs must reproduce; a view without it (``View.without_indirect()``) is one
+  the model has not seen.
+- :func:`fit` fits one regression of the per-cell indirect luminance on the cells of every
+  view; the :class:`Fit` predicts other views (``Fit.predict``), prints as a table and saves as
+  JSON. :func:`fit_design` runs the same solver on a given design matrix.
+- :func:`layout` lays out one world-space :class:`VplSet` for a list of views (strata over the
+  cells of every view and the off-screen light paths, the budget split by predicted indirect
+  light, then iterations against every view's indirect image); :func:`refit` refits the VPL
+  powers against every view at once (non-negative least squares); :func:`uniform_vpls` (Keller)
+  and :func:`rsm_vpls` are the baselines.
+- :func:`evaluate` renders a VPL set's indirect light over a view's G-buffer with shadow rays.
+  A :class:`VplSet` carries its ``profile`` (``"cosine"``: AREA disk lights, ``"omni"``: POINT
+  lights) and near-field ``radius``: exactly the lights the add-on writes.
+- :func:`rmse`, :func:`relative_mse`, :func:`ssim`: the metrics of DESIGN.md.
+
+Long calls release the GIL, report progress and cancel through a :class:`Progress`; a Rust
+panic surfaces as :class:`InternalError`, never as a crash.
 """
 
 from vplace import par2d as par2d
 from vplace._native import (
+    LUMINANCE,
     MAX_BOUNCES,
+    NEAR_FIELD_FRACTION,
+    VPL_SURFACE_OFFSET,
     CancelledError,
+    EvalStats,
+    Fit,
     InputError,
     InternalError,
+    Layout,
     Light,
     Progress,
+    Refit,
     Scene,
+    View,
     VplaceError,
+    VplSet,
     __version__,
     evaluate,
+    extract_features,
+    feature_registry,
+    fit,
+    fit_design,
+    layout,
+    refit,
     relative_mse,
     rmse,
     rsm_vpls,
     ssim,
     uniform_vpls,
 )
-from vplace.fit import FitResult, extract_features, fit, fit_design
-from vplace.layout import Layout, layout
-from vplace.refit import Refit, refit
 
 __all__ = [
+    "LUMINANCE",
     "MAX_BOUNCES",
+    "NEAR_FIELD_FRACTION",
+    "VPL_SURFACE_OFFSET",
     "CancelledError",
-    "FitResult",
+    "EvalStats",
+    "Fit",
     "InputError",
     "InternalError",
     "Layout",
@@ -37,10 +79,13 @@ __all__ = [
     "Progress",
     "Refit",
     "Scene",
+    "View",
+    "VplSet",
     "VplaceError",
     "__version__",
     "evaluate",
     "extract_features",
+    "feature_registry",
     "fit",
     "fit_design",
     "layout",

@@ -1,6 +1,7 @@
 # Type stubs for the Rust extension module vplace._native, checked by mypy.stubtest in the tests.
 # Each section belongs to one part of the library; keep sections in this order.
 
+from collections.abc import Sequence
 from typing import Any, TypeAlias, final
 
 import numpy as np
@@ -8,6 +9,9 @@ import numpy.typing as npt
 
 __version__: str
 VPL_SURFACE_OFFSET: float
+MAX_BOUNCES: int
+LUMINANCE: list[float]
+NEAR_FIELD_FRACTION: float
 
 # --- errors -------------------------------------------------------------------------------
 class VplaceError(Exception): ...
@@ -15,8 +19,9 @@ class InputError(VplaceError): ...
 class CancelledError(VplaceError): ...
 class InternalError(VplaceError): ...
 
-# --- scene, VPLs, evaluator, metrics ------------------------------------------------------
+# --- scene, metrics (scene.rs) ------------------------------------------------------------
 _Vec3: TypeAlias = tuple[float, float, float] | list[float]
+_F32: TypeAlias = npt.NDArray[np.float32]
 
 @final
 class Light:
@@ -45,10 +50,10 @@ class Light:
 class Scene:
     def __new__(
         cls,
-        vertices: npt.NDArray[np.float32],
+        vertices: _F32,
         triangles: npt.NDArray[np.uint32],
         material_ids: npt.NDArray[np.uint32],
-        albedo: npt.NDArray[np.float32],
+        albedo: _F32,
         lights: list[Light],
     ) -> Scene: ...
     @property
@@ -61,6 +66,8 @@ class Scene:
     def bounds(self) -> tuple[list[float], list[float]]: ...
     @property
     def diagonal(self) -> float: ...
+    @property
+    def near_field_radius(self) -> float: ...
 
 @final
 class Progress:
@@ -73,58 +80,175 @@ class Progress:
     def cancelled(self) -> bool: ...
     def cancel(self) -> None: ...
 
+def rmse(image: _F32, reference: _F32) -> float: ...
+def relative_mse(image: _F32, reference: _F32) -> float: ...
+def ssim(image: _F32, reference: _F32) -> float: ...
+
+# --- views (view.rs) ----------------------------------------------------------------------
+@final
+class View:
+    def __new__(
+        cls,
+        *,
+        position: _F32,
+        normal: _F32,
+        albedo: _F32,
+        covered: npt.NDArray[np.bool_],
+        depth: _F32,
+        direct: _F32,
+        diffuse_direct: _F32,
+        camera_position: _Vec3,
+        world_to_clip: Any,
+        diffuse_indirect: _F32 | None = None,
+        indirect: _F32 | None = None,
+        specular: _F32 | None = None,
+        name: str = "view",
+    ) -> View: ...
+    def without_indirect(self) -> View: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+    @property
+    def masked_pixels(self) -> int: ...
+    @property
+    def has_indirect(self) -> bool: ...
+    @property
+    def camera_position(self) -> list[float]: ...
+    @property
+    def position(self) -> _F32: ...
+    @property
+    def normal(self) -> _F32: ...
+    @property
+    def albedo(self) -> _F32: ...
+    @property
+    def covered(self) -> npt.NDArray[np.bool_]: ...
+    @property
+    def indirect(self) -> _F32 | None: ...
+
+# --- VPL sets, uniform and RSM layouts, the evaluator (vpls.rs) ---------------------------
+@final
+class VplSet:
+    def __new__(
+        cls,
+        position: _F32,
+        normal: _F32,
+        flux: _F32,
+        *,
+        profile: str = "cosine",
+        radius: float = 0.0,
+    ) -> VplSet: ...
+    def with_flux(self, flux: _F32) -> VplSet: ...
+    def __len__(self) -> int: ...
+    @property
+    def position(self) -> _F32: ...
+    @property
+    def normal(self) -> _F32: ...
+    @property
+    def flux(self) -> _F32: ...
+    @property
+    def blender_power(self) -> _F32: ...
+    @property
+    def profile(self) -> str: ...
+    @property
+    def radius(self) -> float: ...
+
+@final
+class EvalStats:
+    @property
+    def shadow_rays(self) -> int: ...
+    @property
+    def pairs(self) -> int: ...
+    @property
+    def seconds(self) -> float: ...
+    @property
+    def rays_per_second(self) -> float: ...
+
 def uniform_vpls(
-    scene: Scene, n: int, seed: int = 0, bounces: int = 1
-) -> dict[str, npt.NDArray[np.float32]]: ...
-
-MAX_BOUNCES: int
-
+    scene: Scene,
+    n: int,
+    *,
+    seed: int = 0,
+    bounces: int = 1,
+    profile: str = "cosine",
+    radius: float | None = None,
+) -> VplSet: ...
+def rsm_vpls(
+    scene: Scene, n: int, *, profile: str = "cosine", radius: float | None = None
+) -> VplSet: ...
 def evaluate(
     scene: Scene,
-    position: npt.NDArray[np.float32],
-    normal: npt.NDArray[np.float32],
-    albedo: npt.NDArray[np.float32],
-    covered: npt.NDArray[np.bool_],
-    vpl_position: npt.NDArray[np.float32],
-    vpl_normal: npt.NDArray[np.float32],
-    vpl_flux: npt.NDArray[np.float32],
-    profile: str = "cosine",
-    r_min: float = 0.01,
+    view: View,
+    vpls: VplSet,
+    *,
     tile: int = 16,
     progress: Progress | None = None,
     brute_force: bool = False,
-) -> tuple[npt.NDArray[np.float32], dict[str, Any]]: ...
-def rmse(image: npt.NDArray[np.float32], reference: npt.NDArray[np.float32]) -> float: ...
-def relative_mse(image: npt.NDArray[np.float32], reference: npt.NDArray[np.float32]) -> float: ...
+) -> tuple[_F32, EvalStats]: ...
 
 # --- features and regression (fit.rs) -----------------------------------------------------
+@final
+class Fit:
+    @property
+    def feature_names(self) -> list[str]: ...
+    @property
+    def kept(self) -> list[str]: ...
+    @property
+    def dropped(self) -> dict[str, str]: ...
+    @property
+    def intercept(self) -> float: ...
+    @property
+    def coefficients(self) -> dict[str, float]: ...
+    @property
+    def weights(self) -> dict[str, float]: ...
+    @property
+    def r2(self) -> float: ...
+    @property
+    def adjusted_r2(self) -> float | None: ...
+    @property
+    def cv_r2(self) -> float | None: ...
+    @property
+    def folds(self) -> int: ...
+    @property
+    def condition_number(self) -> float: ...
+    @property
+    def rank(self) -> int: ...
+    @property
+    def ridge_lambda(self) -> float: ...
+    @property
+    def n_cells(self) -> int: ...
+    @property
+    def fitted(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def cell_px(self) -> int | None: ...
+    @property
+    def light(self) -> tuple[str, list[float]] | None: ...
+    @property
+    def view_names(self) -> list[str]: ...
+    @property
+    def view_r2(self) -> dict[str, float | None]: ...
+    @property
+    def empty_cells(self) -> int: ...
+    @property
+    def masked_pixels(self) -> int: ...
+    @property
+    def feature_min(self) -> list[float] | None: ...
+    @property
+    def feature_max(self) -> list[float] | None: ...
+    def predict(self, view: View) -> npt.NDArray[np.float64]: ...
+    def predict_design(self, x: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]: ...
+    def to_json(self) -> str: ...
+    @staticmethod
+    def from_json(text: str) -> Fit: ...
+
 def feature_registry() -> list[tuple[str, str, str]]: ...
-def extract_features(
-    position: npt.NDArray[np.float32],
-    normal: npt.NDArray[np.float32],
-    albedo: npt.NDArray[np.float32],
-    depth: npt.NDArray[np.float32],
-    direct: npt.NDArray[np.float32],
-    covered: npt.NDArray[np.bool_],
+def extract_features(scene: Scene, view: View, *, cell_px: int = 16) -> dict[str, Any]: ...
+def fit(
+    scene: Scene,
+    views: Sequence[View],
     *,
-    gi: npt.NDArray[np.float32] | None = None,
-    specular: npt.NDArray[np.float32] | None = None,
-    light_position: _Vec3 | None = None,
-    light_direction: _Vec3 | None = None,
-    cell_px: int = 16,
-) -> dict[str, Any]: ...
-def fit_capture(
-    position: npt.NDArray[np.float32],
-    normal: npt.NDArray[np.float32],
-    albedo: npt.NDArray[np.float32],
-    depth: npt.NDArray[np.float32],
-    direct: npt.NDArray[np.float32],
-    covered: npt.NDArray[np.bool_],
-    gi: npt.NDArray[np.float32],
-    *,
-    specular: npt.NDArray[np.float32] | None = None,
-    light_position: _Vec3 | None = None,
-    light_direction: _Vec3 | None = None,
     cell_px: int = 16,
     folds: int = 5,
     select: bool = True,
@@ -133,11 +257,12 @@ def fit_capture(
     rank_rtol: float | None = None,
     ridge_above: float = 1e6,
     seed: int = 0x5EED,
-) -> tuple[dict[str, Any], dict[str, Any], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+) -> Fit: ...
 def fit_design(
     x: npt.NDArray[np.float64],
     y: npt.NDArray[np.float64],
     *,
+    names: list[str] | None = None,
     folds: int = 5,
     select: bool = True,
     min_cv_gain: float = 1e-3,
@@ -145,7 +270,7 @@ def fit_design(
     rank_rtol: float | None = None,
     ridge_above: float = 1e6,
     seed: int = 0x5EED,
-) -> dict[str, Any]: ...
+) -> Fit: ...
 
 # --- PAR 2D (par2d.rs) --------------------------------------------------------------------
 @final
@@ -181,52 +306,95 @@ class Scene2D:
     ) -> npt.NDArray[np.float64]: ...
     def __len__(self) -> int: ...
 
-# --- layout, RSM baseline, SSIM (layout.rs) -----------------------------------------------
+# --- layout (layout.rs) -------------------------------------------------------------------
+@final
+class Layout:
+    @property
+    def vpls(self) -> VplSet: ...
+    def __len__(self) -> int: ...
+    @property
+    def counts(self) -> list[npt.NDArray[np.int64]]: ...
+    @property
+    def strata_flux(self) -> list[_F32]: ...
+    @property
+    def offscreen_count(self) -> int: ...
+    @property
+    def pool_count(self) -> int: ...
+    @property
+    def errors(self) -> list[float]: ...
+    @property
+    def best(self) -> int | None: ...
+    @property
+    def error(self) -> float | None: ...
+    @property
+    def seconds(self) -> list[float]: ...
+    @property
+    def shadow_rays(self) -> list[int]: ...
+    @property
+    def reused_rays(self) -> list[int]: ...
+    @property
+    def offscreen_flux(self) -> list[float]: ...
+    @property
+    def offscreen_view_weight(self) -> list[float]: ...
+    @property
+    def candidates(self) -> int: ...
+    @property
+    def light_hits_on_screen(self) -> int: ...
+    @property
+    def shared_pixels(self) -> int: ...
+    @property
+    def indirect_source(self) -> list[str]: ...
+
 def layout(
     scene: Scene,
-    position: npt.NDArray[np.float32],
-    normal: npt.NDArray[np.float32],
-    albedo: npt.NDArray[np.float32],
-    covered: npt.NDArray[np.bool_],
-    diffuse_direct: npt.NDArray[np.float32],
-    camera_position: _Vec3,
-    world_to_clip: Any,
+    views: Sequence[View],
     *,
-    indirect: npt.NDArray[np.float32] | None = None,
-    predicted: npt.NDArray[np.float64] | None = None,
+    fit: Fit | None = None,
     budget: int = 256,
     alpha: float = 1.0,
-    cell_px: int = 16,
+    cell_px: int | None = None,
+    iterate: bool = True,
     light_rays: int = 4096,
-    bounces: int = ...,
+    bounces: int | None = None,
     seed: int = 0,
     stride: int = 4,
     iterations: int = 3,
     tolerance: float = 0.01,
     step: float = 0.5,
     profile: str = "cosine",
-    r_min: float = 0.01,
+    radius: float | None = None,
+    multi_bounce: bool = True,
     tile: int = 16,
     progress: Progress | None = None,
-) -> dict[str, Any]: ...
-def rsm_vpls(scene: Scene, n: int) -> dict[str, npt.NDArray[np.float32]]: ...
-def ssim(image: npt.NDArray[np.float32], reference: npt.NDArray[np.float32]) -> float: ...
+) -> Layout: ...
 
 # --- refit of VPL powers (refit.rs) -------------------------------------------------------
+@final
+class Refit:
+    @property
+    def vpls(self) -> VplSet: ...
+    def __len__(self) -> int: ...
+    @property
+    def scales(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def error_before(self) -> float: ...
+    @property
+    def error_after(self) -> float: ...
+    @property
+    def pixels(self) -> int: ...
+    @property
+    def shadow_rays(self) -> int: ...
+    @property
+    def exchanges(self) -> int: ...
+    @property
+    def seconds(self) -> float: ...
+
 def refit(
     scene: Scene,
-    position: npt.NDArray[np.float32],
-    normal: npt.NDArray[np.float32],
-    albedo: npt.NDArray[np.float32],
-    covered: npt.NDArray[np.bool_],
-    vpl_position: npt.NDArray[np.float32],
-    vpl_normal: npt.NDArray[np.float32],
-    vpl_flux: npt.NDArray[np.float32],
-    indirect: npt.NDArray[np.float32],
+    views: Sequence[View],
+    vpls: VplSet,
     *,
     stride: int = 4,
     ridge: float = 0.1,
-    profile: str = "cosine",
-    r_min: float = 0.01,
     progress: Progress | None = None,
-) -> dict[str, Any]: ...
+) -> Refit: ...

@@ -20,11 +20,12 @@ import numpy as np
 
 from vplace import _native
 
-_LUM = np.array([0.2126, 0.7152, 0.0722], dtype=np.float64)
+_LUM = np.array(_native.LUMINANCE, dtype=np.float64)
 
 
 def synthetic_capture(width: int, height: int, seed: int = 42) -> dict[str, Any]:
-    """A deterministic synthetic view: floor and back wall, checker albedo, 4% background."""
+    """A deterministic synthetic view: floor and back wall, checker albedo, 4% background; its
+    ``indirect`` image is ``gi - direct`` and its point light sits at ``light_position``."""
     rng = np.random.default_rng(seed)
     v, u = np.meshgrid(
         (np.arange(height) + 0.5) / height, (np.arange(width) + 0.5) / width, indexing="ij"
@@ -53,10 +54,38 @@ def synthetic_capture(width: int, height: int, seed: int = 42) -> dict[str, Any]
         "albedo": albedo,
         "depth": depth,
         "direct": direct,
-        "gi": gi,
+        "diffuse_direct": direct,
+        "indirect": gi - direct,
         "covered": covered,
         "light_position": [0.0, 1.0, 2.5],
     }
+
+
+#: An invertible camera matrix for synthetic views (the features do not use the camera).
+_CAMERA = [[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, -1.02, -0.2], [0, 0, -1.0, 0]]
+
+
+def synthetic_view(capture: dict[str, Any], *, indirect: bool = True) -> _native.View:
+    """The :class:`vplace.View` of :func:`synthetic_capture` (without its indirect image when
+    ``indirect`` is false)."""
+    return _native.View(
+        **{k: capture[k] for k in ("position", "normal", "albedo", "covered", "depth", "direct")},
+        diffuse_direct=capture["diffuse_direct"],
+        indirect=capture.get("indirect") if indirect else None,
+        specular=capture.get("specular"),
+        camera_position=[0.0, 0.0, 10.0],
+        world_to_clip=_CAMERA,
+        name=capture.get("name", "synthetic"),
+    )
+
+
+def light_scene(capture: dict[str, Any]) -> _native.Scene:
+    """A scene holding only a small triangle and the capture's point light (the strongest light
+    of its views)."""
+    v = np.array([[0, 0, -50], [0.1, 0, -50], [0, 0.1, -50]], np.float32)
+    t = np.array([[0, 1, 2]], np.uint32)
+    light = _native.Light.point(list(capture["light_position"]), [10.0, 10.0, 10.0])
+    return _native.Scene(v, t, np.zeros(1, np.uint32), np.full((1, 3), 0.5, np.float32), [light])
 
 
 def numpy_extract(capture: dict[str, Any], cell_px: int = 16) -> dict[str, Any]:
@@ -66,14 +95,14 @@ def numpy_extract(capture: dict[str, Any], cell_px: int = 16) -> dict[str, Any]:
     alb = capture["albedo"].astype(np.float64)
     dep = capture["depth"].astype(np.float64)
     dl = capture["direct"].astype(np.float64) @ _LUM
-    gi = capture.get("gi")
+    ind = capture.get("indirect")
     h, w = dep.shape
     cx, cy = -(-w // cell_px), -(-h // cell_px)
     finite = np.isfinite(pos).all(-1) & np.isfinite(nrm).all(-1) & np.isfinite(alb).all(-1)
     finite &= np.isfinite(dep) & np.isfinite(dl)
-    if gi is not None:
-        gl = gi.astype(np.float64) @ _LUM
-        finite &= np.isfinite(gl)
+    if ind is not None:
+        il = ind.astype(np.float64) @ _LUM
+        finite &= np.isfinite(il)
     ok = capture["covered"] & finite
     yy, xx = np.nonzero(ok)
     cell = (yy // cell_px) * cx + xx // cell_px
@@ -99,8 +128,8 @@ def numpy_extract(capture: dict[str, Any], cell_px: int = 16) -> dict[str, Any]:
     dvar = np.bincount(cell, (d - dmean[cell]) ** 2, ncell)[nonempty] / c
     values = np.stack([*means, c / total[nonempty], nvar, dvar], 1)
     label = None
-    if gi is not None:
-        label = np.bincount(cell, np.abs(gl[yy, xx] - dl[yy, xx]), ncell)[nonempty] / c
+    if ind is not None:
+        label = np.bincount(cell, np.abs(il[yy, xx]), ncell)[nonempty] / c
     return {"cells": nonempty, "values": values, "label": label}
 
 
@@ -145,12 +174,10 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=15)
     args = ap.parse_args()
     cap = synthetic_capture(args.width, args.height)
-    passes = {k: cap[k] for k in ("position", "normal", "albedo", "depth", "direct", "covered")}
+    view, scene = synthetic_view(cap), light_scene(cap)
 
     def native_extract() -> dict[str, Any]:
-        return _native.extract_features(
-            **passes, gi=cap["gi"], light_position=cap["light_position"], cell_px=args.cell_px
-        )
+        return _native.extract_features(scene, view, cell_px=args.cell_px)
 
     cells = native_extract()
     lo, hi = cells["values"].min(0), cells["values"].max(0)

@@ -1,0 +1,313 @@
+//! `VplSet` (the lights as they will be written), the uniform and RSM layouts, the evaluator.
+
+use glam::Vec3;
+use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use std::sync::Arc;
+use vplace_core::{
+    evaluator::{self, validate_vpls, EvalParams, EvalStats},
+    rsm,
+    vpl::{self, Profile, Vpl},
+};
+
+use crate::arrays::{array, slice, Dim};
+use crate::errors::{input_error, run};
+use crate::scene::{PyProgress, PyScene};
+use crate::view::PyView;
+
+/// Parses a profile name.
+pub fn parse_profile(profile: &str) -> PyResult<Profile> {
+    match profile {
+        "cosine" => Ok(Profile::Cosine),
+        "omni" => Ok(Profile::Omni),
+        other => Err(input_error(format!(
+            "profile must be 'cosine' or 'omni', got {other:?}"
+        ))),
+    }
+}
+
+fn profile_name(p: Profile) -> &'static str {
+    match p {
+        Profile::Cosine => "cosine",
+        Profile::Omni => "omni",
+    }
+}
+
+/// A set of VPLs with how they radiate: exactly the lights the write-back creates and the
+/// evaluator renders.
+#[pyclass(name = "VplSet", module = "vplace._native", frozen)]
+#[derive(Clone)]
+pub struct PyVplSet {
+    pub vpls: Arc<Vec<Vpl>>,
+    pub profile: Profile,
+    pub radius: f32,
+}
+
+impl PyVplSet {
+    /// Checks the VPLs and the radius.
+    pub fn new_checked(vpls: Vec<Vpl>, profile: Profile, radius: f32) -> PyResult<Self> {
+        validate_vpls(&vpls).map_err(crate::errors::to_py)?;
+        if !(radius >= 0.0 && radius.is_finite()) {
+            return Err(input_error(format!(
+                "radius must be finite and >= 0, got {radius}"
+            )));
+        }
+        Ok(Self {
+            vpls: Arc::new(vpls),
+            profile,
+            radius,
+        })
+    }
+
+    /// The evaluator's settings for this set.
+    pub fn eval_params(&self, tile: usize) -> EvalParams {
+        EvalParams {
+            profile: self.profile,
+            r_min: self.radius,
+            tile,
+        }
+    }
+
+    fn column<'py>(&self, py: Python<'py>, f: fn(&Vpl) -> Vec3) -> PyResult<Bound<'py, PyAny>> {
+        let flat: Vec<f32> = self.vpls.iter().flat_map(|v| f(v).to_array()).collect();
+        Ok(PyArray1::from_vec(py, flat)
+            .reshape([self.vpls.len(), 3])?
+            .into_any())
+    }
+}
+
+/// Reads three (N, 3) float32 arrays as VPLs.
+fn read_vpls(
+    position: &Bound<'_, PyAny>,
+    normal: &Bound<'_, PyAny>,
+    flux: &Bound<'_, PyAny>,
+) -> PyResult<Vec<Vpl>> {
+    let p = array::<f32>(position, "position", &[Dim::Any, Dim::Is(3)], "float32")?;
+    let n = p.shape()[0];
+    let nn = array::<f32>(normal, "normal", &[Dim::Is(n), Dim::Is(3)], "float32")?;
+    let f = array::<f32>(flux, "flux", &[Dim::Is(n), Dim::Is(3)], "float32")?;
+    let (p, nn, f) = (
+        slice(&p, "position")?,
+        slice(&nn, "normal")?,
+        slice(&f, "flux")?,
+    );
+    Ok((0..n)
+        .map(|i| Vpl {
+            position: Vec3::from_slice(&p[3 * i..]),
+            normal: Vec3::from_slice(&nn[3 * i..]),
+            flux: Vec3::from_slice(&f[3 * i..]),
+        })
+        .collect())
+}
+
+#[pymethods]
+impl PyVplSet {
+    /// VPLs from float32 (N, 3) arrays: positions, unit normals, reflected flux (RGB watts).
+    #[new]
+    #[pyo3(signature = (position, normal, flux, *, profile = "cosine", radius = 0.0))]
+    fn new(
+        position: &Bound<'_, PyAny>,
+        normal: &Bound<'_, PyAny>,
+        flux: &Bound<'_, PyAny>,
+        profile: &str,
+        radius: f32,
+    ) -> PyResult<Self> {
+        let profile = parse_profile(profile)?;
+        Self::new_checked(read_vpls(position, normal, flux)?, profile, radius)
+    }
+
+    /// The same VPLs with another flux (float32 (N, 3)).
+    fn with_flux(&self, flux: &Bound<'_, PyAny>) -> PyResult<Self> {
+        let n = self.vpls.len();
+        let f = array::<f32>(flux, "flux", &[Dim::Is(n), Dim::Is(3)], "float32")?;
+        let f = slice(&f, "flux")?;
+        let vpls = self
+            .vpls
+            .iter()
+            .enumerate()
+            .map(|(i, v)| Vpl {
+                flux: Vec3::from_slice(&f[3 * i..]),
+                ..*v
+            })
+            .collect();
+        Self::new_checked(vpls, self.profile, self.radius)
+    }
+
+    fn __len__(&self) -> usize {
+        self.vpls.len()
+    }
+
+    /// Positions (N, 3) float32, offset off their surfaces.
+    #[getter]
+    fn position<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.column(py, |v| v.position)
+    }
+
+    /// Unit normals (N, 3) float32: the side the light leaves.
+    #[getter]
+    fn normal<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.column(py, |v| v.normal)
+    }
+
+    /// Reflected flux (N, 3) float32, RGB watts.
+    #[getter]
+    fn flux<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.column(py, |v| v.flux)
+    }
+
+    /// The power of the Blender light of each VPL (N, 3) float32, RGB watts: the flux for the
+    /// cosine profile (an AREA disk), twice the flux for omni (a POINT light).
+    #[getter]
+    fn blender_power<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let p = self.profile;
+        let flat: Vec<f32> = self
+            .vpls
+            .iter()
+            .flat_map(|v| p.blender_power(v.flux).to_array())
+            .collect();
+        Ok(PyArray1::from_vec(py, flat)
+            .reshape([self.vpls.len(), 3])?
+            .into_any())
+    }
+
+    /// `"cosine"` (AREA disk lights) or `"omni"` (POINT lights).
+    #[getter]
+    fn profile(&self) -> &'static str {
+        profile_name(self.profile)
+    }
+
+    /// The near-field radius of every VPL, metres (see `vplace.evaluate`).
+    #[getter]
+    fn radius(&self) -> f32 {
+        self.radius
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "VplSet({} VPLs, profile={:?}, radius={})",
+            self.vpls.len(),
+            profile_name(self.profile),
+            self.radius
+        )
+    }
+}
+
+/// What an evaluation cost.
+#[pyclass(name = "EvalStats", module = "vplace._native", frozen, get_all)]
+pub struct PyEvalStats {
+    /// Shadow rays traced (pixel-VPL pairs with a non-zero unshadowed contribution).
+    pub shadow_rays: u64,
+    /// Pixel-VPL pairs considered.
+    pub pairs: u64,
+    /// Wall time, seconds.
+    pub seconds: f64,
+}
+
+#[pymethods]
+impl PyEvalStats {
+    /// Shadow rays per second.
+    #[getter]
+    fn rays_per_second(&self) -> f64 {
+        EvalStats {
+            shadow_rays: self.shadow_rays,
+            pairs: self.pairs,
+            seconds: self.seconds,
+        }
+        .rays_per_second()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "EvalStats(shadow_rays={}, pairs={}, seconds={:.3})",
+            self.shadow_rays, self.pairs, self.seconds
+        )
+    }
+}
+
+/// The default near-field radius of a scene's VPLs, metres.
+pub fn default_radius(scene: &PyScene, radius: Option<f32>) -> f32 {
+    radius.unwrap_or_else(|| scene.inner.near_field_radius())
+}
+
+/// Keller's instant radiosity (see `vplace.uniform_vpls`).
+#[pyfunction]
+#[pyo3(signature = (scene, n, *, seed = 0, bounces = 1, profile = "cosine", radius = None))]
+fn uniform_vpls(
+    py: Python<'_>,
+    scene: &PyScene,
+    n: usize,
+    seed: u64,
+    bounces: usize,
+    profile: &str,
+    radius: Option<f32>,
+) -> PyResult<PyVplSet> {
+    let profile = parse_profile(profile)?;
+    let s = Arc::clone(&scene.inner);
+    let vpls = run(py, move || vpl::light_path_vpls(&s, n, seed, bounces))?;
+    PyVplSet::new_checked(vpls, profile, default_radius(scene, radius))
+}
+
+/// The reflective-shadow-map baseline (see `vplace.rsm_vpls`).
+#[pyfunction]
+#[pyo3(signature = (scene, n, *, profile = "cosine", radius = None))]
+fn rsm_vpls(
+    py: Python<'_>,
+    scene: &PyScene,
+    n: usize,
+    profile: &str,
+    radius: Option<f32>,
+) -> PyResult<PyVplSet> {
+    let profile = parse_profile(profile)?;
+    let s = Arc::clone(&scene.inner);
+    let vpls = run(py, move || rsm::rsm_vpls(&s, n))?;
+    PyVplSet::new_checked(vpls, profile, default_radius(scene, radius))
+}
+
+/// The indirect image of `vpls` over `view` (see `vplace.evaluate`).
+#[pyfunction]
+#[pyo3(signature = (scene, view, vpls, *, tile = 16, progress = None, brute_force = false))]
+fn evaluate<'py>(
+    py: Python<'py>,
+    scene: &PyScene,
+    view: &PyView,
+    vpls: &PyVplSet,
+    tile: usize,
+    progress: Option<&PyProgress>,
+    brute_force: bool,
+) -> PyResult<(Bound<'py, PyAny>, PyEvalStats)> {
+    let s = Arc::clone(&scene.inner);
+    let v = Arc::clone(&view.inner);
+    let set = Arc::clone(&vpls.vpls);
+    let params = vpls.eval_params(tile);
+    let prog = progress.map(|p| Arc::clone(&p.inner));
+    let (h, w) = (v.height, v.width);
+    let (image, stats) = run(py, move || {
+        let g = v.gbuffer();
+        if brute_force {
+            evaluator::evaluate_brute_force(&s, &g, &set, &params, prog.as_deref())
+        } else {
+            evaluator::evaluate(&s, &g, &set, &params, prog.as_deref())
+        }
+    })?;
+    let out = PyArray1::from_vec(py, image).reshape([h, w, 3])?.into_any();
+    Ok((
+        out,
+        PyEvalStats {
+            shadow_rays: stats.shadow_rays,
+            pairs: stats.pairs,
+            seconds: stats.seconds,
+        },
+    ))
+}
+
+/// Registers this file's classes and functions.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyVplSet>()?;
+    m.add_class::<PyEvalStats>()?;
+    m.add_function(wrap_pyfunction!(uniform_vpls, m)?)?;
+    m.add_function(wrap_pyfunction!(rsm_vpls, m)?)?;
+    m.add_function(wrap_pyfunction!(evaluate, m)?)?;
+    m.add("VPL_SURFACE_OFFSET", vpl::Vpl::SURFACE_OFFSET)?;
+    m.add("MAX_BOUNCES", vpl::MAX_BOUNCES)?;
+    Ok(())
+}
