@@ -1,10 +1,23 @@
 """Write-back: one Blender light per VPL in the ``vplace VPLs`` collection (DESIGN: Write-back).
 
-Re-running replaces that collection and the lights in it, and nothing else. The cosine profile
-becomes an AREA disk facing along the surface normal with power ``Phi``; the omni profile a
-POINT light (radius 0) with power ``2 Phi``. EEVEE culls lights whose intensity falls below
-``scene.eevee.light_threshold``; rather than change that scene setting, each VPL light gets a
-custom cutoff distance of twice the scene's diagonal, so EEVEE never culls it inside the scene.
+Re-running replaces that collection and the lights in it, and nothing else. The lights are the
+ones the evaluator renders (``vplace.VplSet`` carries profile and near-field radius):
+
+- cosine profile: an AREA disk of diameter ``2 R`` (``R`` the set's near-field radius) facing
+  along the surface normal, power ``Phi``: Blender's disk is exactly the near-field kernel of
+  ``vplace_core::shading``, so EEVEE and Cycles show no hot spot the evaluator did not compute.
+  Omni profile: a POINT light of radius 0, power ``2 Phi``, a point on both sides (its near
+  field is singular in Blender and in the evaluator alike; see ``shading.rs``).
+- ``diffuse_factor`` 1, ``specular_factor``, ``transmission_factor`` and ``volume_factor`` 0:
+  the evaluator models the diffuse bounce only; a VPL's small bright disk would otherwise show
+  as a highlight on glossy surfaces.
+- EEVEE culls a light whose intensity falls below ``scene.eevee.light_threshold`` and, with a
+  custom distance, fades it as ``(1 - (d / cutoff)^4)^2`` (``light_influence_attenuation`` in
+  EEVEE's source). Each VPL light gets a custom cutoff of :data:`CUTOFF_DIAGONALS` scene
+  diagonals: no two points of the scene are farther apart than one diagonal, where the fade then
+  loses 0.32 % (two diagonals lost 12 %). The scene's own threshold is left alone.
+- VPLs whose refitted power is zero are not written (a light that gives nothing still costs
+  EEVEE a shadow map); each light keeps its VPL's index as ``vplace_index``.
 """
 
 from __future__ import annotations
@@ -20,6 +33,21 @@ from .native import vplace
 COLLECTION_NAME = "vplace VPLs"
 #: EEVEE renders 8,192 lights; beyond 65,536 it drops them (DESIGN). We refuse more than this.
 MAX_VPLS = 8192
+#: The custom cutoff distance of every VPL light, in scene diagonals (see the module docs).
+CUTOFF_DIAGONALS = 5.0
+#: The diameter written for a VPL of near-field radius 0 (a point), in scene diagonals.
+POINT_DISK_DIAGONALS = 1e-4
+#: EEVEE shadow settings of every VPL light: the evaluator's shadow ray goes from the light's
+#: centre, so the shadow map is not jittered over the disk.
+SHADOW_SETTINGS: dict[str, object] = {"use_shadow_jitter": False}
+
+
+def cutoff_loss(distance: float, cutoff: float) -> float:
+    """The fraction of a light's contribution EEVEE's distance fade removes at ``distance``
+    from it with a custom cutoff ``cutoff``: ``1 - (1 - (d / c)^4)^2`` (0 beyond the cutoff
+    means all of it: 1)."""
+    x = (distance / cutoff) ** 4
+    return 1.0 - max(0.0, 1.0 - x) ** 2
 
 
 def find_collection(name: str = COLLECTION_NAME) -> bpy.types.Collection | None:
@@ -74,21 +102,27 @@ def _new_vpl_object(
     flux: np.ndarray,
     power: np.ndarray,
     profile: str,
-    size: float,
+    radius: float,
     cutoff: float,
     shadows: bool,
 ) -> bpy.types.Object:
-    """VPL ``i`` as a new light object in ``coll``."""
+    """VPL ``i`` as a new light object in ``coll`` (see the module docs)."""
     energy = float(power.max())
     light = bpy.data.lights.new(f"vplace VPL {i:04d}", "AREA" if profile == "cosine" else "POINT")
     light.energy = energy
-    light.color = tuple(float(c) / energy for c in power) if energy > 0 else (1.0, 1.0, 1.0)
+    light.color = tuple(float(c) / energy for c in power)
     light.use_custom_distance = True
     light.cutoff_distance = cutoff
     light.use_shadow = shadows
+    light.diffuse_factor = 1.0
+    light.specular_factor = 0.0
+    light.transmission_factor = 0.0
+    light.volume_factor = 0.0
+    for attr, value in SHADOW_SETTINGS.items():
+        setattr(light, attr, value)
     if profile == "cosine":
         light.shape = "DISK"
-        light.size = size
+        light.size = 2.0 * radius
     else:
         light.shadow_soft_size = 0.0
         light.use_soft_falloff = False
@@ -107,39 +141,36 @@ def write_vpls(
     scene: bpy.types.Scene,
     vpls: vplace.VplSet,
     *,
-    disk_size: float | None = None,
     shadows: bool = True,
     scene_diagonal: float = 10.0,
     name: str = COLLECTION_NAME,
 ) -> bpy.types.Collection:
-    """Writes ``vpls`` as lights (by their profile) in a fresh VPL collection linked to ``scene``.
-
-    ``disk_size`` is the AREA disk diameter (default: 0.2% of ``scene_diagonal``).
-    """
+    """Writes the VPLs of ``vpls`` that carry power as lights (by its profile and near-field
+    radius) in a fresh VPL collection linked to ``scene``; see the module docs."""
     n = len(vpls)
     if n > MAX_VPLS:
         raise WriteBackError(
             f"{n} VPLs is more than EEVEE can render ({MAX_VPLS}); lower the VPL budget"
         )
     find_collection(name)  # refuses a foreign collection of that name before any change
-    size = disk_size if disk_size is not None else 2e-3 * scene_diagonal
+    radius = vpls.radius if vpls.radius > 0 else 0.5 * POINT_DISK_DIAGONALS * scene_diagonal
     position, normal, flux = vpls.position, vpls.normal, vpls.flux
     power = vpls.blender_power
     # Build the new collection unlinked; only a complete one replaces the old one.
     coll = bpy.data.collections.new(name + " (writing)")
     coll[VPL_MARKER] = True
     try:
-        for i in range(n):
+        for i in np.flatnonzero(power.max(axis=1) > 0):
             _new_vpl_object(
                 coll,
-                i,
+                int(i),
                 position[i],
                 normal[i],
                 flux[i],
                 power[i],
                 vpls.profile,
-                size,
-                2.0 * scene_diagonal,
+                radius,
+                CUTOFF_DIAGONALS * scene_diagonal,
                 shadows,
             )
     except BaseException:

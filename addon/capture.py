@@ -23,10 +23,10 @@ import OpenEXR
 
 from .errors import CaptureError
 from .export import VPL_MARKER, ExportedScene, export_scene
-from .settings import SettingsGuard, override, standard_view
+from .settings import SettingsGuard, at_frame, override, standard_view
 
 #: Bump when the capture's content or layout changes, to invalidate caches.
-CAPTURE_VERSION = 2
+CAPTURE_VERSION = 3
 #: Planar depth of pixels that see no geometry (Cycles writes 1e10).
 BACKGROUND_DEPTH = 1e9
 
@@ -73,7 +73,9 @@ class Capture:
     samples: int
     render_seconds: float
     key: str
-    #: The camera object's name, its world position (3,) and world-to-clip matrix (4, 4).
+    #: The view's name (the camera's, or the camera's and the frame's), the camera object's
+    #: name, its world position (3,) and world-to-clip matrix (4, 4).
+    view: str
     camera: str
     camera_position: np.ndarray
     world_to_clip: np.ndarray
@@ -113,8 +115,10 @@ class Capture:
 
     @property
     def indirect(self) -> np.ndarray:
-        """``I = G - D``."""
-        return (self.gi - self.direct).astype(np.float32)
+        """The diffuse indirect light ``DiffInd * DiffCol``: what diffuse VPLs can reproduce, and
+        the target of the fit, the layout iteration and the refit. (``G - D`` would also hold
+        glossy and transmitted indirect light, which no diffuse VPL produces.)"""
+        return (self.diffuse_indirect * self.diffuse_color).astype(np.float32)
 
     def save(self, path: Path) -> None:
         """Writes the capture as an uncompressed ``.npz``."""
@@ -132,6 +136,7 @@ class Capture:
         kw["render_seconds"] = float(kw["render_seconds"])
         kw["key"] = str(kw["key"])
         kw["camera"] = str(kw["camera"])
+        kw["view"] = str(kw["view"])
         return cls(**kw)
 
 
@@ -206,7 +211,10 @@ def camera_matrices(
     an image of ``resolution``."""
     depsgraph = bpy.context.evaluated_depsgraph_get()
     w, h = resolution
-    projection = camera.calc_matrix_camera(depsgraph, x=w, y=h)
+    r = scene.render
+    projection = camera.calc_matrix_camera(
+        depsgraph, x=w, y=h, scale_x=r.pixel_aspect_x, scale_y=r.pixel_aspect_y
+    )
     world_to_clip = np.array(projection @ camera.matrix_world.inverted(), dtype=np.float64)
     return np.array(camera.matrix_world.translation, dtype=np.float64), world_to_clip
 
@@ -242,6 +250,8 @@ def capture(
     exported: ExportedScene | None = None,
     *,
     camera: bpy.types.Object | None = None,
+    frame: int | None = None,
+    name: str | None = None,
     resolution: tuple[int, int] | None = None,
     samples: int = 64,
     seed: int = 0,
@@ -249,8 +259,9 @@ def capture(
     on_progress: Callable[[str], None] | None = None,
     include_vpls: bool = False,
 ) -> Capture:
-    """Renders ``scene`` from ``camera`` (default: the scene camera) with Cycles CPU and returns
-    every pass as numpy.
+    """Renders ``scene`` from ``camera`` (default: the scene camera) at ``frame`` (default: the
+    current one) with Cycles CPU and returns every pass as numpy; ``name`` names the view
+    (default: the camera's).
 
     ``exported`` is :func:`export.export_scene` of the same scene (it keys the cache; exported
     here when not given). The lights vplace wrote are hidden from the render unless
@@ -275,10 +286,41 @@ def capture(
         raise CaptureError(f"resolution must be at least 1 x 1, got {resolution}")
     if exported is None or include_vpls:
         exported = export_scene(scene, include_vpls=include_vpls)
+    with at_frame(scene, frame):
+        return _capture_now(
+            scene,
+            exported,
+            camera,
+            name or camera.name,
+            resolution,
+            samples,
+            seed,
+            Path(cache_dir) if cache_dir is not None else None,
+            on_progress,
+            include_vpls,
+        )
+
+
+def _capture_now(
+    scene: bpy.types.Scene,
+    exported: ExportedScene,
+    camera: bpy.types.Object,
+    name: str,
+    resolution: tuple[int, int],
+    samples: int,
+    seed: int,
+    cache_dir: Path | None,
+    on_progress: Callable[[str], None] | None,
+    include_vpls: bool,
+) -> Capture:
+    """:func:`capture` at the current frame."""
     key = capture_key(exported, camera, resolution, samples, seed)
-    cached = Path(cache_dir) / f"capture-{key}.npz" if cache_dir is not None else None
+    cached = cache_dir / f"capture-{key}.npz" if cache_dir is not None else None
     if cached is not None and cached.exists():
-        return Capture.load(cached)
+        try:
+            return Capture.load(cached)
+        except (KeyError, ValueError, OSError, EOFError):
+            pass  # unreadable or of another layout: render it again and replace it
 
     view_layer = scene.view_layers[0]
     if bpy.context.scene == scene:
@@ -325,6 +367,7 @@ def capture(
         samples=samples,
         render_seconds=seconds,
         key=key,
+        view=name,
         camera=camera.name,
         camera_position=camera_position,
         world_to_clip=world_to_clip,

@@ -12,16 +12,29 @@ import sys
 import time
 import traceback
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import bpy
+
+if TYPE_CHECKING:
+    from .views import ViewSet
 
 REPO = Path(__file__).resolve().parent.parent
 
 
-def output_size(scene: bpy.types.Scene) -> tuple[int, int]:
-    """The scene's render size in pixels."""
-    pct = scene.render.resolution_percentage / 100.0
-    return (int(scene.render.resolution_x * pct), int(scene.render.resolution_y * pct))
+def view_set(args: argparse.Namespace) -> ViewSet:
+    """The views of the ``demo`` options (default: the scene camera)."""
+    from .views import ViewSet
+
+    if args.cameras:
+        return ViewSet(mode="cameras", cameras=tuple(args.cameras))
+    if args.frames:
+        start, end, step = args.frames
+        return ViewSet(mode="frames", frame_start=start, frame_end=end, frame_step=step)
+    if args.orbit:
+        count, radius, angle = args.orbit
+        return ViewSet(mode="orbit", orbit_count=int(count), orbit_radius=radius, orbit_angle=angle)
+    return ViewSet()
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
@@ -35,12 +48,29 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     demo.add_argument("--out", type=Path, default=Path("out/cornell"))
     demo.add_argument("--vpls", type=int, default=128, help="VPL budget")
     demo.add_argument(
-        "--resolution",
+        "--size",
         type=int,
-        nargs=2,
-        default=None,
-        metavar=("W", "H"),
-        help="capture size (default: the scene's output size)",
+        default=160,
+        help="capture size: pixels on the long side, at the render's aspect ratio (default 160)",
+    )
+    views = demo.add_mutually_exclusive_group()
+    views.add_argument(
+        "--cameras", nargs="+", metavar="NAME", help="lay out for these scene cameras"
+    )
+    views.add_argument(
+        "--frames",
+        type=int,
+        nargs=3,
+        metavar=("START", "END", "STEP"),
+        help="lay out for the scene camera at these frames (an animated camera)",
+    )
+    views.add_argument(
+        "--orbit",
+        type=float,
+        nargs=3,
+        metavar=("COUNT", "RADIUS", "ANGLE"),
+        help="lay out for COUNT views around the scene camera: turned about a pivot RADIUS m in "
+        "front of it (0: the scene's centre) by up to ANGLE degrees",
     )
     demo.add_argument("--samples", type=int, default=256, help="Cycles samples of the capture")
     demo.add_argument("--seed", type=int, default=0)
@@ -151,7 +181,8 @@ def run(args: argparse.Namespace) -> None:
     bpy.ops.wm.open_mainfile(filepath=str(blend))
     job = Job(
         n_vpls=args.vpls,
-        resolution=tuple(args.resolution) if args.resolution else output_size(bpy.context.scene),
+        size=args.size,
+        views=view_set(args),
         samples=args.samples,
         seed=args.seed,
         profile=args.profile,

@@ -198,6 +198,41 @@ class VPLACE_OT_clear_vpls(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class VPLACE_OT_camera_add(bpy.types.Operator):
+    """Add the active camera object (or an empty row to pick one) to the views' cameras"""
+
+    bl_idname = "vplace.camera_add"
+    bl_label = "Add camera"
+    bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        settings = context.scene.vplace
+        row = settings.cameras.add()
+        active = context.active_object
+        if active is not None and active.type == "CAMERA":
+            row.camera = active
+        settings.camera_index = len(settings.cameras) - 1
+        return {"FINISHED"}
+
+
+class VPLACE_OT_camera_remove(bpy.types.Operator):
+    """Remove the selected camera from the views' cameras"""
+
+    bl_idname = "vplace.camera_remove"
+    bl_label = "Remove camera"
+    bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return context.scene is not None and len(context.scene.vplace.cameras) > 0
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        settings = context.scene.vplace
+        settings.cameras.remove(settings.camera_index)
+        settings.camera_index = max(0, min(settings.camera_index, len(settings.cameras) - 1))
+        return {"FINISHED"}
+
+
 class VPLACE_OT_bake_par2d(bpy.types.Operator):
     """Bake the 2D direct light (PAR) of the flat objects of a collection, seen from above,
     onto an image-textured plane; objects whose material emits are the lights"""
@@ -243,6 +278,8 @@ CLASSES = (
     VPLACE_OT_apply,
     VPLACE_OT_clear_vpls,
     VPLACE_OT_report,
+    VPLACE_OT_camera_add,
+    VPLACE_OT_camera_remove,
     VPLACE_OT_bake_par2d,
 )
 

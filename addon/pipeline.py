@@ -14,6 +14,7 @@ Every stage is timed and announced through a :class:`StageTimer`.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -29,6 +30,8 @@ from . import apply, capture, export, images
 from .errors import AddonError, CaptureError, ExportError
 from .native import build_scene, view_of, vplace
 from .settings import override
+from .views import ViewSet, ViewSpec, capture_resolution
+from .views import specs as view_specs
 
 #: The layout methods, in the report's order: Keller's light paths, reflective shadow maps, the
 #: regression-guided layout, and the same with its VPL powers refitted to the captured light.
@@ -70,7 +73,10 @@ class Job:
     build it from their settings; its defaults are theirs."""
 
     n_vpls: int = 128
-    resolution: tuple[int, int] = (160, 160)
+    #: Capture size: pixels on the long side, at the render's aspect ratio.
+    size: int = 160
+    #: An explicit capture size (W, H) instead of ``size`` (the report's presets).
+    resolution: tuple[int, int] | None = None
     samples: int = 256
     seed: int = 0
     profile: str = "cosine"
@@ -85,6 +91,8 @@ class Job:
     iterations: int = 3
     #: "auto": drop features that do not raise CV R^2; "all": keep every usable feature.
     feature_mode: str = "auto"
+    #: The views the lights are laid out for.
+    views: ViewSet = field(default_factory=ViewSet)
     cache_dir: Path | None = None
 
     def validate(self) -> None:
@@ -95,13 +103,20 @@ class Job:
             raise AddonError(f"the VPL budget must be 1 to {apply.MAX_VPLS}, got {self.n_vpls}")
         if self.feature_mode not in ("auto", "all"):
             raise AddonError(f"feature mode must be 'auto' or 'all', got {self.feature_mode!r}")
+        if self.size < 8:
+            raise AddonError(f"the capture size must be at least 8 pixels, got {self.size}")
+        self.views.validate()
+
+    def capture_resolution(self, scene: bpy.types.Scene) -> tuple[int, int]:
+        """The capture's (W, H) in ``scene``."""
+        return self.resolution or capture_resolution(scene, self.size)
 
     @classmethod
     def from_settings(cls, settings: Any, cache_dir: Path | None = None) -> Job:
         """A job from ``Scene.vplace`` (see properties.py)."""
         return cls(
             n_vpls=settings.vpl_budget,
-            resolution=(settings.resolution_x, settings.resolution_y),
+            size=settings.capture_size,
             samples=settings.samples,
             seed=settings.seed,
             profile=settings.profile,
@@ -110,8 +125,14 @@ class Job:
             alpha=settings.alpha,
             iterations=settings.iterations,
             feature_mode=settings.feature_mode,
+            views=settings.view_set(),
             cache_dir=cache_dir,
         )
+
+
+#: The most capture memory (bytes) a job may hold: about 15 float32 values per pixel and view.
+MAX_CAPTURE_BYTES = 4 << 30
+CAPTURE_BYTES_PER_PIXEL = 15 * 4
 
 
 @dataclass
@@ -122,6 +143,8 @@ class Prepared:
     exported: export.ExportedScene
     captures: list[capture.Capture]
     views: list[vplace.View]
+    #: Views left out, with the reason (a camera that sees nothing, a duplicate view).
+    skipped: dict[str, str] = field(default_factory=dict)
 
     @property
     def capture(self) -> capture.Capture:
@@ -148,44 +171,76 @@ def prepare(
     bl_scene: bpy.types.Scene,
     job: Job,
     timer: StageTimer,
-    cameras: Sequence[bpy.types.Object] | None = None,
+    views: Sequence[ViewSpec] | None = None,
 ) -> Prepared:
-    """Export, BVH and a capture of each camera (default: the scene camera). Uses bpy: call it
-    on Blender's main thread."""
+    """Export, BVH and a capture of each view (default: the job's view set). Uses bpy: call it
+    on Blender's main thread.
+
+    A view that sees no geometry, or that renders exactly what an earlier view renders (the same
+    capture key), is left out and said so in ``Prepared.skipped`` and the log; only when no view
+    is left is it an error. A view set whose captures would take more than
+    :data:`MAX_CAPTURE_BYTES` is refused before anything renders."""
     job.validate()
     with timer.stage("export scene"):
         exported = export.export_scene(bl_scene)
     check_lights(exported)
     with timer.stage("build BVH"):
         scene = build_scene(exported)
-    cams = list(cameras) if cameras is not None else [bl_scene.camera]
-    last = [0.0]
-
-    def on_progress(line: str) -> None:
-        now = time.perf_counter()
-        if now - last[0] > 2.0:
-            last[0] = now
-            timer.log(f"[vplace]   {line}")
-
-    captures = []
-    for cam in cams:
-        with timer.stage(f"capture {cam.name if cam else '(no camera)'} (Cycles)"):
-            cap = capture.capture(
-                bl_scene,
-                exported,
-                camera=cam,
-                resolution=job.resolution,
-                samples=job.samples,
-                seed=job.seed,
-                cache_dir=job.cache_dir,
-                on_progress=on_progress,
-            )
-        if not cap.covered.any():
+    with contextlib.ExitStack() as stack:
+        specs = (
+            list(views)
+            if views is not None
+            else stack.enter_context(view_specs(bl_scene, job.views))
+        )
+        resolution = job.capture_resolution(bl_scene)
+        need = len(specs) * resolution[0] * resolution[1] * CAPTURE_BYTES_PER_PIXEL
+        if need > MAX_CAPTURE_BYTES:
             raise CaptureError(
-                f"the camera {cap.camera!r} sees no geometry (only background): aim it at the scene"
+                f"{len(specs)} views of {resolution[0]}x{resolution[1]} pixels need about "
+                f"{need / 2**30:.1f} GB of captures (at most {MAX_CAPTURE_BYTES / 2**30:.0f} GB): "
+                "use fewer views or a smaller capture size"
             )
-        captures.append(cap)
-    return Prepared(scene, exported, captures, [view_of(c) for c in captures])
+        last = [0.0]
+
+        def on_progress(line: str) -> None:
+            now = time.perf_counter()
+            if now - last[0] > 2.0:
+                last[0] = now
+                timer.log(f"[vplace]   {line}")
+
+        captures: list[capture.Capture] = []
+        skipped: dict[str, str] = {}
+        for spec in specs:
+            with timer.stage(f"capture {spec.name} (Cycles)"):
+                cap = capture.capture(
+                    bl_scene,
+                    exported,
+                    camera=spec.camera,
+                    frame=spec.frame,
+                    name=spec.name,
+                    resolution=resolution,
+                    samples=job.samples,
+                    seed=job.seed,
+                    cache_dir=job.cache_dir,
+                    on_progress=on_progress,
+                )
+            same = next((c.view for c in captures if c.key == cap.key), None)
+            if same is not None:
+                skipped[spec.name] = f"the same view as {same!r}"
+            elif not cap.covered.any():
+                skipped[spec.name] = "the camera sees no geometry (only background)"
+            else:
+                captures.append(cap)
+                continue
+            timer.log(f"[vplace] view {spec.name!r} left out: {skipped[spec.name]}")
+    if not captures:
+        names = ", ".join(repr(n) for n in skipped)
+        raise CaptureError(
+            f"no view is left to lay out VPLs for ({names}: "
+            + "; ".join(skipped.values())
+            + "): aim the camera at the scene"
+        )
+    return Prepared(scene, exported, captures, [view_of(c) for c in captures], skipped)
 
 
 def fit(prepared: Prepared, job: Job, views: Sequence[vplace.View] | None = None) -> vplace.Fit:
@@ -380,11 +435,13 @@ def summary(
         "scene": bl_scene.name,
         "triangles": prepared.scene.triangle_count,
         "lights": prepared.scene.light_count,
-        "views": [c.camera for c in prepared.captures],
-        "resolution": list(job.resolution),
+        "views": [c.view for c in prepared.captures],
+        "skipped_views": prepared.skipped,
+        "resolution": [prepared.capture.width, prepared.capture.height],
         "samples": job.samples,
         "capture_render_seconds": sum(c.render_seconds for c in prepared.captures),
         "n_vpls": job.n_vpls,
+        "lights_written": int((computed.vpls.blender_power.max(axis=1) > 0).sum()),
         "method": job.method,
         "alpha": job.alpha,
         "iterations": job.iterations,
@@ -439,7 +496,11 @@ def run_main_job(
     images.save_png(out_dir / "direct_plus_vpl.png", cap.direct + computed.indirect)
     if eevee and write_back:
         with timer.stage("EEVEE preview"):
-            render_eevee_preview(bl_scene, out_dir / "eevee_vpl.png", job.resolution)
+            render_eevee_preview(
+                bl_scene,
+                out_dir / "eevee_vpl.png",
+                (prepared.capture.width, prepared.capture.height),
+            )
     np.savetxt(
         out_dir / "vpls.csv",
         np.hstack([vpls.position, vpls.normal, vpls.flux]),

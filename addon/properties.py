@@ -8,6 +8,7 @@ from typing import Any
 import bpy
 from bpy.props import (
     BoolProperty,
+    CollectionProperty,
     EnumProperty,
     FloatProperty,
     IntProperty,
@@ -16,6 +17,7 @@ from bpy.props import (
 )
 
 from .pipeline import Job
+from .views import ViewSet
 
 #: The job's defaults: the panel starts where the command line does.
 _DEFAULT = Job()
@@ -29,10 +31,26 @@ METHOD_ITEMS = [
     ("uniform", "Uniform", "Keller's instant radiosity: light paths, every bounce"),
     ("rsm", "RSM", "A regular grid over each light's view (reflective shadow maps)"),
 ]
+VIEW_MODE_ITEMS = [
+    ("active", "Scene camera", "Lay out for the scene camera's view"),
+    ("cameras", "Chosen cameras", "One set of lights for the views of the cameras listed below"),
+    ("frames", "Camera animation", "One set of lights for the scene camera at several frames"),
+    ("orbit", "Around the camera", "One set of lights for views turned about the scene camera"),
+]
 FEATURE_MODE_ITEMS = [
     ("auto", "Auto", "Drop constant, collinear and unhelpful features (cross-validated)"),
     ("all", "All", "Every feature of the registry that is not constant or collinear"),
 ]
+
+
+def _is_camera(_self: Any, obj: bpy.types.Object) -> bool:
+    return obj.type == "CAMERA"
+
+
+class VPLACE_PG_camera(bpy.types.PropertyGroup):
+    """A scene camera the lights are laid out for."""
+
+    camera: PointerProperty(type=bpy.types.Object, poll=_is_camera)  # type: ignore[valid-type]
 
 
 class VPLACE_PG_settings(bpy.types.PropertyGroup):
@@ -66,11 +84,38 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
         min=0,
         max=32,
     )
-    resolution_x: IntProperty(  # type: ignore[valid-type]
-        name="Capture width", default=_DEFAULT.resolution[0], min=8, max=4096, subtype="PIXEL"
+    capture_size: IntProperty(  # type: ignore[valid-type]
+        name="Capture size",
+        description="Pixels on the long side of each capture, at the render's aspect ratio",
+        default=_DEFAULT.size,
+        min=8,
+        max=4096,
+        subtype="PIXEL",
     )
-    resolution_y: IntProperty(  # type: ignore[valid-type]
-        name="Capture height", default=_DEFAULT.resolution[1], min=8, max=4096, subtype="PIXEL"
+    view_mode: EnumProperty(  # type: ignore[valid-type]
+        name="Views", items=VIEW_MODE_ITEMS, default=_DEFAULT.views.mode
+    )
+    cameras: CollectionProperty(type=VPLACE_PG_camera)  # type: ignore[valid-type]
+    camera_index: IntProperty(name="Active camera row", default=0)  # type: ignore[valid-type]
+    frame_start: IntProperty(name="Start", default=1)  # type: ignore[valid-type]
+    frame_end: IntProperty(name="End", default=250)  # type: ignore[valid-type]
+    frame_step: IntProperty(name="Step", default=50, min=1)  # type: ignore[valid-type]
+    orbit_count: IntProperty(  # type: ignore[valid-type]
+        name="Count", description="Views, the scene camera's included", default=4, min=1, max=64
+    )
+    orbit_radius: FloatProperty(  # type: ignore[valid-type]
+        name="Radius",
+        description="Distance to the pivot the views turn about (0: the scene's centre)",
+        default=0.0,
+        min=0.0,
+        unit="LENGTH",
+    )
+    orbit_angle: FloatProperty(  # type: ignore[valid-type]
+        name="Angle",
+        description="The views turn by up to this many degrees either way",
+        default=30.0,
+        min=0.0,
+        max=180.0,
     )
     samples: IntProperty(  # type: ignore[valid-type]
         name="Capture samples",
@@ -103,8 +148,21 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
         """The last run's report, or an empty dict."""
         return json.loads(self.last_report) if self.last_report else {}
 
+    def view_set(self) -> ViewSet:
+        """The views these settings choose."""
+        return ViewSet(
+            mode=self.view_mode,
+            cameras=tuple(c.camera.name for c in self.cameras if c.camera is not None),
+            frame_start=self.frame_start,
+            frame_end=self.frame_end,
+            frame_step=self.frame_step,
+            orbit_count=self.orbit_count,
+            orbit_radius=self.orbit_radius,
+            orbit_angle=self.orbit_angle,
+        )
 
-CLASSES = (VPLACE_PG_settings,)
+
+CLASSES = (VPLACE_PG_camera, VPLACE_PG_settings)
 
 
 def register() -> None:

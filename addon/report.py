@@ -42,6 +42,7 @@ from . import apply, capture, default_scene, pipeline
 from .errors import ReportError
 from .native import bench_par2d, view_of, vplace
 from .settings import override
+from .views import ViewSpec
 
 #: Seeds of the renders: the user's capture, the ground truth, Cycles at rising sample counts.
 CAPTURE_SEED = 0
@@ -214,7 +215,8 @@ def load_scene(
             raise ReportError(f"the scene has no camera object named {name!r}")
         cams.append(cam)
     timer = pipeline.StageTimer(log)
-    prepared = pipeline.prepare(bl_scene, job, timer, cameras=cams)
+    specs = [ViewSpec(name, cam) for (name, _), cam in zip(names, cams, strict=True)]
+    prepared = pipeline.prepare(bl_scene, job, timer, views=specs)
     views = []
     for (name, role), cam, cap in zip(names, cams, prepared.captures, strict=True):
 

@@ -60,6 +60,21 @@ def standard_view(g: SettingsGuard, scene: Any) -> None:
 
 
 @contextlib.contextmanager
+def at_frame(scene: Any, frame: int | None) -> Iterator[None]:
+    """The scene at ``frame`` for the block (``None``: as it is); the frame it was at comes back
+    after, also when the block raises."""
+    if frame is None or frame == scene.frame_current:
+        yield
+        return
+    old = scene.frame_current
+    scene.frame_set(frame)
+    try:
+        yield
+    finally:
+        scene.frame_set(old)
+
+
+@contextlib.contextmanager
 def override() -> Iterator[SettingsGuard]:
     """A ``SettingsGuard`` whose changes are undone when the block ends, however it ends."""
     guard = SettingsGuard()

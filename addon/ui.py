@@ -3,14 +3,14 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import bpy
 
 
-class VPLACE_PT_main(bpy.types.Panel):
-    """Regression-placed virtual point lights for EEVEE"""
+class _Panel:
+    """Where vplace's panels live: Properties > Render."""
 
-    bl_label = "vplace: bounce light for EEVEE"
-    bl_idname = "VPLACE_PT_main"
     bl_space_type = "PROPERTIES"
     bl_region_type = "WINDOW"
     bl_context = "render"
@@ -18,6 +18,31 @@ class VPLACE_PT_main(bpy.types.Panel):
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
         return context.scene is not None and hasattr(context.scene, "vplace")
+
+
+class VPLACE_UL_cameras(bpy.types.UIList):
+    """The cameras the lights are laid out for"""
+
+    def draw_item(
+        self,
+        _context: bpy.types.Context,
+        layout: bpy.types.UILayout,
+        _data: Any,
+        item: Any,
+        _icon: int,
+        _active_data: Any,
+        _active_prop: str,
+        _index: int = 0,
+        _flt_flag: int = 0,
+    ) -> None:
+        layout.prop(item, "camera", text="", emboss=False, icon="CAMERA_DATA")
+
+
+class VPLACE_PT_main(_Panel, bpy.types.Panel):
+    """Regression-placed virtual point lights for EEVEE"""
+
+    bl_label = "vplace: bounce light for EEVEE"
+    bl_idname = "VPLACE_PT_main"
 
     def draw(self, context: bpy.types.Context) -> None:
         settings = context.scene.vplace
@@ -33,8 +58,7 @@ class VPLACE_PT_main(bpy.types.Panel):
         col.prop(settings, "iterations")
         col.prop(settings, "feature_mode")
         col = layout.column(align=True)
-        col.prop(settings, "resolution_x")
-        col.prop(settings, "resolution_y")
+        col.prop(settings, "capture_size")
         col.prop(settings, "samples")
         row = layout.row(align=True)
         row.operator("vplace.capture", icon="RENDER_STILL")
@@ -67,7 +91,40 @@ class VPLACE_PT_main(bpy.types.Panel):
             box.label(text=f"{stage}: {seconds:.2f} s")
 
 
-CLASSES = (VPLACE_PT_main,)
+class VPLACE_PT_views(_Panel, bpy.types.Panel):
+    """The views one set of lights is laid out for"""
+
+    bl_label = "Views"
+    bl_idname = "VPLACE_PT_views"
+    bl_parent_id = "VPLACE_PT_main"
+
+    def draw(self, context: bpy.types.Context) -> None:
+        settings = context.scene.vplace
+        layout = self.layout
+        layout.use_property_split = True
+        layout.prop(settings, "view_mode")
+        mode = settings.view_mode
+        if mode == "cameras":
+            row = layout.row()
+            row.template_list(
+                "VPLACE_UL_cameras", "", settings, "cameras", settings, "camera_index", rows=3
+            )
+            col = row.column(align=True)
+            col.operator("vplace.camera_add", icon="ADD", text="")
+            col.operator("vplace.camera_remove", icon="REMOVE", text="")
+        elif mode == "frames":
+            col = layout.column(align=True)
+            col.prop(settings, "frame_start")
+            col.prop(settings, "frame_end")
+            col.prop(settings, "frame_step")
+        elif mode == "orbit":
+            col = layout.column(align=True)
+            col.prop(settings, "orbit_count")
+            col.prop(settings, "orbit_radius")
+            col.prop(settings, "orbit_angle")
+
+
+CLASSES = (VPLACE_UL_cameras, VPLACE_PT_main, VPLACE_PT_views)
 
 
 def register() -> None:

@@ -98,3 +98,13 @@ def test_capture_hides_the_lights_vplace_wrote(tmp_path):
     assert not coll.hide_render  # shown again after the capture
     lit = capture.capture(scene, resolution=(16, 16), samples=4, include_vpls=True)
     assert lit.key != first.key and lit.combined.mean() > 1.05 * first.combined.mean()
+
+
+def test_an_unreadable_cache_file_is_rendered_again(tmp_path):
+    scene = cornell()
+    first = capture.capture(scene, resolution=(8, 8), samples=2, cache_dir=tmp_path)
+    (path,) = tmp_path.glob("capture-*.npz")
+    path.write_bytes(b"not an npz")
+    again = capture.capture(scene, resolution=(8, 8), samples=2, cache_dir=tmp_path)
+    np.testing.assert_array_equal(again.combined, first.combined)
+    assert capture.Capture.load(path).key == first.key  # replaced by a good one

@@ -10,7 +10,7 @@ import bpy
 from blender_util import cornell
 
 ROOT = Path(__file__).resolve().parents[2]
-ARGS = ["--resolution", "16", "16", "--samples", "4", "--vpls", "8", "--no-eevee"]
+ARGS = ["--size", "16", "--samples", "4", "--vpls", "8", "--no-eevee"]
 
 
 def saved_cornell(tmp_path):

@@ -31,10 +31,10 @@ INSTALL_AND_RUN = textwrap.dedent(
     from bl_ext.user_default.vplace import default_scene, apply
     scene = default_scene.build_cornell_box(obj_path)
     s = scene.vplace
-    s.resolution_x = s.resolution_y = 16
+    s.capture_size = 16
     s.samples, s.vpl_budget = 4, 8
     assert bpy.ops.vplace.apply() == {"FINISHED"}
-    assert len(apply.find_collection().objects) == 8
+    assert 0 < len(apply.find_collection().objects) <= 8
     print("EXTENSION-OK", vplace.__file__)
     """
 )

@@ -30,6 +30,9 @@ class Recorder:
     def _child(self, *_a, **_kw):
         return Recorder(self.log)
 
+    def template_list(self, *args, **_kw):
+        self.log.append(("list", args[0]))
+
     row = column = box = grid_flow = _child
 
 
@@ -39,17 +42,31 @@ def scene():
     empty_file()
     sc = build_cornell_box(CORNELL_OBJ)
     s = sc.vplace
-    s.resolution_x = s.resolution_y = 16
+    s.capture_size = 16
     s.samples, s.vpl_budget = 2, 8
     yield sc
     addon.unregister()
 
 
-def draw(scene):
+def draw(scene, panel_class=ui.VPLACE_PT_main):
     log = []
     panel = type("Panel", (), {"layout": Recorder(log)})()
-    ui.VPLACE_PT_main.draw(panel, type("Ctx", (), {"scene": scene})())
+    panel_class.draw(panel, type("Ctx", (), {"scene": scene})())
     return log
+
+
+def test_views_panel_shows_what_each_mode_needs(scene):
+    wanted = {
+        "active": set(),
+        "cameras": {("list", "VPLACE_UL_cameras"), ("operator", "vplace.camera_add")},
+        "frames": {("prop", "frame_start"), ("prop", "frame_end"), ("prop", "frame_step")},
+        "orbit": {("prop", "orbit_count"), ("prop", "orbit_radius"), ("prop", "orbit_angle")},
+    }
+    for mode, items in wanted.items():
+        scene.vplace.view_mode = mode
+        log = draw(scene, ui.VPLACE_PT_views)
+        assert ("prop", "view_mode") in log
+        assert items <= set(log), (mode, log)
 
 
 def test_panel_shows_settings_buttons_and_last_results(scene):
@@ -61,8 +78,7 @@ def test_panel_shows_settings_buttons_and_last_results(scene):
         "alpha",
         "refit",
         "iterations",
-        "resolution_x",
-        "resolution_y",
+        "capture_size",
         "samples",
         "profile",
         "feature_mode",

@@ -103,9 +103,9 @@ impl GBuffer<'_> {
 pub struct EvalParams {
     /// How VPLs radiate.
     pub profile: Profile,
-    /// Minimum distance clamp `r_min` (metres) that bounds the `1 / r^2` singularity near a VPL.
+    /// Minimum distance clamp `radius` (metres) that bounds the `1 / r^2` singularity near a VPL.
     /// Must be `>= 0`; 0 disables the clamp (use only to compare with an unclamped renderer).
-    pub r_min: f32,
+    pub radius: f32,
     /// Side of the square pixel tiles scheduled on the thread pool.
     pub tile: usize,
 }
@@ -114,7 +114,7 @@ impl EvalParams {
     /// Preview quality: cosine profile, 1 cm clamp, 16-pixel tiles.
     pub const PREVIEW: Self = Self {
         profile: Profile::Cosine,
-        r_min: 0.01,
+        radius: 0.01,
         tile: 16,
     };
 }
@@ -182,14 +182,14 @@ pub fn validate_vpls(vpls: &[Vpl]) -> Result<()> {
     Ok(())
 }
 
-/// Checks the distance clamp `r_min`: finite and `>= 0`.
-pub(crate) fn check_r_min(r_min: f32) -> Result<()> {
-    if r_min >= 0.0 && r_min.is_finite() {
+/// Checks the distance clamp `radius`: finite and `>= 0`.
+pub(crate) fn check_radius(radius: f32) -> Result<()> {
+    if radius >= 0.0 && radius.is_finite() {
         Ok(())
     } else {
         Err(VplaceError::OutOfRange {
-            what: "r_min".into(),
-            value: r_min.to_string(),
+            what: "radius".into(),
+            value: radius.to_string(),
             expected: ">= 0 and finite".into(),
         })
     }
@@ -263,7 +263,7 @@ fn evaluate_with(
 ) -> Result<(Vec<f32>, EvalStats)> {
     gbuffer.validate()?;
     validate_vpls(vpls)?;
-    check_r_min(params.r_min)?;
+    check_radius(params.radius)?;
     if params.tile == 0 {
         return Err(VplaceError::OutOfRange {
             what: "tile".into(),
@@ -292,7 +292,7 @@ fn evaluate_with(
     let rays = AtomicU64::new(0);
     let reused = AtomicU64::new(0);
     let eps = scene.ray_epsilon();
-    let r_min_sq = params.r_min * params.r_min;
+    let radius_sq = params.radius * params.radius;
     let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
     type Tile = (Vec<(usize, Vec3)>, Vec<u64>);
     let results: Vec<Option<Tile>> = tiles
@@ -315,7 +315,7 @@ fn evaluate_with(
                         continue;
                     }
                     let recv = gbuffer.receiver(p, eps);
-                    batch.prepare(&soa, &recv, params.profile, r_min_sq);
+                    batch.prepare(&soa, &recv, params.profile, radius_sq);
                     let row = bits.len();
                     bits.resize(row + 2 * words, 0);
                     let (known, visible) = bits[row..].split_at_mut(words);
@@ -410,7 +410,7 @@ mod tests {
         for profile in [Profile::Cosine, Profile::Omni] {
             let params = EvalParams {
                 profile,
-                r_min: 0.0,
+                radius: 0.0,
                 tile: 3,
             };
             let (img, stats) = evaluate(&scene, &g, &[vpl], &params, None).unwrap();
@@ -435,7 +435,7 @@ mod tests {
     }
 
     #[test]
-    fn shadows_back_faces_clamp_and_cancel() {
+    fn shadows_back_faces_near_field_and_cancel() {
         let scene = closed_box(vec![]);
         let (pos, normal, albedo, covered) = floor(4);
         let g = GBuffer {
@@ -477,19 +477,21 @@ mod tests {
         let (img, stats) = evaluate(&scene, &g, &[up], &EvalParams::PREVIEW, None).unwrap();
         assert!(img.iter().all(|&v| v == 0.0));
         assert_eq!(stats.shadow_rays, 0);
-        // The clamp bounds a VPL sitting on a receiver.
+        // The disk of a cosine VPL sitting on a receiver bounds its light: at most
+        // `albedo / pi / (pi R^2)` per unit flux, reached on the axis.
         let near = Vpl {
             position: Vec3::new(pos[0], pos[1], 1e-4),
             normal: Vec3::NEG_Z,
             flux: Vec3::ONE,
         };
         let params = EvalParams {
-            profile: Profile::Omni,
-            r_min: 0.1,
+            profile: Profile::Cosine,
+            radius: 0.1,
             tile: 16,
         };
         let (img, _) = evaluate(&scene, &g, &[near], &params, None).unwrap();
-        assert!(img[0] <= 0.5 / PI * (0.5 / PI) / 0.01 + 1e-6);
+        let bound = 0.5 / PI / (PI * 0.01);
+        assert!(img[0] <= bound * (1.0 + 1e-5) && img[0] > 0.99 * bound, "{}", img[0]);
         let progress = Progress::default();
         progress.cancel.store(true, Ordering::Relaxed);
         assert_eq!(
@@ -510,16 +512,16 @@ mod tests {
         let g = arrays.gbuffer();
         let (mut any_blocked, mut any_r0) = (false, false);
         for profile in [Profile::Cosine, Profile::Omni] {
-            for r_min in [0.0, 0.05, 0.4] {
-                let (expect, rays) = reference_image(&scene, &g, &vpls, profile, r_min);
+            for radius in [0.0, 0.05, 0.4] {
+                let (expect, rays) = reference_image(&scene, &g, &vpls, profile, radius);
                 for tile in [1, 5, 16] {
                     let params = EvalParams {
                         profile,
-                        r_min,
+                        radius,
                         tile,
                     };
                     let (img, stats) = evaluate(&scene, &g, &vpls, &params, None).unwrap();
-                    assert_eq!(img, expect, "{profile:?} r_min {r_min} tile {tile}");
+                    assert_eq!(img, expect, "{profile:?} radius {radius} tile {tile}");
                     assert_eq!(stats.shadow_rays, rays);
                     let mut cache = ShadowCache::default();
                     for _ in 0..2 {
@@ -535,8 +537,8 @@ mod tests {
                     let x = GBuffer::vec3(g.position, p);
                     let n = GBuffer::vec3(g.normal, p).normalize_or_zero();
                     for v in &vpls {
-                        let shadowed = reference_incident(Some(&scene), x, n, v, profile, r_min);
-                        let open = reference_incident(None, x, n, v, profile, r_min);
+                        let shadowed = reference_incident(Some(&scene), x, n, v, profile, radius);
+                        let open = reference_incident(None, x, n, v, profile, radius);
                         any_blocked |= shadowed != open;
                         any_r0 |= v.position == x;
                     }
@@ -629,7 +631,7 @@ mod tests {
         for profile in [Profile::Cosine, Profile::Omni] {
             let params = EvalParams {
                 profile,
-                r_min: 0.05,
+                radius: 0.05,
                 tile: 5,
             };
             let mut cache = ShadowCache::default();

@@ -40,7 +40,7 @@ use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 use crate::error::{Result, VplaceError};
-use crate::evaluator::{check_r_min, validate_vpls, GBuffer, Progress};
+use crate::evaluator::{check_radius, validate_vpls, GBuffer, Progress};
 use crate::refine::targets;
 use crate::scene::Scene;
 use crate::shading::{Batch, Receiver, VplSoa};
@@ -53,7 +53,7 @@ pub struct RefitParams {
     /// How VPLs radiate, as in the evaluator.
     pub profile: Profile,
     /// Distance clamp (metres), as in the evaluator.
-    pub r_min: f32,
+    pub radius: f32,
     /// Fit on every `stride`-th pixel in x and y (`>= 1`; 4 is quarter resolution).
     pub stride: usize,
     /// Weight of the pull toward scale 1, relative to the mean diagonal `trace(A^T A) / n`
@@ -65,7 +65,7 @@ impl RefitParams {
     /// Cosine profile, 1 cm clamp, quarter resolution, ridge `0.1`.
     pub const DEFAULT: Self = Self {
         profile: Profile::Cosine,
-        r_min: 0.01,
+        radius: 0.01,
         stride: 4,
         ridge: 0.1,
     };
@@ -130,7 +130,7 @@ fn pixel_rows(
     recv: &Receiver,
     soa: &VplSoa,
     profile: Profile,
-    r_min_sq: f32,
+    radius_sq: f32,
     batch: &mut Batch,
     mut occluded: impl FnMut(&Ray) -> bool,
     rows: &mut [f64],
@@ -139,7 +139,7 @@ fn pixel_rows(
     rows.fill(0.0);
     let (red, rest) = rows.split_at_mut(n);
     let (green, blue) = rest.split_at_mut(n);
-    batch.prepare(soa, recv, profile, r_min_sq);
+    batch.prepare(soa, recv, profile, radius_sq);
     let mut rays = 0u64;
     for (j, c) in batch.unshadowed(soa) {
         rays += 1;
@@ -171,7 +171,7 @@ fn normal_equations(
     }
     let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
     let eps = scene.ray_epsilon();
-    let r_min_sq = params.r_min * params.r_min;
+    let radius_sq = params.radius * params.radius;
     let soa = VplSoa::new(vpls);
     let mut out = Normal {
         gram: vec![0.0; n * n],
@@ -203,7 +203,7 @@ fn normal_equations(
                             &recv,
                             &soa,
                             params.profile,
-                            r_min_sq,
+                            radius_sq,
                             &mut batch,
                             occluded,
                             px_rows,
@@ -360,7 +360,7 @@ fn nnls_bpp(
 /// finite on covered pixels) over the covered pixels of the strided grid of `gbuffer`.
 ///
 /// Errors: shape mismatches, non-finite values on covered pixels, no VPLs or more than
-/// [`MAX_VPLS`], `stride == 0`, a negative or non-finite `ridge` or `r_min`,
+/// [`MAX_VPLS`], `stride == 0`, a negative or non-finite `ridge` or `radius`,
 /// [`VplaceError::Cancelled`]. A grid without a covered pixel leaves every scale at 1 with both
 /// errors 0.
 pub fn refit(
@@ -379,7 +379,7 @@ pub fn refit(
     }
     let targets = targets(views)?;
     validate_vpls(vpls)?;
-    check_r_min(params.r_min)?;
+    check_radius(params.radius)?;
     if vpls.is_empty() {
         return Err(VplaceError::Empty {
             what: "VPLs".into(),
@@ -677,10 +677,10 @@ mod tests {
         let eps = scene.ray_epsilon();
         let vec3 = |a: &[f32], p: usize| Vec3::from_slice(&a[3 * p..3 * p + 3]);
         for profile in [Profile::Cosine, Profile::Omni] {
-            for r_min in [0.0, 0.05, 0.4] {
+            for radius in [0.0, 0.05, 0.4] {
                 let params = RefitParams {
                     profile,
-                    r_min,
+                    radius,
                     stride: 1,
                     ridge: 0.1,
                 };
@@ -696,7 +696,7 @@ mod tests {
                     let a: Vec<Vec3> = vpls
                         .iter()
                         .map(|v| {
-                            let c = reference_incident(Some(&scene), x, nrm, v, profile, r_min);
+                            let c = reference_incident(Some(&scene), x, nrm, v, profile, radius);
                             pixel_rays += u64::from(c.is_some());
                             brdf * c.unwrap_or(Vec3::ZERO)
                         })
@@ -706,7 +706,7 @@ mod tests {
                         &g.receiver(p, eps),
                         &soa,
                         profile,
-                        r_min * r_min,
+                        radius * radius,
                         &mut batch,
                         |ray| scene.occluded_ray(&mut state, ray),
                         &mut rows,
@@ -817,7 +817,7 @@ mod tests {
                 ridge: f64::NAN,
                 ..ok
             },
-            RefitParams { r_min: -1.0, ..ok },
+            RefitParams { radius: -1.0, ..ok },
         ] {
             assert!(matches!(
                 refit(&scene, &[&v], &base, &p, None),

@@ -12,7 +12,7 @@ use crate::evaluator::GBuffer;
 use crate::features::{FeatureInput, StrongestLight, FEATURE_COUNT};
 use crate::rng::Rng;
 use crate::scene::{Light, Scene};
-use crate::shading::near_field;
+use crate::shading::irradiance_per_flux;
 use crate::view::{Camera, View, ViewInput};
 use crate::vpl::{Profile, Vpl};
 
@@ -383,13 +383,12 @@ pub fn linear_design(n: usize) -> (Vec<f64>, Vec<f64>) {
 /// that the evaluator, the refit's matrix and the view efficiency are tested against.
 ///
 /// The receiver is at `position` with the unit (or zero) normal `n`. Returns
-/// `Phi * I(cos_e) * max(0, n . l) * F(r) * V` (before the BRDF), `F` the near-field term
-/// [`near_field`] with radius `r_min`, `V` one shadow ray from the receiver pushed off its
-/// surface by [`Scene::ray_epsilon`] to the VPL, traced against every triangle
+/// `Phi * K * V` (before the BRDF), `K` the kernel [`irradiance_per_flux`] of the VPL's light
+/// with near-field radius `radius`, `V` one shadow ray from the receiver pushed off its surface
+/// by [`Scene::ray_epsilon`] to the VPL, traced against every triangle
 /// ([`Scene::occluded_brute_force`]) when `scene` is given; without a scene `V = 1`. `None`
-/// when the pair gives nothing without a ray: `r = 0`, the VPL behind the receiver, the
-/// receiver behind a cosine VPL, or a zero product. `Some` means exactly one ray (the value is
-/// zero when it was blocked).
+/// when the pair gives nothing without a ray (a zero kernel or product). `Some` means exactly
+/// one ray (the value is zero when it was blocked).
 #[must_use]
 pub fn reference_incident(
     scene: Option<&Scene>,
@@ -397,24 +396,19 @@ pub fn reference_incident(
     n: Vec3,
     vpl: &Vpl,
     profile: Profile,
-    r_min: f32,
+    radius: f32,
 ) -> Option<Vec3> {
-    let d = vpl.position - position;
-    let r2 = d.length_squared();
-    if r2 <= 0.0 {
-        return None;
-    }
-    let l = d / r2.sqrt();
-    let cos_r = n.dot(l);
-    if cos_r <= 0.0 {
-        return None;
-    }
-    let i = profile.intensity_per_flux(-vpl.normal.dot(l));
-    if i <= 0.0 {
-        return None;
-    }
-    let c = vpl.flux * near_field(i * cos_r, r2, r_min * r_min);
-    if c == Vec3::ZERO {
+    let e = vpl.position - position;
+    let k = irradiance_per_flux(
+        profile,
+        e.length_squared(),
+        n.dot(e),
+        -vpl.normal.dot(e),
+        n.dot(vpl.normal),
+        radius * radius,
+    );
+    let c = vpl.flux * k;
+    if k <= 0.0 || c == Vec3::ZERO {
         return None;
     }
     let blocked = scene.is_some_and(|s| {
@@ -434,7 +428,7 @@ pub fn reference_image(
     g: &GBuffer<'_>,
     vpls: &[Vpl],
     profile: Profile,
-    r_min: f32,
+    radius: f32,
 ) -> (Vec<f32>, u64) {
     let vec3 = |a: &[f32], p: usize| Vec3::from_slice(&a[3 * p..3 * p + 3]);
     let mut image = vec![0.0f32; 3 * g.width * g.height];
@@ -443,7 +437,7 @@ pub fn reference_image(
         let (position, normal) = (vec3(g.position, p), vec3(g.normal, p).normalize_or_zero());
         let mut sum = Vec3::ZERO;
         for v in vpls {
-            if let Some(c) = reference_incident(Some(scene), position, normal, v, profile, r_min) {
+            if let Some(c) = reference_incident(Some(scene), position, normal, v, profile, radius) {
                 rays += 1;
                 sum += c;
             }

@@ -235,7 +235,7 @@ fn layout(
         },
         eval: EvalParams {
             profile,
-            r_min: radius,
+            radius: radius,
             tile,
         },
         stride,

@@ -103,7 +103,7 @@ fn refit(
     let views = views_of(&views);
     let params = RefitParams {
         profile: vpls.profile,
-        r_min: vpls.radius,
+        radius: vpls.radius,
         stride,
         ridge,
     };

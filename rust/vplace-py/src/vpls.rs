@@ -63,7 +63,7 @@ impl PyVplSet {
     pub fn eval_params(&self, tile: usize) -> EvalParams {
         EvalParams {
             profile: self.profile,
-            r_min: self.radius,
+            radius: self.radius,
             tile,
         }
     }

@@ -1,0 +1,117 @@
+"""Views: one set of lights for several cameras, frames of an animated camera, or an orbit; the
+views that cannot be used are left out with a message, and the file is left as it was."""
+
+import bpy
+import pytest
+from blender_util import CORNELL_OBJ, data_snapshot, diff, empty_file
+
+import addon
+from addon import apply, pipeline, views
+from addon.default_scene import CORNELL_HELD_OUT_CAMERA, build_cornell_box
+from addon.errors import AddonError, CaptureError
+
+
+@pytest.fixture
+def scene():
+    addon.register()
+    empty_file()
+    sc = build_cornell_box(CORNELL_OBJ)
+    s = sc.vplace
+    s.capture_size, s.samples, s.vpl_budget, s.cell_px = 16, 2, 8, 8
+    sc.render.image_settings.file_format = "PNG"  # see test_capture: a saved file has it set
+    bpy.context.view_layer.update()
+    yield sc
+    addon.unregister()
+
+
+def prepared(scene, **view_options):
+    job = pipeline.Job.from_settings(scene.vplace)
+    job.views = views.ViewSet(**view_options)
+    return pipeline.prepare(scene, job, pipeline.quiet_timer())
+
+
+def test_two_chosen_cameras_give_one_set_of_lights(scene, tmp_path):
+    s = scene.vplace
+    s.view_mode = "cameras"
+    for name in ("Cornell camera", CORNELL_HELD_OUT_CAMERA):
+        bpy.context.view_layer.objects.active = bpy.data.objects[name]
+        assert bpy.ops.vplace.camera_add() == {"FINISHED"}
+    assert [c.camera.name for c in s.cameras] == ["Cornell camera", CORNELL_HELD_OUT_CAMERA]
+    assert bpy.ops.vplace.apply() == {"FINISHED"}
+    report = s.report()
+    assert report["views"] == ["Cornell camera", CORNELL_HELD_OUT_CAMERA]
+    assert set(report["fit"]["view_r2"]) == set(report["views"])
+    assert len(apply.find_collection().objects) <= 8
+    assert bpy.ops.vplace.camera_remove() == {"FINISHED"} and len(s.cameras) == 1
+
+
+def test_frames_of_an_animated_camera(scene):
+    cam = scene.camera
+    cam.location.x = -0.3
+    cam.keyframe_insert("location", frame=1)
+    cam.location.x = 0.3
+    cam.keyframe_insert("location", frame=11)
+    scene.frame_set(5)
+    p = prepared(scene, mode="frames", frame_start=1, frame_end=11, frame_step=10)
+    assert [c.view for c in p.captures] == ["Cornell camera frame 1", "Cornell camera frame 11"]
+    xs = [c.camera_position[0] for c in p.captures]
+    assert xs == pytest.approx([-0.3, 0.3], abs=1e-5)
+    assert scene.frame_current == 5  # the user's frame comes back
+
+
+def test_orbit_views_leave_the_file_as_it_was(scene):
+    before = data_snapshot()
+    p = prepared(scene, mode="orbit", orbit_count=3, orbit_angle=20.0)
+    assert len(p.captures) == 3 and p.captures[0].view == "Cornell camera"
+    positions = [tuple(c.camera_position) for c in p.captures]
+    assert len(set(positions)) == 3
+    assert diff(before, data_snapshot()) == []
+    assert not [o for o in bpy.data.objects if o.get(views.ORBIT_MARKER)]
+
+
+def test_bad_views_are_left_out_with_a_message_and_the_others_work(scene):
+    away = bpy.data.objects.new("Away", bpy.data.cameras.new("Away"))
+    away.location = (0.0, -6.0, 1.0)
+    away.rotation_euler = (-1.5, 0.0, 0.0)  # looking down and away from the box
+    scene.collection.objects.link(away)
+    bpy.context.view_layer.update()
+    lines = []
+    job = pipeline.Job.from_settings(scene.vplace)
+    job.views = views.ViewSet(mode="cameras", cameras=("Cornell camera", "Away", "Cornell camera"))
+    p = pipeline.prepare(scene, job, pipeline.StageTimer(lines.append))
+    assert [c.view for c in p.captures] == ["Cornell camera"]
+    assert p.skipped == {"Away": "the camera sees no geometry (only background)"}
+    assert any("view 'Away' left out" in line for line in lines)
+    # The same camera twice is one view (its name is listed once).
+    job.views = views.ViewSet(mode="cameras", cameras=("Away",))
+    with pytest.raises(CaptureError, match="no view is left"):
+        pipeline.prepare(scene, job, pipeline.quiet_timer())
+    with pytest.raises(AddonError, match="no camera object named 'Nope'"):
+        prepared(scene, mode="cameras", cameras=("Nope",))
+    with pytest.raises(AddonError, match="choose at least one camera"):
+        prepared(scene, mode="cameras")
+    with pytest.raises(AddonError, match="step must be at least 1"):
+        prepared(scene, mode="frames", frame_start=5, frame_end=1)
+
+
+def test_two_views_rendering_the_same_image_count_once(scene):
+    twin = scene.camera.copy()
+    twin.name = "Twin camera"
+    scene.collection.objects.link(twin)
+    bpy.context.view_layer.update()
+    p = prepared(scene, mode="cameras", cameras=("Cornell camera", "Twin camera"))
+    assert [c.view for c in p.captures] == ["Cornell camera"]
+    assert p.skipped == {"Twin camera": "the same view as 'Cornell camera'"}
+
+
+def test_more_views_than_memory_allows_are_refused_before_rendering(scene, monkeypatch):
+    monkeypatch.setattr(pipeline, "MAX_CAPTURE_BYTES", 1000)
+    with pytest.raises(CaptureError, match="GB of captures"):
+        prepared(scene, mode="orbit", orbit_count=2)
+
+
+def test_capture_size_follows_the_render_aspect(scene):
+    scene.render.resolution_x, scene.render.resolution_y = 1920, 1080
+    assert views.capture_resolution(scene, 160) == (160, 90)
+    scene.render.resolution_x, scene.render.resolution_y = 600, 800
+    assert views.capture_resolution(scene, 160) == (120, 160)

@@ -1,0 +1,45 @@
+"""What EEVEE shows is what the evaluator computed: the written VPLs rendered by EEVEE (float,
+Standard view) agree per pixel with the evaluator's image of the same VPLs, the pixels next to
+the VPLs included (the cosine VPLs are disks of the near-field radius on both sides)."""
+
+import bpy
+import numpy as np
+import pytest
+from blender_util import cornell
+
+from addon import apply, capture, eevee, export
+from addon.native import build_scene, view_of, vplace
+
+RES = (48, 48)
+
+
+@pytest.mark.slow
+def test_eevee_renders_the_evaluators_vpl_light_pixel_for_pixel():
+    scene = cornell()
+    native = build_scene(export.export_scene(scene))
+    gbuf = capture.capture(scene, resolution=RES, samples=8)
+    vpls = vplace.uniform_vpls(native, 48, seed=3, bounces=vplace.MAX_BOUNCES)
+    apply.write_vpls(scene, vpls, scene_diagonal=native.diagonal)
+    bpy.data.objects["light"].hide_render = True  # the VPLs' light alone (black world)
+    ours, _ = vplace.evaluate(native, view_of(gbuf), vpls)
+    shown = eevee.render(scene, resolution=RES, samples=1).image
+    # Pixels that straddle two surfaces average them in the G-buffer: left out, and counted.
+    mixed = np.abs(np.linalg.norm(gbuf.normal, axis=-1) - 1.0) > 1e-3
+    mask = gbuf.covered & ~mixed
+    near = (
+        np.linalg.norm(gbuf.position[:, :, None] - vpls.position[None, None], axis=-1).min(-1)
+        < 3 * vpls.radius
+    )
+    lum = np.array(vplace.LUMINANCE)
+    rel = float(np.linalg.norm((shown - ours)[mask]) / np.linalg.norm(ours[mask]))
+    ratio = float((shown[mask] @ lum).mean() / (ours[mask] @ lum).mean())
+    near_ratio = float((shown[mask & near] @ lum).mean() / (ours[mask & near] @ lum).mean())
+    print(
+        f"EEVEE vs evaluator: relative RMSE {rel:.4f}, brightness {ratio:.4f}, near the VPLs "
+        f"{near_ratio:.4f} ({(mask & near).sum()} pixels within 3 radii; {mixed.sum()} mixed "
+        "pixels left out)"
+    )
+    assert (mask & near).sum() > 50
+    assert rel < 0.10
+    assert abs(ratio - 1) < 0.03
+    assert abs(near_ratio - 1) < 0.10
