@@ -238,7 +238,7 @@ def capture_key(
     return h.hexdigest()[:24]
 
 
-def _hide_vpls(g: SettingsGuard) -> None:
+def hide_vpls(g: SettingsGuard) -> None:
     """Hides every collection vplace wrote from the render (restored by the guard)."""
     for coll in bpy.data.collections:
         if coll.get(VPL_MARKER, False):
@@ -337,7 +337,7 @@ def _capture_now(
             with override() as g:
                 g.set(scene, "camera", camera)
                 if not include_vpls:
-                    _hide_vpls(g)
+                    hide_vpls(g)
                 _configure(g, scene, view_layer, resolution, samples, seed)
                 start = time.perf_counter()
                 _render(scene, view_layer)

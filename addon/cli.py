@@ -38,6 +38,8 @@ def view_set(args: argparse.Namespace) -> ViewSet:
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
+    from .pipeline import FEATURE_MODES
+
     p = argparse.ArgumentParser(prog="vplace", description=__doc__)
     p.add_argument("--debug", action="store_true", help="print tracebacks of errors")
     sub = p.add_subparsers(dest="command", required=True)
@@ -73,6 +75,11 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         "front of it (0: the scene's centre) by up to ANGLE degrees",
     )
     demo.add_argument("--samples", type=int, default=256, help="Cycles samples of the capture")
+    demo.add_argument(
+        "--truth-samples", type=int, default=None,
+        help="score against a Cycles render of the scene camera at these samples (a ground "
+        "truth); default: against the capture itself",
+    )  # fmt: skip
     demo.add_argument("--seed", type=int, default=0)
     demo.add_argument("--cell-px", type=int, default=16, help="regression grid cell, pixels")
     demo.add_argument("--method", choices=("uniform", "vplace", "rsm"), default="vplace")
@@ -81,7 +88,13 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         "--no-refit", action="store_true", help="vplace: keep the layout's VPL powers"
     )
     demo.add_argument("--iterations", type=int, default=3, help="layout iterations (cap)")
-    demo.add_argument("--feature-mode", choices=("auto", "all"), default="auto")
+    demo.add_argument(
+        "--feature-mode",
+        choices=FEATURE_MODES,
+        default="auto",
+        help="auto: the surface's features, cross-validated; view: also the view's; all: every "
+        "feature, no selection",
+    )
     demo.add_argument("--profile", choices=("cosine", "omni"), default="cosine")
     demo.add_argument(
         "--radius",
@@ -95,6 +108,15 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         help="speed against error: scenes x views x methods x VPL budgets, with Cycles",
     )
     rep.add_argument("--scenes", nargs="+", default=["cornell", "sponza"])
+    rep.add_argument("--blend", type=Path, default=None, help="any .blend instead of --scenes")
+    rep.add_argument(
+        "--fit-cameras", nargs="+", default=[], metavar="NAME",
+        help="with --blend: the cameras the lights are laid out for",
+    )  # fmt: skip
+    rep.add_argument(
+        "--held-out-cameras", nargs="+", default=[], metavar="NAME",
+        help="with --blend: cameras scored with the same lights, never laid out for",
+    )  # fmt: skip
     rep.add_argument("--budgets", type=int, nargs="+", default=[16, 64, 256, 1024])
     rep.add_argument("--methods", nargs="+", default=["uniform", "rsm", "vplace", "vplace+refit"])
     rep.add_argument("--out", type=Path, default=Path("out/report"))
@@ -103,10 +125,14 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         help="override every view's size (default: each scene's preset)",
     )  # fmt: skip
     rep.add_argument("--capture-samples", type=int, default=None, help="the user's capture, spp")
+    rep.add_argument(
+        "--capture-curve", type=int, nargs="+", default=[],
+        help="also lay out vplace+refit from captures at these spp and score every view",
+    )  # fmt: skip
     rep.add_argument("--truth-samples", type=int, default=None, help="the ground truth, spp")
     rep.add_argument(
-        "--cycles-samples", type=int, nargs="+", default=[16, 64, 256],
-        help="Cycles' own speed-against-error curve, spp",
+        "--cycles-samples", type=int, nargs="+", default=[1, 4, 16, 64],
+        help="Cycles + OpenImageDenoise at these samples, the user's alternative",
     )  # fmt: skip
     rep.add_argument("--alpha", type=float, default=1.0, help="0 uniform .. 1 regression-guided")
     rep.add_argument("--iterations", type=int, default=3)
@@ -115,7 +141,17 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         help="seeds of the stochastic layouts; tables show their mean",
     )  # fmt: skip
     rep.add_argument("--cache", type=Path, default=None, help="render cache (default OUT/cache)")
-    rep.add_argument("--no-eevee", action="store_true", help="skip the EEVEE preview renders")
+    rep.add_argument("--no-eevee", action="store_true", help="score with the evaluator only")
+    rep.add_argument(
+        "--eevee-methods", nargs="+", default=["uniform", "rsm", "vplace+refit"],
+        help="methods whose lights EEVEE renders on every view",
+    )  # fmt: skip
+    rep.add_argument(
+        "--alternatives", nargs="+", default=["plain", "rt", "rt+volume", "vpl+rt", "cycles+oidn"],
+        help="what a Blender user would pick instead, rendered on every view",
+    )  # fmt: skip
+    rep.add_argument("--eevee-samples", type=int, default=None, help="EEVEE's render samples")
+    rep.add_argument("--feature-mode", choices=FEATURE_MODES, default="auto")
     rep.add_argument("--no-par2d", action="store_true", help="skip the PAR 2D plot")
     par = sub.add_parser("par2d", help="bake the PAR 2D demo scene and render it with EEVEE")
     par.add_argument("--out", type=Path, default=Path("out/par2d"))
@@ -153,6 +189,9 @@ def run(args: argparse.Namespace) -> None:
 
         config = ReportConfig(
             scenes=args.scenes,
+            blend=args.blend,
+            fit_cameras=args.fit_cameras,
+            held_out_cameras=args.held_out_cameras,
             budgets=args.budgets,
             methods=args.methods,
             resolution=tuple(args.resolution) if args.resolution else None,
@@ -162,10 +201,16 @@ def run(args: argparse.Namespace) -> None:
             alpha=args.alpha,
             iterations=args.iterations,
             seeds=args.seeds,
-            eevee=not args.no_eevee,
+            with_eevee=not args.no_eevee,
+            eevee_methods=args.eevee_methods,
+            alternatives=args.alternatives,
+            feature_mode=args.feature_mode,
+            capture_curve=args.capture_curve,
             par2d=not args.no_par2d,
             cache_dir=args.cache,
         )
+        if args.eevee_samples is not None:
+            config.eevee_samples = args.eevee_samples
         run_report(config, args.out)
         return
     from .default_scene import builtin_scene
@@ -193,7 +238,13 @@ def run(args: argparse.Namespace) -> None:
         iterations=args.iterations,
         feature_mode=args.feature_mode,
     )
-    run_main_job(bpy.context.scene, args.out, job=job, eevee=not args.no_eevee)
+    run_main_job(
+        bpy.context.scene,
+        args.out,
+        job=job,
+        eevee=not args.no_eevee,
+        truth_samples=args.truth_samples,
+    )
     print(f"[vplace] results in {args.out}")
 
 

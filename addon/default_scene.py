@@ -30,12 +30,19 @@ SPONZA_BLEND = SCENES / "sponza" / "sponza.blend"
 CORNELL_CAMERA_LOCATION = (0.0, -3.894, 0.99)
 CORNELL_LENS_MM = 35.0
 CORNELL_SENSOR_MM = 25.0
-#: A second view for the held-out test of the report: inside the box, front right, looking at
-#: the back left corner (Blender axes, metres).
+#: A view the report holds out: inside the box, front right, looking at the back left corner
+#: (Blender axes, metres).
 CORNELL_HELD_OUT_CAMERA = "Cornell camera (held out)"
 CORNELL_HELD_OUT_LOCATION = (0.55, -0.95, 1.45)
 CORNELL_HELD_OUT_TARGET = (-0.55, 0.55, 0.45)
 CORNELL_HELD_OUT_LENS_MM = 20.0
+#: Further views inside the box, ``name -> (location, target, lens mm)``: two more the report
+#: fits on, one more it holds out.
+CORNELL_VIEWS = {
+    "Cornell camera left": ((-0.6, -0.9, 1.0), (0.5, 0.6, 0.7), 20.0),
+    "Cornell camera high": ((0.0, -1.6, 1.8), (0.0, 0.2, 0.3), 24.0),
+    "Cornell camera (held out, low)": ((-0.3, -0.8, 0.35), (0.4, 0.6, 0.9), 18.0),
+}
 
 
 def parse_mtl(path: Path) -> dict[str, dict[str, tuple[float, ...]]]:
@@ -143,6 +150,8 @@ def build_cornell_box(obj_path: Path, scene: bpy.types.Scene | None = None) -> b
         CORNELL_HELD_OUT_TARGET,
         CORNELL_HELD_OUT_LENS_MM,
     )
+    for name, (location, target, lens) in CORNELL_VIEWS.items():
+        _look_at_camera(scene, name, location, target, lens)
 
     world = bpy.data.worlds.new("Black")
     bg = world.node_tree.nodes.get("Background")
@@ -196,6 +205,9 @@ SPONZA_SUN_ROTATION = (math.radians(15.0), math.radians(-10.0), 0.0)
 SPONZA_SUN_STRENGTH = 10.0  # W/m^2
 SPONZA_CAMERA = "CameraMain"
 SPONZA_HELD_OUT_CAMERA = "CameraAlternate"
+#: A view added to the glTF's four: at the west end of the atrium, at head height, looking east.
+SPONZA_WEST_CAMERA = "CameraWest"
+SPONZA_WEST = ((-12.5, 0.3, 4.4), (8.0, 0.3, 6.6), 20.0)
 
 
 def build_sponza(gltf_path: Path, scene: bpy.types.Scene | None = None) -> bpy.types.Scene:
@@ -211,6 +223,8 @@ def build_sponza(gltf_path: Path, scene: bpy.types.Scene | None = None) -> bpy.t
     sun.rotation_euler = SPONZA_SUN_ROTATION
     scene.collection.objects.link(sun)
     scene.camera = bpy.data.objects[SPONZA_CAMERA]
+    location, target, lens = SPONZA_WEST
+    _look_at_camera(scene, SPONZA_WEST_CAMERA, location, target, lens)
     world = bpy.data.worlds.new("Black")
     world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
     scene.world = world

@@ -36,10 +36,14 @@ def _model_key(job: pipeline.Job, prepared: pipeline.Prepared) -> str:
 
 
 def _stored_fit(scene: bpy.types.Scene, key: str) -> vplace.Fit | None:
-    """The model the panel's Fit stored, if it was fitted on exactly these captures."""
+    """The model the panel's Fit stored, if it was fitted on exactly these captures (a model an
+    older vplace saved in another format is fitted again)."""
     settings = scene.vplace
     if settings.model_json and settings.model_key == key:
-        return vplace.Fit.from_json(settings.model_json)
+        try:
+            return vplace.Fit.from_json(settings.model_json)
+        except vplace.VplaceError:
+            return None
     return None
 
 

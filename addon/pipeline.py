@@ -36,6 +36,10 @@ from .views import specs as view_specs
 #: The layout methods, in the report's order: Keller's light paths, reflective shadow maps, the
 #: regression-guided layout, and the same with its VPL powers refitted to the captured light.
 METHODS = ("uniform", "rsm", "vplace", "vplace+refit")
+#: How the regression picks its features: "auto", the surface's features (the same from every
+#: view) with those that do not raise CV R^2 dropped; "view", also the view's features (depth,
+#: coverage, normal and depth spread); "all", every usable feature, no selection.
+FEATURE_MODES = ("auto", "view", "all")
 
 
 @dataclass
@@ -89,7 +93,7 @@ class Job:
     method: str = "vplace+refit"
     alpha: float = 1.0
     iterations: int = 3
-    #: "auto": drop features that do not raise CV R^2; "all": keep every usable feature.
+    #: One of :data:`FEATURE_MODES`.
     feature_mode: str = "auto"
     #: The views the lights are laid out for.
     views: ViewSet = field(default_factory=ViewSet)
@@ -101,8 +105,10 @@ class Job:
             raise AddonError(f"method must be one of {list(METHODS)}, got {self.method!r}")
         if self.n_vpls < 1 or self.n_vpls > apply.MAX_VPLS:
             raise AddonError(f"the VPL budget must be 1 to {apply.MAX_VPLS}, got {self.n_vpls}")
-        if self.feature_mode not in ("auto", "all"):
-            raise AddonError(f"feature mode must be 'auto' or 'all', got {self.feature_mode!r}")
+        if self.feature_mode not in FEATURE_MODES:
+            raise AddonError(
+                f"feature mode must be one of {FEATURE_MODES}, got {self.feature_mode!r}"
+            )
         if self.size < 8:
             raise AddonError(f"the capture size must be at least 8 pixels, got {self.size}")
         self.views.validate()
@@ -249,7 +255,8 @@ def fit(prepared: Prepared, job: Job, views: Sequence[vplace.View] | None = None
         prepared.scene,
         list(views if views is not None else prepared.views),
         cell_px=job.cell_px,
-        select=job.feature_mode == "auto",
+        surface_only=job.feature_mode == "auto",
+        select=job.feature_mode != "all",
     )
 
 
@@ -321,21 +328,44 @@ def lay_out(
 
 
 def score(image: np.ndarray, truth: np.ndarray) -> dict[str, float]:
-    """RMSE, relative MSE (linear HDR) and SSIM (display luminance) of ``image`` against
-    ``truth``; SSIM is NaN below 11 x 11 pixels."""
+    """RMSE, relative MSE (linear HDR), SSIM (display luminance) of ``image`` against ``truth``,
+    and its brightness (mean luminance over the truth's); SSIM is NaN below 11 x 11 pixels."""
     image = np.ascontiguousarray(image, dtype=np.float32)
     truth = np.ascontiguousarray(truth, dtype=np.float32)
     ssim = vplace.ssim(image, truth) if min(truth.shape[:2]) >= 11 else float("nan")
+    lum = np.asarray(vplace.LUMINANCE)
+    mean_truth = max(float((truth[..., :3] @ lum).mean()), 1e-12)
     return {
         "rmse": vplace.rmse(image, truth),
         "relative_mse": vplace.relative_mse(image, truth),
         "ssim": ssim,
+        "brightness": float((image[..., :3] @ lum).mean()) / mean_truth,
     }
 
 
 @dataclass
+class Reference:
+    """What a run is scored against: a Cycles render of a view (its G-buffer is the view the
+    evaluator shades) and what it is, in words."""
+
+    capture: capture.Capture
+    view: vplace.View
+    label: str
+
+
+def capture_reference(prepared: Prepared, job: Job) -> Reference:
+    """The first view's own capture: the reference of the panel's runs (no extra render)."""
+    return Reference(
+        prepared.capture,
+        prepared.views[0],
+        f"its own capture ({job.samples} spp; the capture's noise lowers every score)",
+    )
+
+
+@dataclass
 class Computed:
-    """A method's VPLs, their indirect image on the first view, evaluator stats and metrics."""
+    """A method's VPLs, their indirect image on the reference view, evaluator stats and
+    metrics against the reference."""
 
     laid: Laid
     indirect: np.ndarray
@@ -354,18 +384,19 @@ def compute(
     timer: StageTimer,
     progress: vplace.Progress | None = None,
     fitted: vplace.Fit | None = None,
+    reference: Reference | None = None,
 ) -> Computed:
-    """:func:`lay_out`, the evaluator on the first view and the metrics against its capture.
-    No bpy: safe on a worker thread; ``progress`` cancels it."""
+    """:func:`lay_out`, the evaluator on the reference view (default: the first view's
+    capture) and the metrics against it. No bpy: safe on a worker thread; ``progress`` cancels
+    it."""
     if fitted is None:
         with timer.stage("fit regression"):
             fitted = fit(prepared, job)
     laid = lay_out(prepared, job, fitted=fitted, timer=timer, progress=progress)
+    ref = reference or capture_reference(prepared, job)
     with timer.stage("evaluate VPLs"):
-        indirect, stats = vplace.evaluate(
-            prepared.scene, prepared.views[0], laid.vpls, progress=progress
-        )
-    cap = prepared.capture
+        indirect, stats = vplace.evaluate(prepared.scene, ref.view, laid.vpls, progress=progress)
+    cap = ref.capture
     direct, gi = cap.direct, cap.gi
     ours = score(direct + indirect, gi)
     base = score(direct, gi)
@@ -455,6 +486,65 @@ def summary(
     }
 
 
+#: The Cycles seed of the main job's reference renders (another noise than the capture's).
+REFERENCE_SEED = 7919
+
+
+def main_reference(
+    bl_scene: bpy.types.Scene,
+    prepared: Prepared,
+    job: Job,
+    timer: StageTimer,
+    truth_samples: int | None,
+) -> Reference:
+    """What the main job scores against: the scene camera at the current frame, rendered by
+    Cycles at ``truth_samples`` (a ground truth); without it, the first view's own capture when
+    that is the scene camera at the current frame, or else a render of it at the capture's
+    samples."""
+    cam = bl_scene.camera
+    first = prepared.capture
+    if not truth_samples and job.views.mode in ("active", "orbit") and first.camera == cam.name:
+        return capture_reference(prepared, job)
+    samples = truth_samples or job.samples
+    with timer.stage(f"reference render {cam.name} ({samples} spp, cached)"):
+        ref = capture.capture(
+            bl_scene,
+            prepared.exported,
+            camera=cam,
+            resolution=(first.width, first.height),
+            samples=samples,
+            seed=REFERENCE_SEED,
+            cache_dir=job.cache_dir,
+        )
+    kind = (
+        "a ground truth"
+        if truth_samples
+        else "as noisy as the capture: give truth samples for a ground truth"
+    )
+    return Reference(
+        ref, view_of(ref, held_out=True), f"Cycles at {samples} spp of {cam.name} ({kind})"
+    )
+
+
+def score_eevee(
+    bl_scene: bpy.types.Scene, reference: Reference, path: Path, cache_dir: Path | None
+) -> dict[str, float]:
+    """Renders the written lights with EEVEE from the scene camera (float, Standard view, the
+    scored set-up), scores the image against the reference, and saves it as a PNG picture."""
+    from . import eevee
+
+    cap = reference.capture
+    img = eevee.render(
+        bl_scene,
+        resolution=(cap.width, cap.height),
+        samples=eevee.EEVEE_SAMPLES,
+        setup=eevee.SETUPS["vpl"],
+        cache_dir=cache_dir,
+    )
+    images.save_png(path, img.image)
+    return {**score(img.image, cap.gi), "seconds": img.seconds, "samples": eevee.EEVEE_SAMPLES}
+
+
 def run_main_job(
     bl_scene: bpy.types.Scene,
     out_dir: Path,
@@ -462,45 +552,50 @@ def run_main_job(
     job: Job | None = None,
     eevee: bool = True,
     write_back: bool = True,
+    truth_samples: int | None = None,
     baselines: Sequence[str] = METHODS,
     log: Callable[[str], None] = print,
     **job_options: Any,
 ) -> dict[str, Any]:
     """Runs the whole pipe on ``bl_scene`` and writes the results into ``out_dir``.
 
-    ``job_options`` are :class:`Job` fields, for a job built on the spot. ``baselines``: the
-    methods scored beside the job's at the same budget. Without ``write_back`` the scene is left
-    as it is (a report only; no EEVEE preview then, as it would show the scene without the new
-    VPLs).
+    ``job_options`` are :class:`Job` fields, for a job built on the spot. Every image is scored
+    on the scene camera against :func:`main_reference` (a Cycles truth at ``truth_samples``
+    when given). ``baselines``: the methods scored beside the job's at the same budget. With
+    ``eevee`` (and ``write_back``) EEVEE renders the written lights and is scored the same way.
+    Without ``write_back`` the scene is left as it is (and EEVEE, which would show the scene
+    without the new VPLs, is skipped).
     """
     if job is None:
         job = Job(**job_options)
+    if truth_samples is not None and truth_samples < 1:
+        raise AddonError(f"truth samples must be at least 1, got {truth_samples}")
     if job.cache_dir is None:
         job.cache_dir = out_dir / "cache"
     out_dir.mkdir(parents=True, exist_ok=True)
     timer = StageTimer(log)
     prepared = prepare(bl_scene, job, timer)
-    computed = compute(prepared, job, timer)
+    reference = main_reference(bl_scene, prepared, job, timer, truth_samples)
+    computed = compute(prepared, job, timer, reference=reference)
     compared = {}
     for method in (b for b in baselines if b != job.method):
         quiet = quiet_timer()
-        other = compute(prepared, replace(job, method=method), quiet, fitted=computed.fit)
+        other = compute(
+            prepared, replace(job, method=method), quiet, fitted=computed.fit, reference=reference
+        )
         compared[method] = {"metrics": other.metrics, "seconds": sum(quiet.seconds.values())}
     if write_back:
         with timer.stage("write back"):
             apply.write_vpls(bl_scene, computed.vpls, scene_diagonal=prepared.scene.diagonal)
             bpy.ops.wm.save_as_mainfile(filepath=str(out_dir / "scene.blend"), copy=True)
-    cap, vpls = prepared.capture, computed.vpls
-    images.save_png(out_dir / "cycles_gi.png", cap.gi)
-    images.save_png(out_dir / "direct.png", cap.direct)
-    images.save_png(out_dir / "direct_plus_vpl.png", cap.direct + computed.indirect)
+    ref, vpls = reference.capture, computed.vpls
+    images.save_png(out_dir / "cycles_gi.png", ref.gi)
+    images.save_png(out_dir / "direct.png", ref.direct)
+    images.save_png(out_dir / "direct_plus_vpl.png", ref.direct + computed.indirect)
+    shown = None
     if eevee and write_back:
-        with timer.stage("EEVEE preview"):
-            render_eevee_preview(
-                bl_scene,
-                out_dir / "eevee_vpl.png",
-                (prepared.capture.width, prepared.capture.height),
-            )
+        with timer.stage("EEVEE render"):
+            shown = score_eevee(bl_scene, reference, out_dir / "eevee_vpl.png", job.cache_dir)
     np.savetxt(
         out_dir / "vpls.csv",
         np.hstack([vpls.position, vpls.normal, vpls.flux]),
@@ -513,9 +608,10 @@ def run_main_job(
         (out_dir / "model.json").write_text(computed.fit.to_json())
         log(f"[vplace] fitted model (cells of {job.cell_px} px):\n{computed.fit}")
     report = summary(bl_scene, job, prepared, computed, timer)
+    report["reference"] = {"label": reference.label, "samples": ref.samples, "view": ref.view}
+    report["eevee"] = shown
     report["baselines"] = compared
-    (out_dir / "report.json").write_text(json.dumps(report, indent=2))
-    report["files"] = sorted(p.name for p in out_dir.iterdir() if p.is_file())
+    report["files"] = sorted({*(p.name for p in out_dir.iterdir() if p.is_file()), "report.json"})
     (out_dir / "report.json").write_text(json.dumps(report, indent=2))
     (out_dir / "report.md").write_text(report_markdown(report))
     log(report_markdown(report))
@@ -537,17 +633,29 @@ def report_markdown(report: dict[str, Any]) -> str:
         "|---|---|",
         *[f"| {k} | {v:.2f} |" for k, v in report["stage_seconds"].items()],
         "",
-        "| image vs Cycles GI | RMSE | relative MSE | SSIM |",
-        "|---|---|---|---|",
+        f"Every image is scored against {report['reference']['label']}.",
+        "",
+        "| image | RMSE | relative MSE | SSIM | brightness |",
+        "|---|---|---|---|---|",
         f"| direct only | {m['rmse_direct_only']:.5f} | {m['relative_mse_direct_only']:.5f} "
-        f"| {m['ssim_direct_only']:.4f} |",
-        f"| direct + VPL indirect ({report['method']}) | {m['rmse']:.5f} | "
-        f"{m['relative_mse']:.5f} | {m['ssim']:.4f} |",
+        f"| {m['ssim_direct_only']:.4f} | {m['brightness_direct_only']:.3f} |",
+        f"| evaluator: direct + VPL indirect ({report['method']}) | {m['rmse']:.5f} | "
+        f"{m['relative_mse']:.5f} | {m['ssim']:.4f} | {m['brightness']:.3f} |",
         *[
-            f"| direct + VPL indirect ({name}, same N) | {b['metrics']['rmse']:.5f} | "
-            f"{b['metrics']['relative_mse']:.5f} | {b['metrics']['ssim']:.4f} |"
+            f"| evaluator: direct + VPL indirect ({name}, same N) | {b['metrics']['rmse']:.5f} | "
+            f"{b['metrics']['relative_mse']:.5f} | {b['metrics']['ssim']:.4f} | "
+            f"{b['metrics']['brightness']:.3f} |"
             for name, b in report.get("baselines", {}).items()
         ],
+        *(
+            [
+                f"| EEVEE with the written lights ({e['samples']} samples, {e['seconds']:.1f} s) "
+                f"| {e['rmse']:.5f} | {e['relative_mse']:.5f} | {e['ssim']:.4f} | "
+                f"{e['brightness']:.3f} |"
+            ]
+            if (e := report.get("eevee"))
+            else []
+        ),
         "",
         f"Evaluator: {s['shadow_rays']} shadow rays in {s['seconds']:.3f} s "
         f"= {s['rays_per_second'] / 1e6:.2f} M rays/s",

@@ -38,7 +38,18 @@ VIEW_MODE_ITEMS = [
     ("orbit", "Around the camera", "One set of lights for views turned about the scene camera"),
 ]
 FEATURE_MODE_ITEMS = [
-    ("auto", "Auto", "Drop constant, collinear and unhelpful features (cross-validated)"),
+    (
+        "auto",
+        "Surface",
+        "Features of the surface only (the same from every view), dropping constant, collinear "
+        "and unhelpful ones (cross-validated)",
+    ),
+    (
+        "view",
+        "Surface and view",
+        "Also the features of the view (depth, coverage, normal and depth spread): may fit the "
+        "captured views closer, and hold less from other views",
+    ),
     ("all", "All", "Every feature of the registry that is not constant or collinear"),
 ]
 

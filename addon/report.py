@@ -1,31 +1,38 @@
-"""The speed-against-error report (DESIGN: Report): scenes x views x methods x VPL budgets.
+"""The speed-against-error report (DESIGN: Report): scenes x views x methods x VPL budgets, scored
+with the evaluator and with EEVEE, beside what a Blender user would pick instead.
 
-``python -m addon.cli report --scenes cornell sponza --budgets 16 64 256 1024`` runs, for each
-scene, two views: the *fit* view, where the regression is fitted on a Cycles capture, and a
-*held-out* view, where the same model lays out VPLs from that view's G-buffer and direct pass
-only. For each view and budget N it lays out N VPLs with every method (``uniform``, ``rsm``,
-``vplace``, and ``vplace+refit`` on the fit view), renders their indirect light with the
-evaluator over the capture's G-buffer, and scores ``ground-truth direct + VPL indirect`` against a
-high-sample Cycles render of the same view (the ground truth, cached on disk). It also renders
-Cycles itself at rising sample counts (the user's alternative) and scores those.
+``python -m addon.cli report`` runs, for each scene (a built-in preset, or any .blend with
+``--blend FILE --fit-cameras A B --held-out-cameras C``):
 
-Written into ``--out``: ``results.csv`` and ``results.json`` (one row per view, method and
-budget), ``report.md`` (tables and the target checks), and PNG plots: error (1 - SSIM and RMSE)
-against time per view, error against N, an image grid per view (ground truth, direct only, each
-method at the budget nearest 256, error maps), the EEVEE preview of the vplace layout, and the PAR
-2D speed-against-error plot.
+1. A capture of each *fit* view (Cycles, ``capture_samples``), one regression fitted over all of
+   them, and for every VPL budget and seed one world-space VPL set per method
+   (:data:`pipeline.METHODS`; the regression-guided layout iterates and refits against every fit
+   view at once).
+2. Every view, fit or *held out* (never captured for the layout, never laid out again), scored
+   with the same lights: the evaluator's indirect light over the view's G-buffer plus the ground
+   truth's direct light, against a high-sample Cycles render of the view (the ground truth,
+   cached). On a held-out view the old per-view re-layout (the fit's model laying out VPLs from
+   that view's G-buffer alone) is its own row, ``vplace (re-layout)``.
+3. With ``eevee``: at the grid budget, the lights of each method written back and rendered by
+   EEVEE on every view (float, Standard view, :data:`eevee.EEVEE_SAMPLES` samples), and the
+   alternatives (:data:`eevee.SETUPS`): EEVEE without help, EEVEE's ray tracing, ray tracing
+   with a baked light probe volume, the VPLs with ray-traced reflections, and Cycles with
+   OpenImageDenoise at ``cycles_samples``; all scored against the same ground truth.
 
-Times: a method's time is its layout (VPL placement; for vplace on the fit view also the fit,
-whose cost is shared by every budget) plus the full-resolution evaluator render. The capture
-that vplace needs (a Cycles render of the view at ``capture_samples``) is reported separately.
-The user's .blend is never saved: the scene camera is switched through a settings guard, and the
-EEVEE preview's VPL collection is removed again.
+Costs are kept apart: ``one_time_seconds`` (the captures, the fit, the layout and refit, a
+volume's bake) and ``frame_seconds`` (one frame: the evaluator's image, an EEVEE or a Cycles
+render). The break-even table says after how many frames vplace's one-time cost plus its EEVEE
+frames costs less than Cycles + OIDN frames of at least the same SSIM.
+
+Written into ``--out``: ``results.csv`` and ``results.json`` (every row), ``report.md`` (tables,
+the break-even, the target checks) and PNG plots. Renders are cached in ``out/cache``. The user's
+.blend is never saved: the scene camera is switched through a settings guard, and the VPL
+collection written for EEVEE is removed again.
 """
 
 from __future__ import annotations
 
 import csv
-import itertools
 import json
 import math
 import time
@@ -38,53 +45,66 @@ from typing import Any
 import bpy
 import numpy as np
 
-from . import apply, capture, default_scene, pipeline
+from . import apply, capture, default_scene, eevee, pipeline
 from .errors import ReportError
 from .native import bench_par2d, view_of, vplace
 from .settings import override
 from .views import ViewSpec
 
-#: Seeds of the renders: the user's capture, the ground truth, Cycles at rising sample counts.
+#: Seeds of the renders: the user's capture, the ground truth, Cycles' curve.
 CAPTURE_SEED = 0
 TRUTH_SEED = 7919
 CURVE_SEED = 104729
 
 METHODS = pipeline.METHODS
-#: The budget the image grids and the targets use (the nearest one run).
+RELAYOUT = "vplace (re-layout)"
+#: vplace+refit laid out from captures at other sample counts (``samples``: the capture's spp).
+CAPTURE_CURVE = "vplace+refit by capture spp"
+#: The suffix of a VPL method rendered with EEVEE's ray-traced reflections on.
+WITH_RT = " + rt reflections"
+#: The budget the image grids, EEVEE and the targets use (the nearest one run).
 GRID_BUDGET = 256
-#: The issue's target: vplace SSIM at least this much above each baseline at GRID_BUDGET.
+#: The issues' margins: vplace's SSIM above each baseline, EEVEE with VPLs above EEVEE's own GI,
+#: held-out views against the fit views' mean, EEVEE against the evaluator.
 SSIM_MARGIN = 0.05
+HELD_OUT_SPREAD = 0.03
+EEVEE_SPREAD = 0.02
+BRIGHTNESS_TOLERANCE = 0.03
+FIT_VIEW_SSIM = 0.90
+#: The default capture's layout against the curve's largest sample count.
+CAPTURE_SPREAD = 0.01
 
 
 @dataclass(frozen=True)
 class ScenePreset:
-    """A built-in scene for the report: its two views, capture size and sample counts."""
+    """A scene for the report: its views, capture size and sample counts."""
 
     name: str
-    fit_view: str
-    held_out_view: str
+    fit_views: tuple[str, ...]
+    held_out_views: tuple[str, ...]
     resolution: tuple[int, int]
     capture_samples: int
     truth_samples: int
-    #: EEVEE preview size relative to the capture; 0: no preview. Software OpenGL (no GPU)
-    #: renders 256 shadowed VPL lights over Sponza's 262k triangles in more than 10 minutes
-    #: at 320x180 and at 160x90 alike (the shadow maps, not the pixels, cost), so the report
-    #: previews only the Cornell box there.
-    eevee_scale: float = 1.0
+    #: A .blend path, or None for the built-in scene of this name.
+    blend: Path | None = None
 
 
 PRESETS = {
     "cornell": ScenePreset(
-        "cornell", "Cornell camera", default_scene.CORNELL_HELD_OUT_CAMERA, (160, 160), 256, 2048
+        "cornell",
+        ("Cornell camera", "Cornell camera left", "Cornell camera high"),
+        (default_scene.CORNELL_HELD_OUT_CAMERA, "Cornell camera (held out, low)"),
+        (160, 160),
+        256,
+        2048,
     ),
     "sponza": ScenePreset(
         "sponza",
-        default_scene.SPONZA_CAMERA,
-        default_scene.SPONZA_HELD_OUT_CAMERA,
+        (default_scene.SPONZA_CAMERA, "CameraBalcony", default_scene.SPONZA_WEST_CAMERA),
+        (default_scene.SPONZA_HELD_OUT_CAMERA, "CameraAlcove"),
         (320, 180),
         128,
         1024,
-        eevee_scale=0.0,
     ),
 }
 
@@ -94,20 +114,55 @@ class ReportConfig:
     """What the report runs. ``None`` fields take the scene preset's value."""
 
     scenes: Sequence[str] = ("cornell", "sponza")
+    #: Any .blend instead of the built-in scenes, with its cameras.
+    blend: Path | None = None
+    fit_cameras: Sequence[str] = ()
+    held_out_cameras: Sequence[str] = ()
     budgets: Sequence[int] = (16, 64, 256, 1024)
     methods: Sequence[str] = METHODS
     resolution: tuple[int, int] | None = None
     capture_samples: int | None = None
     truth_samples: int | None = None
-    cycles_samples: Sequence[int] = (16, 64, 256)
+    #: Cycles + OpenImageDenoise at these samples, the user's alternative.
+    cycles_samples: Sequence[int] = (1, 4, 16, 64)
     alpha: float = 1.0
     iterations: int = 3
     cell_px: int = 16
+    #: One of :data:`pipeline.FEATURE_MODES`.
+    feature_mode: str = "auto"
     #: Seeds of the stochastic layouts (uniform, vplace); tables and plots show their mean.
     seeds: Sequence[int] = (0, 1, 2)
-    eevee: bool = True
+    #: Score the grid budget's lights with EEVEE, beside EEVEE's own GI.
+    with_eevee: bool = True
+    #: The methods whose lights EEVEE renders (each costs one EEVEE render per view).
+    eevee_methods: Sequence[str] = ("uniform", "rsm", "vplace+refit")
+    #: The alternatives of :data:`eevee.SETUPS` rendered per view (``cycles+oidn`` runs at
+    #: ``cycles_samples``).
+    alternatives: Sequence[str] = ("plain", "rt", "rt+volume", "vpl+rt", "cycles+oidn")
+    eevee_samples: int = eevee.EEVEE_SAMPLES
+    #: Capture sample counts to lay out vplace+refit from (at the grid budget), every view
+    #: scored: layout quality against capture cost. Empty: no curve.
+    capture_curve: Sequence[int] = ()
+    #: Probes along each side of the baked light probe volume (``rt+volume``).
+    volume_resolution: int = 8
     par2d: bool = True
     cache_dir: Path | None = None
+
+    def presets(self) -> list[ScenePreset]:
+        """The scenes to run."""
+        if self.blend is not None:
+            return [
+                ScenePreset(
+                    Path(self.blend).stem,
+                    tuple(self.fit_cameras),
+                    tuple(self.held_out_cameras),
+                    self.resolution or (320, 180),
+                    self.capture_samples or 128,
+                    self.truth_samples or 1024,
+                    blend=Path(self.blend),
+                )
+            ]
+        return [PRESETS[s] for s in self.scenes]
 
     def validate(self) -> None:
         """Raises :class:`ReportError` for an unusable configuration."""
@@ -118,31 +173,51 @@ class ReportConfig:
             raise ReportError(f"budgets must be positive VPL counts, got {list(self.budgets)}")
         if max(self.budgets) > apply.MAX_VPLS:
             raise ReportError(f"budgets above {apply.MAX_VPLS} VPLs are not supported")
-        bad = [s for s in self.scenes if s not in PRESETS]
-        if bad:
-            raise ReportError(f"unknown scenes {bad}: choose from {sorted(PRESETS)}")
-        if any(s < 1 for s in self.cycles_samples):
+        if self.blend is not None:
+            if not Path(self.blend).is_file():
+                raise ReportError(f"no such .blend file: {self.blend}")
+            if not self.fit_cameras:
+                raise ReportError("a report on a .blend needs --fit-cameras")
+        else:
+            bad = [s for s in self.scenes if s not in PRESETS]
+            if bad:
+                raise ReportError(f"unknown scenes {bad}: choose from {sorted(PRESETS)}")
+        if any(s < 1 for s in (*self.cycles_samples, *self.capture_curve)):
             raise ReportError("Cycles sample counts must be at least 1")
+        if self.feature_mode not in pipeline.FEATURE_MODES:
+            raise ReportError(f"feature mode must be one of {pipeline.FEATURE_MODES}")
+        if self.volume_resolution < 1:
+            raise ReportError("the light probe volume needs at least 1 probe along each side")
         if not self.seeds:
             raise ReportError("give at least one seed")
+        bad = [a for a in self.alternatives if a not in eevee.SETUPS]
+        if bad:
+            raise ReportError(f"unknown alternatives {bad}: choose from {sorted(eevee.SETUPS)}")
+        bad = [m for m in self.eevee_methods if m not in METHODS]
+        if bad:
+            raise ReportError(f"unknown EEVEE methods {bad}: choose from {list(METHODS)}")
 
 
 @dataclass
 class Row:
-    """One scored image: a method at a budget on a view (or Cycles at a sample count)."""
+    """One scored image: a method (or an alternative) at a budget on a view, by a renderer."""
 
     scene: str
     view: str
     role: str  # "fit" or "held-out"
-    method: str  # a METHODS name, "cycles" or "direct"
+    method: str  # a METHODS name, RELAYOUT, an eevee.SETUPS name, or "direct"
+    renderer: str  # "evaluator", "eevee", "cycles" or "reference"
     n_vpls: int | None
     samples: int | None
     rmse: float
     relative_mse: float
     ssim: float
-    layout_seconds: float
-    evaluate_seconds: float
-    seconds: float
+    #: Mean luminance of the image over the ground truth's.
+    brightness: float
+    #: Paid once for every frame and view: captures, fit, layout, refit, a volume's bake.
+    one_time_seconds: float
+    #: One frame: the evaluator's image, an EEVEE or a Cycles render.
+    frame_seconds: float
     shadow_rays: int = 0
     seed: int | None = None
     extra: dict[str, Any] = field(default_factory=dict)
@@ -150,9 +225,6 @@ class Row:
     @property
     def one_minus_ssim(self) -> float:
         return 1.0 - self.ssim
-
-
-score = pipeline.score
 
 
 @contextmanager
@@ -168,24 +240,24 @@ def camera_view(bl_scene: bpy.types.Scene, camera_name: str) -> Iterator[bpy.typ
 
 @dataclass
 class ViewData:
-    """A view of the scene: the user's capture as a ``vplace.View`` (without its GI passes on
-    the held-out view), its ground truth and the Cycles curve."""
+    """A view of the scene: its camera, role, ground truth and the truth's G-buffer as a view."""
 
     name: str
     role: str
-    capture: capture.Capture
-    view: vplace.View
+    camera: bpy.types.Object
     truth: capture.Capture
-    curve: list[capture.Capture]
+    view: vplace.View
 
 
 @dataclass
 class SceneData:
-    """A scene exported once, its job settings and its fit and held-out views."""
+    """A scene exported once, its job, its fit views' captures and every view."""
 
     prepared: pipeline.Prepared
     job: pipeline.Job
     views: list[ViewData]
+    resolution: tuple[int, int]
+    capture_seconds: float
 
 
 def load_scene(
@@ -195,7 +267,7 @@ def load_scene(
     cache_dir: Path,
     log: Callable[[str], None],
 ) -> SceneData:
-    """Exports the scene once and captures each view, its ground truth and its Cycles curve."""
+    """Exports the scene once, captures the fit views, and renders every view's ground truth."""
     resolution = config.resolution or preset.resolution
     truth_samples = config.truth_samples or preset.truth_samples
     job = pipeline.Job(
@@ -205,41 +277,36 @@ def load_scene(
         cell_px=config.cell_px,
         alpha=config.alpha,
         iterations=config.iterations,
+        feature_mode=config.feature_mode,
         cache_dir=cache_dir,
     )
-    names = [(preset.fit_view, "fit"), (preset.held_out_view, "held-out")]
-    cams = []
-    for name, _ in names:
+    cams = {}
+    for name in (*preset.fit_views, *preset.held_out_views):
         cam = bpy.data.objects.get(name)
         if cam is None or cam.type != "CAMERA":
             raise ReportError(f"the scene has no camera object named {name!r}")
-        cams.append(cam)
+        cams[name] = cam
     timer = pipeline.StageTimer(log)
-    specs = [ViewSpec(name, cam) for (name, _), cam in zip(names, cams, strict=True)]
+    specs = [ViewSpec(name, cams[name]) for name in preset.fit_views]
     prepared = pipeline.prepare(bl_scene, job, timer, views=specs)
+    if prepared.skipped:
+        raise ReportError(f"fit views left out: {prepared.skipped}")
     views = []
-    for (name, role), cam, cap in zip(names, cams, prepared.captures, strict=True):
-
-        def render(samples: int, seed: int, cam: bpy.types.Object = cam) -> capture.Capture:
-            return capture.capture(
+    for name in (*preset.fit_views, *preset.held_out_views):
+        role = "fit" if name in preset.fit_views else "held-out"
+        with timer.stage(f"ground truth {name} ({truth_samples} spp, cached)"):
+            truth = capture.capture(
                 bl_scene,
                 prepared.exported,
-                camera=cam,
+                camera=cams[name],
                 resolution=resolution,
-                samples=samples,
-                seed=seed,
+                samples=truth_samples,
+                seed=TRUTH_SEED,
                 cache_dir=cache_dir,
             )
-
-        with timer.stage(f"ground truth {name} ({truth_samples} spp, cached)"):
-            truth = render(truth_samples, TRUTH_SEED)
-        curve = []
-        for spp in config.cycles_samples:
-            with timer.stage(f"Cycles {name} at {spp} spp (cached)"):
-                curve.append(render(spp, CURVE_SEED))
-        view = view_of(cap, held_out=role != "fit")
-        views.append(ViewData(name, role, cap, view, truth, curve))
-    return SceneData(prepared, job, views)
+        views.append(ViewData(name, role, cams[name], truth, view_of(truth, held_out=True)))
+    seconds = sum(c.render_seconds for c in prepared.captures)
+    return SceneData(prepared, job, views, resolution, seconds)
 
 
 def _timed(fn: Callable[[], Any]) -> tuple[float, Any]:
@@ -248,222 +315,635 @@ def _timed(fn: Callable[[], Any]) -> tuple[float, Any]:
     return time.perf_counter() - start, out
 
 
-def run_methods(
-    data: SceneData,
-    view: ViewData,
-    fitted: vplace.Fit,
-    fit_seconds: float,
-    config: ReportConfig,
-    scene_name: str,
-    log: Callable[[str], None],
-) -> tuple[list[Row], dict[str, np.ndarray], dict[str, vplace.VplSet]]:
-    """Every method at every budget on one view; returns the rows, and the images and VPLs of
-    the first seed at the grid budget (keyed by method).
-
-    On the fit view the regression-guided layout iterates against the view's indirect image;
-    ``vplace+refit`` is the same layout with its powers refitted (one layout serves both rows).
-    On the held-out view the fit's model lays out VPLs from that view's G-buffer and direct
-    passes alone (no iteration, no refit)."""
-    prepared = data.prepared
-    scene = prepared.scene
-    truth_gi, truth_direct = view.truth.gi, view.truth.direct
-    grid_n = grid_budget(config.budgets)
-    fit_view = view.role == "fit"
-    methods = [m for m in config.methods if fit_view or m != "vplace+refit"]
-    rows: list[Row] = []
-    images: dict[str, np.ndarray] = {}
-    grid_vpls: dict[str, vplace.VplSet] = {}
-    for n in config.budgets:
-        for seed in config.seeds:
-            guided: pipeline.Laid | None = None
-            for method in methods:
-                if method == "rsm" and seed != config.seeds[0]:
-                    continue  # deterministic: one run
-                job = replace(data.job, n_vpls=n, seed=seed, method=method)
-                extra: dict[str, Any] = {}
-                if method in ("uniform", "rsm"):
-                    laid = pipeline.lay_out(prepared, job, views=[view.view])
-                    t, vpls = laid.layout_seconds, laid.vpls
-                else:
-                    if guided is None:
-                        both = "vplace+refit" in methods
-                        guided = pipeline.lay_out(
-                            prepared,
-                            replace(job, method="vplace+refit" if both else "vplace"),
-                            fitted=fitted,
-                            views=[view.view],
-                        )
-                    layout = guided.layout
-                    assert layout is not None
-                    t = guided.layout_seconds + (fit_seconds if fit_view else 0.0)
-                    extra = {
-                        "iteration_errors": layout.errors,
-                        "best_iteration": layout.best,
-                        "indirect_source": layout.indirect_source[0],
-                    }
-                    vpls = layout.vpls
-                    if method == "vplace+refit":
-                        refitted = guided.refit
-                        assert refitted is not None
-                        t += guided.refit_seconds
-                        vpls = refitted.vpls
-                        extra.update(
-                            refit_seconds=guided.refit_seconds,
-                            refit_error_before=refitted.error_before,
-                            refit_error_after=refitted.error_after,
-                        )
-                indirect, stats = vplace.evaluate(scene, view.view, vpls)
-                estimate = truth_direct + indirect
-                row = Row(
-                    scene_name,
-                    view.name,
-                    view.role,
-                    method,
-                    n,
-                    None,
-                    layout_seconds=t,
-                    evaluate_seconds=stats.seconds,
-                    seconds=t + stats.seconds,
-                    shadow_rays=stats.shadow_rays,
-                    seed=seed if method != "rsm" else None,
-                    extra=extra,
-                    **score(estimate, truth_gi),
-                )
-                rows.append(row)
-                log(
-                    f"[vplace]   {view.name} {method:<13} N={n:<5} seed {seed} "
-                    f"SSIM {row.ssim:.4f} RMSE {row.rmse:.5f} {row.seconds:7.2f} s"
-                )
-                if n == grid_n and seed == config.seeds[0]:
-                    images[method] = estimate
-                    grid_vpls[method] = vpls
-    return rows, images, grid_vpls
-
-
 def grid_budget(budgets: Sequence[int]) -> int:
-    """The budget nearest GRID_BUDGET (the lower one on ties): image grids, preview, targets."""
+    """The budget nearest GRID_BUDGET (the lower one on ties): image grids, EEVEE, targets."""
     return min(budgets, key=lambda n: (abs(n - GRID_BUDGET), n))
 
 
+@dataclass
+class LaidSet:
+    """One method's VPLs at one budget and seed, and what they cost once."""
+
+    method: str
+    n_vpls: int
+    seed: int | None
+    vpls: vplace.VplSet
+    one_time_seconds: float
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def lay_out_all(
+    data: SceneData,
+    fitted: vplace.Fit,
+    fit_seconds: float,
+    config: ReportConfig,
+) -> list[LaidSet]:
+    """Every method's one VPL set for all fit views, at every budget and seed (RSM, which is
+    deterministic, once per budget). ``vplace`` and ``vplace+refit`` share one layout."""
+    prepared, rows = data.prepared, []
+    base = data.capture_seconds
+    for n in config.budgets:
+        for seed in config.seeds:
+            guided: pipeline.Laid | None = None
+            for method in config.methods:
+                if method == "rsm" and seed != config.seeds[0]:
+                    continue
+                job = replace(data.job, n_vpls=n, seed=seed, method=method)
+                if method in ("uniform", "rsm"):
+                    laid = pipeline.lay_out(prepared, job)
+                    rows.append(
+                        LaidSet(
+                            method,
+                            n,
+                            seed if method != "rsm" else None,
+                            laid.vpls,
+                            laid.layout_seconds,
+                        )
+                    )
+                    continue
+                if guided is None:
+                    both = "vplace+refit" in config.methods
+                    guided = pipeline.lay_out(
+                        prepared,
+                        replace(job, method="vplace+refit" if both else "vplace"),
+                        fitted=fitted,
+                    )
+                layout = guided.layout
+                assert layout is not None
+                t = base + fit_seconds + guided.layout_seconds
+                extra: dict[str, Any] = {
+                    "iteration_errors": layout.errors,
+                    "best_iteration": layout.best,
+                    "shared_pixels": layout.shared_pixels,
+                }
+                vpls = layout.vpls
+                if method == "vplace+refit":
+                    refitted = guided.refit
+                    assert refitted is not None
+                    t += guided.refit_seconds
+                    vpls = refitted.vpls
+                    extra.update(
+                        refit_seconds=guided.refit_seconds,
+                        refit_error_before=refitted.error_before,
+                        refit_error_after=refitted.error_after,
+                        switched_off=int((refitted.scales == 0).sum()),
+                    )
+                rows.append(LaidSet(method, n, seed, vpls, t, extra))
+    return rows
+
+
+def evaluator_rows(
+    data: SceneData,
+    sets: Sequence[LaidSet],
+    fitted: vplace.Fit,
+    config: ReportConfig,
+    scene_name: str,
+    log: Callable[[str], None],
+) -> tuple[list[Row], dict[str, dict[str, np.ndarray]]]:
+    """Every VPL set scored on every view with the evaluator, and the held-out views' re-layout;
+    returns the rows and, per view, the images of the first seed at the grid budget."""
+    scene = data.prepared.scene
+    grid_n = grid_budget(config.budgets)
+    rows: list[Row] = []
+    images: dict[str, dict[str, np.ndarray]] = {v.name: {} for v in data.views}
+    for view in data.views:
+        truth = view.truth
+        for s in sets:
+            indirect, stats = vplace.evaluate(scene, view.view, s.vpls)
+            estimate = truth.direct + indirect
+            row = Row(
+                scene_name,
+                view.name,
+                view.role,
+                s.method,
+                "evaluator",
+                s.n_vpls,
+                None,
+                one_time_seconds=s.one_time_seconds,
+                frame_seconds=stats.seconds,
+                shadow_rays=stats.shadow_rays,
+                seed=s.seed,
+                extra=dict(s.extra),
+                **pipeline.score(estimate, truth.gi),
+            )
+            rows.append(row)
+            if s.n_vpls == grid_n and s.seed in (config.seeds[0], None):
+                images[view.name][s.method] = estimate
+        if view.role == "held-out" and "vplace" in config.methods:
+            # Where the held-out view's cells lie outside the fit's range (the model holds
+            # them at its edge), per kept feature.
+            outside = dict(fitted.out_of_range(view.view))
+            for n in config.budgets:
+                for seed in config.seeds:
+                    job = replace(data.job, n_vpls=n, seed=seed, method="vplace")
+                    laid = pipeline.lay_out(data.prepared, job, fitted=fitted, views=[view.view])
+                    indirect, stats = vplace.evaluate(scene, view.view, laid.vpls)
+                    estimate = truth.direct + indirect
+                    rows.append(
+                        Row(
+                            scene_name,
+                            view.name,
+                            view.role,
+                            RELAYOUT,
+                            "evaluator",
+                            n,
+                            None,
+                            one_time_seconds=laid.layout_seconds,
+                            frame_seconds=stats.seconds,
+                            shadow_rays=stats.shadow_rays,
+                            seed=seed,
+                            extra={"out_of_range": outside},
+                            **pipeline.score(estimate, truth.gi),
+                        )
+                    )
+                    if n == grid_n and seed == config.seeds[0]:
+                        images[view.name][RELAYOUT] = estimate
+        mine = [r for r in rows if r.view == view.name and r.n_vpls == grid_n]
+        for r in mine:
+            if r.seed in (config.seeds[0], None):
+                log(
+                    f"[vplace]   {view.name} ({view.role}) {r.method:<18} N={r.n_vpls:<5} "
+                    f"SSIM {r.ssim:.4f} RMSE {r.rmse:.5f}"
+                )
+    return rows, images
+
+
+def capture_curve_rows(
+    bl_scene: bpy.types.Scene,
+    data: SceneData,
+    config: ReportConfig,
+    scene_name: str,
+    log: Callable[[str], None],
+) -> list[Row]:
+    """vplace+refit at the grid budget, laid out from the fit views captured at each of
+    ``config.capture_curve`` samples, scored on every view: what a cheaper capture costs in
+    quality. One-time seconds: those captures, the fit, the layout and the refit."""
+    grid_n = grid_budget(config.budgets)
+    specs = [ViewSpec(v.name, v.camera) for v in data.views if v.role == "fit"]
+    rows: list[Row] = []
+    for spp in config.capture_curve:
+        job = replace(data.job, samples=spp)
+        prepared = pipeline.prepare(bl_scene, job, pipeline.quiet_timer(), views=specs)
+        capture_seconds = sum(c.render_seconds for c in prepared.captures)
+        fit_seconds, fitted = _timed(lambda j=job, p=prepared: pipeline.fit(p, j))
+        for seed in config.seeds:
+            laid = pipeline.lay_out(
+                prepared,
+                replace(job, n_vpls=grid_n, seed=seed, method="vplace+refit"),
+                fitted=fitted,
+            )
+            once = capture_seconds + fit_seconds + laid.layout_seconds + laid.refit_seconds
+            for view in data.views:
+                indirect, stats = vplace.evaluate(prepared.scene, view.view, laid.vpls)
+                rows.append(
+                    Row(
+                        scene_name,
+                        view.name,
+                        view.role,
+                        CAPTURE_CURVE,
+                        "evaluator",
+                        grid_n,
+                        spp,
+                        one_time_seconds=once,
+                        frame_seconds=stats.seconds,
+                        shadow_rays=stats.shadow_rays,
+                        seed=seed,
+                        extra={"capture_seconds": capture_seconds},
+                        **pipeline.score(view.truth.direct + indirect, view.truth.gi),
+                    )
+                )
+        mine = [r for r in rows if r.samples == spp and r.role == "fit"]
+        log(
+            f"[vplace]   capture {spp:>4} spp ({capture_seconds:.1f} s): vplace+refit N={grid_n} "
+            f"fit views' SSIM {np.mean([r.ssim for r in mine]):.4f}"
+        )
+    return rows
+
+
+def reference_rows(view: ViewData, scene_name: str) -> list[Row]:
+    """Direct light only, scored against the ground truth."""
+    return [
+        Row(
+            scene_name,
+            view.name,
+            view.role,
+            "direct",
+            "reference",
+            None,
+            None,
+            one_time_seconds=0.0,
+            frame_seconds=0.0,
+            **pipeline.score(view.truth.direct, view.truth.gi),
+        )
+    ]
+
+
+def eevee_rows(
+    bl_scene: bpy.types.Scene,
+    data: SceneData,
+    sets: Sequence[LaidSet],
+    config: ReportConfig,
+    scene_name: str,
+    cache_dir: Path,
+    log: Callable[[str], None],
+) -> tuple[list[Row], dict[str, dict[str, np.ndarray]]]:
+    """The grid budget's lights of each of ``config.eevee_methods`` rendered by EEVEE on every
+    view, and the alternatives; returns the rows and the images per view."""
+    if apply.find_collection() is not None:
+        raise ReportError(
+            f"the scene already has a {apply.COLLECTION_NAME!r} collection; the report does "
+            "not replace the user's VPLs (run it with --no-eevee, or on a copy)"
+        )
+    grid_n = grid_budget(config.budgets)
+    diagonal = data.prepared.scene.diagonal
+    rows: list[Row] = []
+    images: dict[str, dict[str, np.ndarray]] = {v.name: {} for v in data.views}
+
+    def add(
+        view: ViewData,
+        method: str,
+        setup: str,
+        img: eevee.EeveeImage,
+        one_time: float,
+        samples: int | None,
+        extra: dict[str, Any] | None = None,
+        seed: int | None = None,
+    ) -> None:
+        renderer = "cycles" if setup == "cycles+oidn" else "eevee"
+        row = Row(
+            scene_name,
+            view.name,
+            view.role,
+            method,
+            renderer,
+            grid_n if setup.startswith("vpl") else None,
+            samples,
+            one_time_seconds=one_time,
+            frame_seconds=img.seconds,
+            seed=seed,
+            extra={"setup": setup, **(extra or {})},
+            **pipeline.score(img.image, view.truth.gi),
+        )
+        rows.append(row)
+        log(
+            f"[vplace]   {renderer} {view.name} {method:<18} SSIM {row.ssim:.4f} "
+            f"brightness {row.brightness:.3f} {img.seconds:6.1f} s"
+        )
+
+    def each_view(setup: eevee.Setup, samples: int) -> Iterator[tuple[ViewData, eevee.EeveeImage]]:
+        for view in data.views:
+            yield (
+                view,
+                eevee.render(
+                    bl_scene,
+                    resolution=data.resolution,
+                    camera=view.camera,
+                    samples=samples,
+                    setup=setup,
+                    seed=CURVE_SEED,
+                    cache_dir=cache_dir,
+                ),
+            )
+
+    chosen = {
+        s.method: s
+        for s in sets
+        if s.n_vpls == grid_n
+        and s.seed in (config.seeds[0], None)
+        and s.method in config.eevee_methods
+    }
+    for method, s in chosen.items():
+        apply.write_vpls(bl_scene, s.vpls, scene_diagonal=diagonal)
+        try:
+            names = ["vpl"] + (
+                ["vpl+rt"] if method == "vplace+refit" and "vpl+rt" in config.alternatives else []
+            )
+            for name in names:
+                label = method if name == "vpl" else method + WITH_RT
+                for view, img in each_view(eevee.SETUPS[name], config.eevee_samples):
+                    add(
+                        view,
+                        label,
+                        name,
+                        img,
+                        s.one_time_seconds,
+                        config.eevee_samples,
+                        seed=s.seed,
+                    )
+                    if name == "vpl":
+                        images[view.name][method] = img.image
+        finally:
+            apply.clear_vpls()
+    for name in ("plain", "rt"):
+        if name in config.alternatives:
+            label = {"plain": "eevee", "rt": "eevee rt"}[name]
+            for view, img in each_view(eevee.SETUPS[name], config.eevee_samples):
+                add(view, label, name, img, 0.0, config.eevee_samples)
+                images[view.name][label] = img.image
+    if "rt+volume" in config.alternatives:
+        with eevee.baked_volume(bl_scene, config.volume_resolution) as bake:
+            log(f"[vplace] light probe volume baked in {bake:.1f} s")
+            for view, img in each_view(eevee.SETUPS["rt+volume"], config.eevee_samples):
+                add(
+                    view,
+                    "eevee rt + volume",
+                    "rt+volume",
+                    img,
+                    bake,
+                    config.eevee_samples,
+                    {"bake_seconds": bake},
+                )
+                images[view.name]["eevee rt + volume"] = img.image
+    if "cycles+oidn" in config.alternatives:
+        for spp in config.cycles_samples:
+            for view, img in each_view(eevee.SETUPS["cycles+oidn"], spp):
+                add(view, "cycles+oidn", "cycles+oidn", img, 0.0, spp)
+                if spp == max(config.cycles_samples):
+                    images[view.name][f"cycles+oidn {spp}"] = img.image
+    return rows, images
+
+
 def aggregate(rows: Sequence[Row]) -> list[Row]:
-    """One row per (scene, view, method, budget or samples): the mean over seeds of every
-    metric and time; ``extra`` holds ``seeds`` and ``ssim_std``, ``rmse_std`` (population)."""
+    """One row per (scene, view, method, renderer, budget or samples): the mean over seeds of
+    every metric and time; ``extra`` holds ``seeds``, ``ssim_std`` and ``rmse_std``."""
     groups: dict[tuple[Any, ...], list[Row]] = {}
     for r in rows:
-        groups.setdefault((r.scene, r.view, r.method, r.n_vpls, r.samples), []).append(r)
+        key = (r.scene, r.view, r.method, r.renderer, r.n_vpls, r.samples)
+        groups.setdefault(key, []).append(r)
     out = []
+    keys = ("rmse", "relative_mse", "ssim", "brightness", "one_time_seconds", "frame_seconds")
     for members in groups.values():
         first = members[0]
-        mean = {
-            k: float(np.mean([getattr(r, k) for r in members]))
-            for k in ("rmse", "relative_mse", "ssim", "layout_seconds", "evaluate_seconds",
-                      "seconds")
-        }  # fmt: skip
+        mean = {k: float(np.mean([getattr(r, k) for r in members])) for k in keys}
+        kept = ("setup", "bake_seconds", "capture_seconds")
+        extra = {k: v for k, v in first.extra.items() if k in kept}
+        extra.update(
+            seeds=len(members),
+            by_seed={
+                str(r.seed): {"ssim": r.ssim, "rmse": r.rmse, "brightness": r.brightness}
+                for r in members
+                if r.seed is not None
+            },
+            ssim_std=float(np.std([r.ssim for r in members])),
+            rmse_std=float(np.std([r.rmse for r in members])),
+        )
         out.append(
             Row(
                 first.scene,
                 first.view,
                 first.role,
                 first.method,
+                first.renderer,
                 first.n_vpls,
                 first.samples,
                 shadow_rays=int(np.mean([r.shadow_rays for r in members])),
-                extra={
-                    "seeds": len(members),
-                    "ssim_std": float(np.std([r.ssim for r in members])),
-                    "rmse_std": float(np.std([r.rmse for r in members])),
-                },
+                seed=first.seed if len(members) == 1 else None,
+                extra=extra,
                 **mean,
             )
         )
     return out
 
 
-def reference_rows(view: ViewData, scene_name: str) -> list[Row]:
-    """Direct only and Cycles at rising sample counts, scored against the ground truth."""
-    truth = view.truth.gi
-    rows = [
-        Row(
-            scene_name, view.name, view.role, "direct", None, None,
-            layout_seconds=0.0, evaluate_seconds=0.0, seconds=0.0,
-            **score(view.truth.direct, truth),
-        )
-    ]  # fmt: skip
-    for cap in view.curve:
-        rows.append(
-            Row(
-                scene_name, view.name, view.role, "cycles", None, cap.samples,
-                layout_seconds=0.0, evaluate_seconds=0.0, seconds=cap.render_seconds,
-                **score(cap.gi, truth),
+def same_lights(evaluator: Row, shown: Row) -> dict[str, float]:
+    """The evaluator's scores for the very lights ``shown`` (an EEVEE row) rendered: the seed's
+    run of an aggregated row, or the row itself for a deterministic method."""
+    by_seed = evaluator.extra.get("by_seed", {})
+    if shown.seed is not None and str(shown.seed) in by_seed:
+        return dict(by_seed[str(shown.seed)])
+    return {"ssim": evaluator.ssim, "rmse": evaluator.rmse, "brightness": evaluator.brightness}
+
+
+def _at(
+    rows: Sequence[Row], scene: str, view: str, method: str, renderer: str, n: int | None
+) -> Row | None:
+    return next(
+        (
+            r
+            for r in rows
+            if (r.scene, r.view, r.method, r.renderer, r.n_vpls)
+            == (scene, view, method, renderer, n)
+        ),
+        None,
+    )
+
+
+def targets(rows: list[Row]) -> list[dict[str, Any]]:
+    """The issues' targets on every scene of ``rows`` (means over seeds) at the grid budget."""
+    checks: list[dict[str, Any]] = []
+
+    def check(name: str, value: Any, met: bool, detail: str) -> None:
+        checks.append({"check": name, "value": value, "met": bool(met), "detail": detail})
+
+    for scene in dict.fromkeys(r.scene for r in rows):
+        mine = [r for r in rows if r.scene == scene]
+        budgets = sorted({r.n_vpls for r in mine if r.renderer == "evaluator" and r.n_vpls})
+        if not budgets:
+            continue
+        n = grid_budget(budgets)
+        views = list(dict.fromkeys((r.view, r.role) for r in mine))
+        fit_views = [v for v, role in views if role == "fit"]
+        held = [v for v, role in views if role == "held-out"]
+        ours = {v: _at(mine, scene, v, "vplace+refit", "evaluator", n) for v, _ in views}
+        if all(ours.values()):
+            fit_mean = float(np.mean([ours[v].ssim for v in fit_views]))
+            check(
+                f"{scene} N={n}: the fit views reach SSIM {FIT_VIEW_SSIM}",
+                fit_mean,
+                fit_mean >= FIT_VIEW_SSIM,
+                f"fit views' mean {fit_mean:.4f}",
             )
-        )  # fmt: skip
-    return rows
+            for v in held:
+                gap = fit_mean - ours[v].ssim
+                check(
+                    f"{scene} {v} (held out) N={n}: within {HELD_OUT_SPREAD} SSIM of the fit "
+                    "views' mean",
+                    gap,
+                    gap <= HELD_OUT_SPREAD,
+                    f"{ours[v].ssim:.4f} against {fit_mean:.4f}: {gap:+.4f}",
+                )
+        for v, role in views:
+            us = ours.get(v)
+            if us is None:
+                continue
+            for base in ("uniform", "rsm"):
+                b = _at(mine, scene, v, base, "evaluator", n)
+                if b is not None:
+                    gap = us.ssim - b.ssim
+                    check(
+                        f"{scene} {v} ({role}) N={n}: vplace+refit SSIM >= {base} + {SSIM_MARGIN}",
+                        gap,
+                        gap >= SSIM_MARGIN,
+                        f"{us.ssim:.4f} against {b.ssim:.4f}: {gap:+.4f}",
+                    )
+            uniform = _at(mine, scene, v, "uniform", "evaluator", n)
+            if uniform is not None:
+                check(
+                    f"{scene} {v} ({role}) N={n}: not below uniform",
+                    us.ssim - uniform.ssim,
+                    us.ssim >= uniform.ssim,
+                    f"{us.ssim:.4f} against {uniform.ssim:.4f}",
+                )
+            direct = _at(mine, scene, v, "direct", "reference", None)
+            if role == "held-out" and direct is not None:
+                check(
+                    f"{scene} {v} (held out) N={n}: relative MSE below direct light's",
+                    us.relative_mse,
+                    us.relative_mse < direct.relative_mse,
+                    f"{us.relative_mse:.5f} against {direct.relative_mse:.5f}",
+                )
+            shown = _at(mine, scene, v, "vplace+refit", "eevee", n)
+            if shown is not None:
+                evaluated = same_lights(us, shown)["ssim"]
+                gap = evaluated - shown.ssim
+                check(
+                    f"{scene} {v} ({role}): EEVEE with the VPLs within {EEVEE_SPREAD} SSIM "
+                    "of the evaluator (the same lights)",
+                    gap,
+                    abs(gap) <= EEVEE_SPREAD,
+                    f"EEVEE {shown.ssim:.4f}, evaluator {evaluated:.4f}",
+                )
+                off = shown.brightness - 1
+                detail = f"{shown.brightness:.4f}x"
+                plain = _at(mine, scene, v, "eevee", "eevee", None)
+                if plain is not None and direct is not None:
+                    # EEVEE's own direct light against Cycles': a part vplace does not render.
+                    own = plain.brightness / direct.brightness
+                    detail += f"; EEVEE's direct light alone is {own:.3f}x Cycles' direct light"
+                check(
+                    f"{scene} {v} ({role}): EEVEE with the VPLs within "
+                    f"{BRIGHTNESS_TOLERANCE:.0%} of the truth's brightness",
+                    off,
+                    abs(off) <= BRIGHTNESS_TOLERANCE,
+                    detail,
+                )
+                volume = _at(mine, scene, v, "eevee rt + volume", "eevee", None)
+                if volume is not None:
+                    gap = shown.ssim - volume.ssim
+                    check(
+                        f"{scene} {v} ({role}): EEVEE with the VPLs >= EEVEE ray tracing + "
+                        f"volume + {SSIM_MARGIN}",
+                        gap,
+                        gap >= SSIM_MARGIN,
+                        f"{shown.ssim:.4f} against {volume.ssim:.4f}: {gap:+.4f}",
+                    )
+        curve = [r for r in mine if r.method == CAPTURE_CURVE and r.role == "fit"]
+        spps = sorted({r.samples for r in curve if r.samples})
+        default = pipeline.Job().samples
+        if default in spps and spps[-1] > default:
+            at = {spp: float(np.mean([r.ssim for r in curve if r.samples == spp])) for spp in spps}
+            gap = at[spps[-1]] - at[default]
+            check(
+                f"{scene}: the default capture ({default} spp) within {CAPTURE_SPREAD} SSIM of "
+                f"{spps[-1]} spp (fit views' mean)",
+                gap,
+                gap <= CAPTURE_SPREAD,
+                f"{at[default]:.4f} against {at[spps[-1]]:.4f}: {-gap:+.4f}",
+            )
+    return checks
 
 
-@dataclass
-class Preview:
-    """The VPLs of an EEVEE preview, laid out while the scene was loaded."""
-
-    scene: str
-    camera: str
-    vpls: vplace.VplSet
-    diagonal: float
-    resolution: tuple[int, int]
-
-
-def eevee_preview(bl_scene: bpy.types.Scene, preview: Preview, path: Path) -> float:
-    """Renders the scene with the preview's VPLs written back, then removes them again."""
-    if apply.find_collection() is not None:
-        raise ReportError(
-            f"the scene already has a {apply.COLLECTION_NAME!r} collection; the report does "
-            "not replace the user's VPLs (run it with --no-eevee, or on a copy)"
+def break_even(rows: list[Row]) -> list[dict[str, Any]]:
+    """Per view: after how many frames vplace+refit (one-time cost plus its EEVEE frames) costs
+    less than Cycles + OIDN frames of at least the same SSIM (the fewest samples that reach it)."""
+    out = []
+    for r in rows:
+        if r.method != "vplace+refit" or r.renderer != "eevee":
+            continue
+        cycles = sorted(
+            (c for c in rows if (c.scene, c.view, c.method) == (r.scene, r.view, "cycles+oidn")),
+            key=lambda c: c.samples or 0,
         )
-    with camera_view(bl_scene, preview.camera):
-        apply.write_vpls(bl_scene, preview.vpls, scene_diagonal=preview.diagonal)
-        try:
-            return pipeline.render_eevee_preview(bl_scene, path, preview.resolution)
-        finally:
-            apply.clear_vpls()
+        if not cycles:
+            continue
+        match = next((c for c in cycles if c.ssim >= r.ssim), None)
+        entry: dict[str, Any] = {
+            "scene": r.scene,
+            "view": r.view,
+            "role": r.role,
+            "eevee_ssim": r.ssim,
+            "one_time_seconds": r.one_time_seconds,
+            "eevee_frame_seconds": r.frame_seconds,
+        }
+        if match is None:
+            top = cycles[-1]
+            entry.update(
+                cycles_samples=None, cycles_ssim=top.ssim, cycles_frame_seconds=top.frame_seconds
+            )
+            gain = top.frame_seconds - r.frame_seconds
+            entry["frames"] = None
+            entry["note"] = (
+                f"Cycles + OIDN at {top.samples} spp reaches only SSIM {top.ssim:.4f} in "
+                f"{top.frame_seconds:.1f} s; more samples would cost more per frame"
+                + (
+                    f": break-even after fewer than {math.ceil(r.one_time_seconds / gain)} frames"
+                    if gain > 0
+                    else ""
+                )
+            )
+        else:
+            gain = match.frame_seconds - r.frame_seconds
+            frames = math.ceil(r.one_time_seconds / gain) if gain > 0 else None
+            entry.update(
+                cycles_samples=match.samples,
+                cycles_ssim=match.ssim,
+                cycles_frame_seconds=match.frame_seconds,
+                frames=frames,
+            )
+            entry["note"] = (
+                f"break-even after {frames} frames"
+                if frames
+                else "never on this machine: an EEVEE frame costs at least a Cycles + OIDN frame"
+            )
+        out.append(entry)
+    return out
 
 
 def run_scene(
-    bl_scene: bpy.types.Scene,
     preset: ScenePreset,
     config: ReportConfig,
     out: Path,
     cache_dir: Path,
     log: Callable[[str], None],
 ) -> tuple[list[Row], dict[str, Any]]:
-    """Both views of one scene: rows, plus the fit summary and image paths."""
+    """Every view of one scene: rows, plus the fit summary and image paths."""
+    from . import report_plots
+
+    blend = preset.blend or default_scene.builtin_scene(preset.name)
+    bpy.ops.wm.open_mainfile(filepath=str(blend))
+    log(f"[vplace] report: {preset.name} ({blend.name})")
+    bl_scene = bpy.context.scene
     data = load_scene(bl_scene, preset, config, cache_dir, log)
-    fit_view, held_out = data.views
-    fit_seconds, fitted = _timed(lambda: pipeline.fit(data.prepared, data.job, [fit_view.view]))
-    log(f"[vplace] {preset.name}: fitted on {fit_view.name} in {fit_seconds:.2f} s\n{fitted}")
+    fit_seconds, fitted = _timed(lambda: pipeline.fit(data.prepared, data.job))
+    log(
+        f"[vplace] {preset.name}: fitted on {len(preset.fit_views)} views in {fit_seconds:.2f} s\n"
+        f"{fitted}"
+    )
+    sets = lay_out_all(data, fitted, fit_seconds, config)
+    rows, images = evaluator_rows(data, sets, fitted, config, preset.name, log)
+    for view in data.views:
+        rows += reference_rows(view, preset.name)
+    if config.capture_curve:
+        rows += capture_curve_rows(bl_scene, data, config, preset.name, log)
+    if config.with_eevee:
+        more, shown = eevee_rows(bl_scene, data, sets, config, preset.name, cache_dir, log)
+        rows += more
+    else:
+        shown = {v.name: {} for v in data.views}
     info: dict[str, Any] = {
         "fit": pipeline.fit_summary(fitted),
         "fit_seconds": fit_seconds,
+        "capture_seconds": data.capture_seconds,
         "views": {},
     }
-    rows: list[Row] = []
-    preview_vpls: vplace.VplSet | None = None
-    from . import report_plots
-
-    for view in (fit_view, held_out):
-        rows += reference_rows(view, preset.name)
-        method_rows, images, grid_vpls = run_methods(
-            data, view, fitted, fit_seconds, config, preset.name, log
-        )
-        if view is fit_view and "vplace" in grid_vpls:
-            preview_vpls = grid_vpls["vplace"]
-        rows += method_rows
-        cap = view.capture
+    for view in data.views:
+        cap = view.truth
         info["views"][view.name] = {
             "role": view.role,
             "resolution": [cap.width, cap.height],
-            "capture_samples": cap.samples,
-            "capture_seconds": cap.render_seconds,
-            "truth_samples": view.truth.samples,
-            "truth_seconds": view.truth.render_seconds,
+            "capture_samples": data.job.samples if view.role == "fit" else None,
+            "truth_samples": cap.samples,
+            "truth_seconds": cap.render_seconds,
             "triangles": data.prepared.scene.triangle_count,
         }
         stem = f"{preset.name}_{report_plots.slug(view.name)}"
@@ -471,81 +951,27 @@ def run_scene(
             out / f"grid_{stem}.png",
             view.truth.gi,
             view.truth.direct,
-            images,
-            title=f"{preset.name}, {view.name} ({view.role} view)",
+            images[view.name],
+            title=f"{preset.name}, {view.name} ({view.role} view): the evaluator",
         )
         info["views"][view.name]["grid"] = grid.name
-    if config.eevee and preview_vpls is not None and preset.eevee_scale > 0:
-        cap = fit_view.capture
-        scale = preset.eevee_scale
-        info["preview"] = Preview(
-            preset.name,
-            fit_view.name,
-            preview_vpls,
-            data.prepared.scene.diagonal,
-            (max(1, round(cap.width * scale)), max(1, round(cap.height * scale))),
-        )
-    return rows, info
-
-
-def targets(rows: list[Row], scene: str = "sponza") -> list[dict[str, Any]]:
-    """The issue's targets on ``scene``: at the grid budget, vplace SSIM >= each baseline +
-    SSIM_MARGIN on both views; and error falling as N grows for every method and view."""
-    checks = []
-    views = sorted({(r.view, r.role) for r in rows if r.scene == scene}, key=lambda v: v[1])
-    budgets = sorted({r.n_vpls for r in rows if r.scene == scene and r.n_vpls is not None})
-    if not budgets:
-        return checks
-    grid_n = grid_budget(budgets)
-    for view, role in views:
-        at = {
-            r.method: r for r in rows if r.scene == scene and r.view == view and r.n_vpls == grid_n
-        }
-        if "vplace" in at:
-            for base in ("rsm", "uniform"):
-                if base in at:
-                    gap = at["vplace"].ssim - at[base].ssim
-                    checks.append(
-                        {
-                            "check": f"{scene} {view} ({role}) N={grid_n}: vplace SSIM >= "
-                            f"{base} + {SSIM_MARGIN}",
-                            "value": gap,
-                            "met": bool(gap >= SSIM_MARGIN),
-                            "detail": f"vplace {at['vplace'].ssim:.4f}, {base} "
-                            f"{at[base].ssim:.4f}: difference {gap:+.4f}",
-                        }
-                    )
-        methods = sorted({r.method for r in rows if r.view == view and r.n_vpls is not None})
-        for method in methods:
-            series = sorted(
-                (r for r in rows if r.scene == scene and r.view == view and r.method == method),
-                key=lambda r: r.n_vpls or 0,
+        if shown[view.name]:
+            grid = report_plots.image_grid(
+                out / f"eevee_{stem}.png",
+                view.truth.gi,
+                view.truth.direct,
+                shown[view.name],
+                title=f"{preset.name}, {view.name} ({view.role} view): EEVEE and the alternatives",
             )
-            for metric in ("rmse", "one_minus_ssim"):
-                values = [getattr(r, metric) for r in series]
-                rises = [
-                    f"N {a.n_vpls}->{b.n_vpls}: {getattr(a, metric):.4g}->{getattr(b, metric):.4g}"
-                    for a, b in itertools.pairwise(series)
-                    if getattr(b, metric) > getattr(a, metric)
-                ]
-                checks.append(
-                    {
-                        "check": f"{scene} {view} ({role}) {method}: {metric} falls as N grows",
-                        "value": values,
-                        "met": not rises,
-                        "detail": "falls at every step"
-                        if not rises
-                        else "rises at " + "; ".join(rises),
-                    }
-                )
-    return checks
+            info["views"][view.name]["eevee_grid"] = grid.name
+    return rows, info
 
 
 def run_report(
     config: ReportConfig, out: Path, log: Callable[[str], None] = print
 ) -> dict[str, Any]:
-    """Runs the report and writes its files into ``out``. Opens each built-in scene's .blend
-    (the current file is replaced in memory, never saved)."""
+    """Runs the report and writes its files into ``out``. Opens each scene's .blend (the current
+    file is replaced in memory, never saved)."""
     from . import report_plots
 
     config.validate()
@@ -554,22 +980,16 @@ def run_report(
     start = time.perf_counter()
     rows: list[Row] = []
     scenes: dict[str, Any] = {}
-    for name in config.scenes:
-        preset = PRESETS[name]
-        blend = default_scene.builtin_scene(name)
-        bpy.ops.wm.open_mainfile(filepath=str(blend))
-        log(f"[vplace] report: {name} ({blend.name})")
-        scene_rows, info = run_scene(bpy.context.scene, preset, config, out, cache_dir, log)
+    for preset in config.presets():
+        scene_rows, info = run_scene(preset, config, out, cache_dir, log)
         rows += scene_rows
-        scenes[name] = info
+        scenes[preset.name] = info
     par_rows: list[dict[str, Any]] = []
     if config.par2d:
         # The benchmark scene of vplace.bench_par2d: 512x512, 8 lights, 64 occluders.
         par_rows, _ = bench_par2d.measure(size=512, rays=(4, 16, 64, 256))
         report_plots.par2d_plot(out / "par2d_speed_error.png", par_rows)
-    previews = [info.pop("preview") for info in scenes.values() if "preview" in info]
     means = aggregate(rows)
-    checks = targets(means)
     result = {
         "config": {
             **{k: v for k, v in asdict(config).items() if k != "cache_dir"},
@@ -579,38 +999,18 @@ def run_report(
         "scenes": scenes,
         "rows": [row_dict(r) for r in rows],
         "means": [row_dict(r) for r in means],
-        "targets": checks,
+        "targets": targets(means),
+        "break_even": break_even(means),
         "par2d": par_rows,
     }
     write_csv(out / "results.csv", rows)
     report_plots.error_vs_time(out, means)
     report_plots.error_vs_budget(out / "error_vs_vpls.png", means)
-    _write(out, result, means)
-    # EEVEE last: the slowest step, and the tables are on disk before it starts.
-    for preview in previews:
-        blend = default_scene.builtin_scene(preview.scene)
-        bpy.ops.wm.open_mainfile(filepath=str(blend))
-        path = out / f"eevee_{preview.scene}.png"
-        log(f"[vplace] EEVEE preview of {preview.scene} ({len(preview.vpls)} VPLs) ...")
-        seconds = eevee_preview(bpy.context.scene, preview, path)
-        log(f"[vplace] EEVEE preview: {seconds:.1f} s -> {path}")
-        scenes[preview.scene]["eevee"] = {
-            "file": path.name,
-            "seconds": seconds,
-            "n_vpls": len(preview.vpls),
-            "resolution": list(preview.resolution),
-        }
-    if previews:
-        result["seconds"] = time.perf_counter() - start
-        _write(out, result, means)
-    log(f"[vplace] report written to {out} in {result['seconds']:.0f} s")
-    return result
-
-
-def _write(out: Path, result: dict[str, Any], means: list[Row]) -> None:
     result["files"] = sorted(p.name for p in out.iterdir() if p.is_file())
     (out / "results.json").write_text(json.dumps(result, indent=2, default=_json_default))
     (out / "report.md").write_text(markdown(result, means))
+    log(f"[vplace] report written to {out} in {result['seconds']:.0f} s")
+    return result
 
 
 def _json_default(value: Any) -> Any:
@@ -631,9 +1031,23 @@ def row_dict(row: Row) -> dict[str, Any]:
 
 
 CSV_FIELDS = (
-    "scene", "view", "role", "method", "n_vpls", "samples", "rmse", "relative_mse", "ssim",
-    "one_minus_ssim", "layout_seconds", "evaluate_seconds", "seconds", "shadow_rays", "seed",
-)  # fmt: skip
+    "scene",
+    "view",
+    "role",
+    "method",
+    "renderer",
+    "n_vpls",
+    "samples",
+    "rmse",
+    "relative_mse",
+    "ssim",
+    "one_minus_ssim",
+    "brightness",
+    "one_time_seconds",
+    "frame_seconds",
+    "shadow_rays",
+    "seed",
+)
 
 
 def write_csv(path: Path, rows: list[Row]) -> None:
@@ -655,60 +1069,159 @@ def _fmt(value: float | None, spec: str) -> str:
 
 def _sd(row: Row) -> str:
     seeds = row.extra.get("seeds", 1)
-    return f" ({row.extra['ssim_std']:.4f})" if seeds > 1 else ""
+    return f" ({row.extra['ssim_std']:.3f})" if seeds > 1 else ""
+
+
+def _capture_curve_lines(rows: Sequence[Row]) -> list[str]:
+    """The table of :func:`capture_curve_rows` (mean SSIM over seeds), or nothing."""
+    curve = [r for r in rows if r.method == CAPTURE_CURVE]
+    if not curve:
+        return []
+    views = list(dict.fromkeys((r.view, r.role) for r in curve))
+    lines = [
+        f"### Capture samples against layout quality (vplace+refit, N={curve[0].n_vpls})",
+        "",
+        "The fit views captured at each sample count, the same fit, layout and refit, every view "
+        "scored with the evaluator against the truth. One-time s: captures, fit, layout, refit.",
+        "",
+        "| capture spp | captures s | one-time s | fit views' SSIM | held-out SSIM | "
+        + " | ".join(v for v, _ in views)
+        + " |",
+        "|---" * (5 + len(views)) + "|",
+    ]
+    for spp in sorted({r.samples for r in curve if r.samples}):
+        mine = {r.view: r for r in curve if r.samples == spp}
+        first = next(iter(mine.values()))
+
+        def mean(role: str, mine: dict[str, Row] = mine) -> str:
+            values = [r.ssim for r in mine.values() if r.role == role]
+            return f"{np.mean(values):.4f}" if values else "-"
+
+        lines.append(
+            f"| {spp} | {first.extra['capture_seconds']:.1f} | {first.one_time_seconds:.1f} | "
+            f"{mean('fit')} | {mean('held-out')} | "
+            + " | ".join(f"{mine[v].ssim:.4f}" if v in mine else "-" for v, _ in views)
+            + " |"
+        )
+    return [*lines, ""]
 
 
 def markdown(result: dict[str, Any], rows: list[Row]) -> str:
     """The human-readable report."""
     lines = ["# vplace report", ""]
     lines += [
-        "Images scored: ground-truth direct + VPL indirect (evaluator, full resolution) against "
-        "a high-sample Cycles render of the same view. SSIM on display luminance (DESIGN: "
-        "Metrics), RMSE and relative MSE on linear HDR. Time = layout (vplace on the fit view: "
-        "with the regression fit) + evaluator; the Cycles capture vplace needs is listed per view. "
-        "Cycles rows: its render time at that sample count, scored against the ground truth. "
-        f"Stochastic layouts (uniform, vplace) run with seeds {list(result['config']['seeds'])}: "
-        "each row is their mean (SSIM standard deviation in brackets); `results.csv` has every "
-        "run.",
+        "Each method lays out one set of lights for all the fit views at once; every view, fit or "
+        "held out, is scored with those same lights. Evaluator rows: the ground truth's direct "
+        "light plus the evaluator's VPL indirect light over the view's G-buffer. EEVEE rows: what "
+        "a user sees, EEVEE rendering the written lights (float, Standard view, "
+        f"{result['config']['eevee_samples']} samples), or the alternatives a Blender user would "
+        "pick instead; Cycles + OIDN rows: Cycles at that many samples, denoised. Every image is "
+        "scored against a high-sample Cycles render of the view. SSIM on display luminance "
+        "(DESIGN: Metrics); RMSE and relative MSE on linear HDR; brightness is the mean luminance "
+        "over the truth's. One-time seconds: the captures of the fit views, the fit, the layout "
+        "and refit, or a volume's bake, paid once for every view and frame; frame seconds: one "
+        "image. Stochastic layouts run with seeds "
+        f"{list(result['config']['seeds'])}; rows show their mean (SSIM standard deviation in "
+        "brackets); `results.csv` has every run. EEVEE here is software OpenGL on 2 CPU cores: "
+        "its frame times are no measure of a GPU's.",
         "",
         f"Total report time: {result['seconds']:.0f} s.",
         "",
     ]
     for name, info in result["scenes"].items():
-        lines += [f"## {name}", "", "Fit: kept " + ", ".join(info["fit"]["kept"]) +
-                  f" (R^2 {info['fit']['r2']:.3f}, {info['fit_seconds']:.2f} s)", ""]  # fmt: skip
+        fit = info["fit"]
+        r2 = ", ".join(f"{v} {_fmt(x, '.3f')}" for v, x in fit["view_r2"].items())
+        lines += [
+            f"## {name}",
+            "",
+            f"Fit over {len(fit['view_r2'])} views: kept "
+            + ", ".join(fit["kept"])
+            + f" (R^2 {fit['r2']:.3f}; per view {r2}; {info['fit_seconds']:.2f} s). Captures of "
+            f"the fit views: {info['capture_seconds']:.1f} s.",
+            "",
+        ]
+        budgets = sorted({r.n_vpls for r in rows if r.scene == name and r.renderer == "evaluator"})
         for view, v in info["views"].items():
+            mine = [r for r in rows if r.scene == name and r.view == view]
             lines += [
                 f"### {view} ({v['role']} view)",
                 "",
-                f"{v['resolution'][0]}x{v['resolution'][1]} px, {v['triangles']} triangles; "
-                f"capture {v['capture_samples']} spp in {v['capture_seconds']:.1f} s; ground "
-                f"truth {v['truth_samples']} spp in {v['truth_seconds']:.1f} s. "
-                f"Image grid: `{v['grid']}`.",
+                f"{v['resolution'][0]}x{v['resolution'][1]} px, {v['triangles']} triangles; ground "
+                f"truth {v['truth_samples']} spp in {v['truth_seconds']:.1f} s. Images: "
+                f"`{v['grid']}`" + (f", `{v['eevee_grid']}`" if "eevee_grid" in v else "") + ".",
                 "",
-                "| method | N / spp | SSIM (sd over seeds) | 1 - SSIM | RMSE | rel. MSE | seconds "
-                "| shadow rays |",
-                "|---|---|---|---|---|---|---|---|",
+                "Evaluator, SSIM (sd) / RMSE by VPL budget:",
+                "",
+                "| method | " + " | ".join(f"N={n}" for n in budgets) + " |",
+                "|---|" + "---|" * len(budgets),
             ]
-            for r in rows:
-                if r.scene != name or r.view != view:
-                    continue
-                count = (
-                    r.n_vpls if r.n_vpls is not None else (f"{r.samples} spp" if r.samples else "-")
-                )
-                lines.append(
-                    f"| {r.method} | {count} | {_fmt(r.ssim, '.4f')}{_sd(r)} "
-                    f"| {_fmt(r.one_minus_ssim, '.4f')} | {r.rmse:.5f} | {r.relative_mse:.5f} "
-                    f"| {r.seconds:.2f} | {r.shadow_rays} |"
-                )
+            tabled = (r.method for r in mine if r.renderer == "evaluator")
+            for method in dict.fromkeys(m for m in tabled if m != CAPTURE_CURVE):
+                cells = []
+                for n in budgets:
+                    r = next(
+                        (
+                            x
+                            for x in mine
+                            if x.method == method and x.renderer == "evaluator" and x.n_vpls == n
+                        ),
+                        None,
+                    )
+                    cells.append(f"{r.ssim:.3f}{_sd(r)} / {r.rmse:.4f}" if r else "-")
+                lines.append(f"| {method} | " + " | ".join(cells) + " |")
+            direct = next((x for x in mine if x.method == "direct"), None)
+            if direct:
+                lines += ["", f"Direct light only: SSIM {direct.ssim:.3f}, RMSE {direct.rmse:.4f}."]
+            shown = [r for r in mine if r.renderer in ("eevee", "cycles")]
+            if shown:
+                lines += [
+                    "",
+                    "What a user sees (the grid budget's lights in EEVEE) and the alternatives:",
+                    "",
+                    "| image | SSIM | RMSE | brightness | evaluator, same lights: SSIM / "
+                    "brightness | one-time s | frame s |",
+                    "|---|---|---|---|---|---|---|",
+                ]
+                for r in shown:
+                    label = f"{r.renderer}: {r.method}"
+                    if r.n_vpls:
+                        label += f", N={r.n_vpls}"
+                    if r.seed is not None:
+                        label += f", seed {r.seed}"
+                    if r.renderer == "cycles":
+                        label += f", {r.samples} spp"
+                    base = r.method.removesuffix(WITH_RT)
+                    ev = _at(mine, name, view, base, "evaluator", r.n_vpls) if r.n_vpls else None
+                    same = (
+                        "{ssim:.3f} / {brightness:.3f}".format(**same_lights(ev, r)) if ev else "-"
+                    )
+                    lines.append(
+                        f"| {label} | {r.ssim:.3f} | {r.rmse:.4f} | {r.brightness:.3f} | {same} | "
+                        f"{r.one_time_seconds:.1f} | {r.frame_seconds:.1f} |"
+                    )
             lines.append("")
-        if "eevee" in info:
-            e = info["eevee"]
-            lines += [
-                f"EEVEE preview ({e['n_vpls']} vplace VPLs, {e['resolution'][0]}x"
-                f"{e['resolution'][1]} px): `{e['file']}`, {e['seconds']:.1f} s.",
-                "",
-            ]
+        lines += _capture_curve_lines([r for r in rows if r.scene == name])
+    if result["break_even"]:
+        lines += [
+            "## Break-even: vplace + EEVEE against Cycles + OIDN",
+            "",
+            "Frames after which vplace's one-time cost plus its EEVEE frames costs less than "
+            "Cycles + OIDN frames of at least the same SSIM (the fewest samples that reach it). "
+            "EEVEE's frame time is software OpenGL on 2 cores; a GPU's is unknown here (no GPU "
+            "was lent).",
+            "",
+            "| scene | view | EEVEE SSIM | one-time s | EEVEE frame s | Cycles spp | Cycles SSIM "
+            "| Cycles frame s | frames |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
+        for b in result["break_even"]:
+            lines.append(
+                f"| {b['scene']} | {b['view']} ({b['role']}) | {b['eevee_ssim']:.3f} | "
+                f"{b['one_time_seconds']:.1f} | {b['eevee_frame_seconds']:.1f} | "
+                f"{b['cycles_samples'] or '-'} | {b['cycles_ssim']:.3f} | "
+                f"{b['cycles_frame_seconds']:.1f} | {b['note']} |"
+            )
+        lines.append("")
     if result["targets"]:
         lines += ["## Targets", "", "| check | met | detail |", "|---|---|---|"]
         for c in result["targets"]:
@@ -728,3 +1241,17 @@ def markdown(result: dict[str, Any], rows: list[Row]) -> str:
         lines += ["", "Plot: `par2d_speed_error.png`.", ""]
     lines += ["## Files", "", *[f"- `{f}`" for f in result["files"]], ""]
     return "\n".join(lines)
+
+
+__all__ = [
+    "PRESETS",
+    "ReportConfig",
+    "ReportError",
+    "Row",
+    "ScenePreset",
+    "aggregate",
+    "break_even",
+    "camera_view",
+    "run_report",
+    "targets",
+]

@@ -23,6 +23,12 @@ COLOURS = {
     "rsm": "tab:orange",
     "vplace": "tab:green",
     "vplace+refit": "tab:red",
+    "vplace (re-layout)": "tab:olive",
+    "vplace+refit by capture spp": "tab:cyan",
+    "eevee": "tab:purple",
+    "eevee rt": "tab:pink",
+    "eevee rt + volume": "tab:brown",
+    "cycles+oidn": "black",
     "cycles": "black",
     "direct": "tab:gray",
 }
@@ -36,43 +42,48 @@ def _views(rows: Sequence[Row]) -> list[tuple[str, str, str]]:
     return list(seen)
 
 
+def _colour(r: Row) -> str | None:
+    base = r.method.split(" + ")[0]
+    return COLOURS.get(base) or COLOURS.get(r.renderer)
+
+
 def error_vs_time(out: Path, rows: Sequence[Row]) -> list[Path]:
-    """Per view: 1 - SSIM and RMSE against seconds (log-log), each method's budgets joined, and
-    Cycles at rising sample counts; direct only as a horizontal line."""
+    """Per view: 1 - SSIM against one frame's seconds (left) and against the one-time seconds
+    (right), log-log: the evaluator's budgets joined per method, EEVEE's renders of the grid
+    budget's lights and the alternatives as points, Cycles + OIDN's samples joined; direct light
+    only as a horizontal line."""
     paths = []
     for scene, view, role in _views(rows):
         mine = [r for r in rows if r.scene == scene and r.view == view]
-        fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
-        for ax, metric, label in (
-            (axes[0], "one_minus_ssim", "1 - SSIM"),
-            (axes[1], "rmse", "RMSE (linear)"),
+        fig, axes = plt.subplots(1, 2, figsize=(12, 4.4))
+        for ax, cost, label in (
+            (axes[0], "frame_seconds", "seconds per frame"),
+            (axes[1], "one_time_seconds", "one-time seconds (captures, fit, layout, bake)"),
         ):
-            for method in dict.fromkeys(r.method for r in mine):
-                series = [r for r in mine if r.method == method]
+            for method, renderer in dict.fromkeys((r.method, r.renderer) for r in mine):
+                series = [r for r in mine if (r.method, r.renderer) == (method, renderer)]
                 if method == "direct":
-                    ax.axhline(
-                        getattr(series[0], metric),
-                        color=COLOURS["direct"],
-                        ls=":",
-                        label="direct only",
-                    )
+                    ax.axhline(series[0].one_minus_ssim, color=COLOURS["direct"], ls=":",
+                               label="direct only")  # fmt: skip
                     continue
-                series.sort(key=lambda r: r.seconds)
-                x = [max(r.seconds, 1e-4) for r in series]
-                y = [max(getattr(r, metric), 1e-6) for r in series]
-                style = "s--" if method == "cycles" else "o-"
-                ax.plot(x, y, style, color=COLOURS.get(method), label=method, ms=4)
+                series.sort(key=lambda r: (r.n_vpls or 0, r.samples or 0))
+                x = [max(getattr(r, cost), 1e-3) for r in series]
+                y = [max(r.one_minus_ssim, 1e-6) for r in series]
+                style = {"evaluator": "o-", "eevee": "D", "cycles": "s--"}[renderer]
+                name = f"{method} ({renderer})"
+                ax.plot(x, y, style, color=_colour(series[0]), label=name, ms=5,
+                        mfc="none" if renderer == "eevee" else None)  # fmt: skip
                 for r, xi, yi in zip(series, x, y, strict=True):
-                    tag = f"{r.samples}spp" if method == "cycles" else str(r.n_vpls)
-                    ax.annotate(
-                        tag, (xi, yi), fontsize=6, xytext=(2, 2), textcoords="offset points"
-                    )
+                    spp = r.samples and renderer != "eevee"  # Cycles', or the capture's
+                    tag = f"{r.samples}spp" if spp else str(r.n_vpls or "")
+                    ax.annotate(tag, (xi, yi), fontsize=6, xytext=(2, 2),
+                                textcoords="offset points")  # fmt: skip
             ax.set_xscale("log")
             ax.set_yscale("log")
-            ax.set_xlabel("seconds (layout + evaluator; Cycles: render)")
-            ax.set_ylabel(label)
+            ax.set_xlabel(label)
+            ax.set_ylabel("1 - SSIM")
             ax.grid(True, which="both", alpha=0.3)
-        axes[0].legend(fontsize=7)
+        axes[0].legend(fontsize=6)
         fig.suptitle(f"{scene}, {view} ({role} view): error against time")
         fig.tight_layout()
         path = out / f"error_vs_time_{scene}_{slug(view)}.png"
@@ -84,6 +95,7 @@ def error_vs_time(out: Path, rows: Sequence[Row]) -> list[Path]:
 
 def error_vs_budget(path: Path, rows: Sequence[Row]) -> Path:
     """1 - SSIM and RMSE against the VPL count, one column per view."""
+    rows = [r for r in rows if r.renderer in ("evaluator", "reference") and r.samples is None]
     views = _views([r for r in rows if r.n_vpls is not None])
     fig, axes = plt.subplots(2, max(len(views), 1), figsize=(3.6 * max(len(views), 1), 6.4))
     axes = np.asarray(axes).reshape(2, -1)

@@ -18,10 +18,12 @@ from vplace.bench_fit import (
     synthetic_view,
 )
 
-FEATURE_NAMES = [name for name, _, _ in vplace.feature_registry()]
+FEATURE_NAMES = [name for name, *_ in vplace.feature_registry()]
 
 EPS = np.finfo(np.float64).eps
 PLAIN = {"select": False, "collinear_rtol": 0.0, "ridge_above": math.inf}
+# Every feature of the views, no selection: what numpy's lstsq fits.
+EVERY = {**PLAIN, "surface_only": False}
 
 
 def lstsq(x, y):
@@ -73,8 +75,9 @@ def features(cap, **kw):
 
 def test_registry():
     assert len(FEATURE_NAMES) == 14 and len(set(FEATURE_NAMES)) == 14
-    for _name, doc, origin in _native.feature_registry():
+    for name, doc, origin, surface in _native.feature_registry():
         assert doc and origin in ("paper", "ours")
+        assert surface == (name not in ("depth", "coverage", "normal_variance", "depth_variance"))
     assert {"light_cosine", "reflectance", "coverage", "depth_variance"} <= set(FEATURE_NAMES)
 
 
@@ -119,7 +122,7 @@ def test_fit_capture_table_json_predict():
 
 def test_fit_capture_matches_numpy_plain_ols():
     cap = synthetic_capture(256, 160)
-    r = fit_capture(cap, **PLAIN)
+    r = fit_capture(cap, **EVERY)
     cells = features(cap)  # the same input (extraction is compared above)
     ref = numpy_fit(cells["values"], cells["label"])
     # Plain OLS keeps every non-constant feature; compare with lstsq on the same columns.
@@ -156,7 +159,7 @@ def test_one_fit_over_several_views():
     b = synthetic_capture(64, 96, seed=2)
     scene = light_scene(a)
     va, vb = synthetic_view({**a, "name": "a"}), synthetic_view({**b, "name": "b"})
-    both = vplace.fit(scene, [va, vb], **PLAIN)
+    both = vplace.fit(scene, [va, vb], **EVERY)
     check_invariants(both)
     ca, cb = vplace.extract_features(scene, va), vplace.extract_features(scene, vb)
     assert both.n_cells == len(ca["cells"]) + len(cb["cells"])
@@ -413,3 +416,24 @@ def test_random_well_conditioned_problems_match_lstsq(n, p, seed, log_scale):
     np.testing.assert_allclose(r.fitted, fitted, rtol=0, atol=1e3 * cond * EPS * magnitude)
     sst = ((y - y.mean()) ** 2).sum()
     assert r.r2 == pytest.approx(1 - ((y - fitted) ** 2).sum() / sst, abs=1e-9)
+
+
+def test_the_default_fit_keeps_to_the_surface_and_holds_other_views_to_its_range():
+    cap = synthetic_capture(256, 160)
+    model = fit_capture(cap)
+    view_features = ("depth", "coverage", "normal_variance", "depth_variance")
+    for name in view_features:
+        assert model.dropped[name].startswith("excluded: depends on the view")
+    assert not set(view_features) & set(model.kept)
+    # The label grows with height on the wall: position_z explains it, and is kept.
+    assert "position_z" in model.kept
+    # The same surfaces seen 100 m higher up (as another view's unseen part of the scene may
+    # lie): the linear model is held at the edge of its range, never extended 100 m.
+    far = {**cap, "position": cap["position"] + np.float32([0, 0, 100])}
+    view = synthetic_view(far, indirect=False)
+    grid = model.predict(view)
+    top = features(cap)["label"].max()
+    assert 0.0 <= grid.min() and grid.max() <= top
+    outside = dict(model.out_of_range(view))
+    assert outside["position_z"] == 1.0
+    assert all(f == 0.0 for f in dict(model.out_of_range(synthetic_view(cap))).values())

@@ -23,7 +23,7 @@ fn bench(c: &mut Criterion) {
     c.bench_function("fit_cells 1920x1080 (normalize + select + fit)", |b| {
         b.iter(|| {
             let all = black_box(std::slice::from_ref(&cells));
-            fit_cells(all, &["room"], Some(p.light), &FitParams::DEFAULT).unwrap()
+            fit_cells(all, &["room"], Some(p.light), true, &FitParams::DEFAULT).unwrap()
         })
     });
     let (x, y) = linear_design(8100);

@@ -491,7 +491,11 @@ mod tests {
         };
         let (img, _) = evaluate(&scene, &g, &[near], &params, None).unwrap();
         let bound = 0.5 / PI / (PI * 0.01);
-        assert!(img[0] <= bound * (1.0 + 1e-5) && img[0] > 0.99 * bound, "{}", img[0]);
+        assert!(
+            img[0] <= bound * (1.0 + 1e-5) && img[0] > 0.99 * bound,
+            "{}",
+            img[0]
+        );
         let progress = Progress::default();
         progress.cancel.store(true, Ordering::Relaxed);
         assert_eq!(

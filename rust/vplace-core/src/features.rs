@@ -49,6 +49,9 @@ pub struct FeatureDef {
     pub doc: &'static str,
     /// Paper or ours.
     pub origin: Origin,
+    /// A property of the surface, the same from every view (world normal, albedo, position,
+    /// light); false for what depends on the view (depth, how the cell's pixels spread).
+    pub surface: bool,
 }
 
 /// Number of registered features.
@@ -65,71 +68,85 @@ pub const FEATURES: [FeatureDef; FEATURE_COUNT] = [
         name: "normal_x",
         doc: "mean world normal, x",
         origin: Origin::Paper,
+        surface: true,
     },
     FeatureDef {
         name: "normal_y",
         doc: "mean world normal, y",
         origin: Origin::Paper,
+        surface: true,
     },
     FeatureDef {
         name: "normal_z",
         doc: "mean world normal, z (up)",
         origin: Origin::Paper,
+        surface: true,
     },
     FeatureDef {
         name: "albedo_luminance",
         doc: "mean luminance of the diffuse albedo (DiffCol)",
         origin: Origin::Paper,
+        surface: true,
     },
     FeatureDef {
         name: "depth",
         doc: "mean planar camera depth, metres",
         origin: Origin::Paper,
+        surface: false,
     },
     FeatureDef {
         name: "position_x",
         doc: "mean world position, x",
         origin: Origin::Paper,
+        surface: true,
     },
     FeatureDef {
         name: "position_y",
         doc: "mean world position, y",
         origin: Origin::Paper,
+        surface: true,
     },
     FeatureDef {
         name: "position_z",
         doc: "mean world position, z",
         origin: Origin::Paper,
+        surface: true,
     },
     FeatureDef {
         name: "light_cosine",
         doc: "mean max(0, n . l), l the unit direction to the strongest light",
         origin: Origin::Paper,
+        surface: true,
     },
     FeatureDef {
         name: "reflectance",
         doc: "mean luminance of diffuse + specular colour (DiffCol + GlossCol)",
         origin: Origin::Paper,
+        surface: true,
     },
     FeatureDef {
         name: "direct_luminance",
         doc: "mean luminance of the direct image D",
         origin: Origin::Ours,
+        surface: true,
     },
     FeatureDef {
         name: "coverage",
         doc: "fraction of the cell's pixels that see geometry",
         origin: Origin::Ours,
+        surface: false,
     },
     FeatureDef {
         name: "normal_variance",
         doc: "total variance of the normals, E[n.n] - |E[n]|^2",
         origin: Origin::Ours,
+        surface: false,
     },
     FeatureDef {
         name: "depth_variance",
         doc: "variance of the planar depth, m^2",
         origin: Origin::Ours,
+        surface: false,
     },
 ];
 
@@ -642,15 +659,24 @@ pub struct CellModel {
     pub light: Option<StrongestLight>,
     /// The fitted views, in order; their cells are consecutive rows of the fit.
     pub views: Vec<ViewFit>,
+    /// The largest label of the fitted cells: predictions are held to `[0, label_max]`.
+    pub label_max: f64,
 }
+
+/// Why the features of the view are left out of a surface-only model.
+pub const VIEW_DEPENDENT: &str =
+    "depends on the view, not on the surface: the lights must hold from every view";
 
 /// Normalizes the features of `cells` (the cells of the views named `names`, in order) and fits
 /// their label (see [`crate::regression`]); `light` is what the light-cosine feature was computed
-/// with. Features whose input was not given are reported as [`DropReason::Unavailable`].
+/// with. Features whose input was not given are reported as [`DropReason::Unavailable`]; with
+/// `surface_only` the features that are not properties of the surface ([`FeatureDef::surface`])
+/// are left out, reported as [`DropReason::Excluded`].
 pub fn fit_cells(
     cells: &[CellFeatures],
     names: &[&str],
     light: Option<StrongestLight>,
+    surface_only: bool,
     params: &FitParams,
 ) -> Result<CellModel> {
     let mut values = Vec::new();
@@ -668,7 +694,17 @@ pub fn fit_cells(
         }
     }
     let ranges = MinMax::fit(&values, FEATURE_COUNT)?;
-    let x = ranges.apply(&values);
+    let mut x = ranges.apply(&values);
+    let excluded: Vec<usize> = (0..FEATURE_COUNT)
+        .filter(|&j| surface_only && !FEATURES[j].surface)
+        .collect();
+    // An excluded column is made constant, so that the regression drops it; its reason is
+    // then set below.
+    for row in x.chunks_exact_mut(FEATURE_COUNT) {
+        for &j in &excluded {
+            row[j] = 0.0;
+        }
+    }
     let mut fit = regression::fit(&x, &label, FEATURE_COUNT, params)?;
     for (j, reason) in &mut fit.dropped {
         if !available[*j] {
@@ -677,6 +713,8 @@ pub fn fit_cells(
             } else {
                 "no specular colour pass given"
             });
+        } else if excluded.contains(j) {
+            *reason = DropReason::Excluded(VIEW_DEPENDENT);
         }
     }
     let mut views = Vec::with_capacity(cells.len());
@@ -703,11 +741,13 @@ pub fn fit_cells(
         cell_px: cells[0].cell_px,
         light,
         views,
+        label_max: label.iter().copied().fold(0.0, f64::max),
     })
 }
 
 /// Fits one model on the cells of every view of `views` (each needs its indirect image), with
-/// `light` for the light-cosine feature (see [`strongest_light`]).
+/// `light` for the light-cosine feature (see [`strongest_light`]) and, with `surface_only`,
+/// only the features of the surface (see [`fit_cells`]).
 ///
 /// Errors: no views, a view without an indirect image, bad `cell_px`, no usable pixel in a
 /// view, or the regression's own errors.
@@ -715,6 +755,7 @@ pub fn fit_views(
     views: &[&View],
     light: Option<StrongestLight>,
     cell_px: usize,
+    surface_only: bool,
     params: &FitParams,
 ) -> Result<CellModel> {
     if views.is_empty() {
@@ -728,7 +769,7 @@ pub fn fit_views(
         .map(|v| extract_features(&FeatureInput::of(v, light), cell_px))
         .collect::<Result<Vec<_>>>()?;
     let names: Vec<&str> = views.iter().map(|v| v.name.as_str()).collect();
-    let mut model = fit_cells(&cells, &names, light, params)?;
+    let mut model = fit_cells(&cells, &names, light, surface_only, params)?;
     for (f, v) in model.views.iter_mut().zip(views) {
         f.masked_pixels += v.masked_pixels;
     }
@@ -738,12 +779,19 @@ pub fn fit_views(
 impl CellModel {
     /// The predicted label of every cell of the grid of `cells` (`cells_y x cells_x`, row-major);
     /// cells without geometry get 0 (they hold no pixel to light).
+    ///
+    /// The model is trusted only where it was fitted: a cell's normalized features are held to
+    /// the fitted range `[0, 1]` (a feature of another view beyond the range counts as its edge),
+    /// and the prediction to `[0, label_max]`. A linear model extrapolated far outside its data
+    /// (another view's depths or positions) can predict anything; held at the edge it predicts
+    /// what the nearest fitted cells had.
     #[must_use]
     pub fn predict(&self, cells: &CellFeatures) -> Vec<f64> {
-        let x = self.ranges.apply(&cells.values);
+        let mut x = self.ranges.apply(&cells.values);
+        x.iter_mut().for_each(|v| *v = v.clamp(0.0, 1.0));
         let mut out = vec![0.0; cells.cells_x * cells.cells_y];
         for (row, &c) in x.chunks_exact(FEATURE_COUNT).zip(&cells.cells) {
-            out[c] = self.fit.predict_row(row);
+            out[c] = self.fit.predict_row(row).clamp(0.0, self.label_max);
         }
         out
     }
@@ -752,6 +800,33 @@ impl CellModel {
     pub fn predict_view(&self, view: &View) -> Result<Vec<f64>> {
         let cells = extract_features(&FeatureInput::of(view, self.light), self.cell_px)?;
         Ok(self.predict(&cells))
+    }
+
+    /// Per kept feature (column, fraction): the fraction of `cells` whose value lies outside
+    /// the fitted range, where [`CellModel::predict`] holds it to the edge.
+    #[must_use]
+    pub fn out_of_range(&self, cells: &CellFeatures) -> Vec<(usize, f64)> {
+        // Min-Max of f32 passes: a cell within rounding of the edge is in range.
+        const SLACK: f64 = 1e-6;
+        let x = self.ranges.apply(&cells.values);
+        let n = cells.cells.len().max(1) as f64;
+        self.fit
+            .kept
+            .iter()
+            .map(|&j| {
+                let outside = x
+                    .chunks_exact(FEATURE_COUNT)
+                    .filter(|row| !(-SLACK..=1.0 + SLACK).contains(&row[j]))
+                    .count();
+                (j, outside as f64 / n)
+            })
+            .collect()
+    }
+
+    /// [`CellModel::out_of_range`] for the cells of `view`.
+    pub fn out_of_range_view(&self, view: &View) -> Result<Vec<(usize, f64)>> {
+        let cells = extract_features(&FeatureInput::of(view, self.light), self.cell_px)?;
+        Ok(self.out_of_range(&cells))
     }
 }
 
@@ -846,6 +921,81 @@ mod tests {
         inp.light = Some(StrongestLight::Position(Vec3::new(0.0, 0.0, -1.0)));
         let f = extract_features(&inp, 1).unwrap();
         assert_eq!(f.values[LIGHT_COSINE], 0.0);
+    }
+
+    #[test]
+    fn surface_only_leaves_out_the_features_of_the_view() {
+        let b = bufs(16, 8);
+        let cells = extract_features(&input(&b), 2).unwrap();
+        let params = FitParams {
+            select: false,
+            ..FitParams::DEFAULT
+        };
+        let light = Some(b.light);
+        let all = fit_cells(std::slice::from_ref(&cells), &["v"], light, false, &params).unwrap();
+        let surface = fit_cells(&[cells], &["v"], light, true, &params).unwrap();
+        for (j, f) in FEATURES.iter().enumerate() {
+            let excluded = surface
+                .fit
+                .dropped
+                .iter()
+                .any(|(k, r)| *k == j && *r == DropReason::Excluded(VIEW_DEPENDENT));
+            assert_eq!(excluded, !f.surface, "{}", f.name);
+            assert!(!surface.fit.kept.contains(&j) || f.surface);
+        }
+        assert!(all
+            .fit
+            .dropped
+            .iter()
+            .all(|(_, r)| !matches!(r, DropReason::Excluded(_))));
+        // The label (0.01 x) is linear in position_x, a feature of the surface: both fit it.
+        assert!(surface.fit.r2 > 0.999 && all.fit.r2 > 0.999);
+    }
+
+    #[test]
+    fn predictions_hold_to_the_fitted_range() {
+        let b = bufs(16, 8);
+        let cells = extract_features(&input(&b), 2).unwrap();
+        let model = fit_cells(
+            std::slice::from_ref(&cells),
+            &["v"],
+            Some(b.light),
+            true,
+            &FitParams::DEFAULT,
+        )
+        .unwrap();
+        let x = FEATURES
+            .iter()
+            .position(|f| f.name == "position_x")
+            .unwrap();
+        assert!(model.fit.kept.contains(&x));
+        let label = cells.label.clone().unwrap();
+        let top = label.iter().copied().fold(0.0, f64::max);
+        assert_eq!(model.label_max, top);
+        // A view far beyond the fitted positions (as another camera may see): the prediction is
+        // what the cells at the edge of the range get, never the line extended 100 m on.
+        let mut far = cells.clone();
+        let mut edge = cells.clone();
+        for (f, e) in far
+            .values
+            .chunks_exact_mut(FEATURE_COUNT)
+            .zip(edge.values.chunks_exact_mut(FEATURE_COUNT))
+        {
+            f[x] += 100.0;
+            e[x] = model.ranges.max[x];
+        }
+        let p = model.predict(&far);
+        assert_eq!(p, model.predict(&edge));
+        assert!(p.iter().all(|&v| (0.0..=top).contains(&v)));
+        let mut below = cells.clone();
+        below
+            .values
+            .chunks_exact_mut(FEATURE_COUNT)
+            .for_each(|r| r[x] -= 100.0);
+        assert!(model.predict(&below).iter().all(|&v| v >= 0.0));
+        let outside = model.out_of_range(&far);
+        assert_eq!(outside.iter().find(|(j, _)| *j == x), Some(&(x, 1.0)));
+        assert!(model.out_of_range(&cells).iter().all(|(_, f)| *f == 0.0));
     }
 
     #[test]

@@ -108,6 +108,9 @@ impl Default for FitParams {
 pub enum DropReason {
     /// The input needed for it was not given (set by the caller, e.g. no light).
     Unavailable(&'static str),
+    /// Left out by the caller's choice (e.g. a feature of the view when the model must hold
+    /// from other views).
+    Excluded(&'static str),
     /// Its values do not vary over the rows.
     Constant,
     /// The label is constant: no feature can explain anything.

@@ -369,8 +369,39 @@ impl std::fmt::Debug for Scene {
     }
 }
 
+/// The surface of one material.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Material {
+    /// Diffuse albedo, every channel in `[0, 1]`.
+    pub albedo: Vec3,
+}
+
+impl Material {
+    /// A plain diffuse material.
+    #[must_use]
+    pub const fn diffuse(albedo: Vec3) -> Self {
+        Self { albedo }
+    }
+}
+
+/// What a [`Scene`] is built from: indexed triangles, one material per triangle, lights.
+#[derive(Debug, Clone)]
+pub struct SceneInput<'a> {
+    /// Vertex positions, world space.
+    pub vertices: &'a [Vec3],
+    /// Vertex indices of every triangle.
+    pub triangles: &'a [[u32; 3]],
+    /// Index into `materials` of every triangle.
+    pub material_ids: &'a [u32],
+    /// The materials.
+    pub materials: &'a [Material],
+    /// The lights.
+    pub lights: Vec<Light>,
+}
+
 impl Scene {
-    /// Builds a scene from indexed triangles. `material_ids[t]` indexes `albedo` for triangle `t`.
+    /// Builds a scene of diffuse materials: `material_ids[t]` indexes `albedo` for triangle `t`
+    /// (see [`Scene::new`]).
     pub fn build(
         vertices: &[Vec3],
         triangles: &[[u32; 3]],
@@ -378,6 +409,28 @@ impl Scene {
         albedo: &[Vec3],
         lights: Vec<Light>,
     ) -> Result<Self> {
+        let materials: Vec<Material> = albedo.iter().map(|&a| Material::diffuse(a)).collect();
+        Self::new(SceneInput {
+            vertices,
+            triangles,
+            material_ids,
+            materials: &materials,
+            lights,
+        })
+    }
+
+    /// Builds a scene: checks the input, then builds the BVH.
+    ///
+    /// Errors: no triangles, or only zero-area ones; a material id or vertex index out of
+    /// range; no materials; non-finite vertices; an albedo outside `[0, 1]`; an invalid light.
+    pub fn new(input: SceneInput<'_>) -> Result<Self> {
+        let SceneInput {
+            vertices,
+            triangles,
+            material_ids,
+            materials,
+            lights,
+        } = input;
         if triangles.is_empty() {
             return Err(VplaceError::Empty {
                 what: "scene triangles".into(),
@@ -391,7 +444,7 @@ impl Scene {
                 got: format!("({},)", material_ids.len()),
             });
         }
-        if albedo.is_empty() {
+        if materials.is_empty() {
             return Err(VplaceError::Empty {
                 what: "albedo".into(),
                 hint: "pass at least one material".into(),
@@ -399,7 +452,7 @@ impl Scene {
         }
         let flat: Vec<f32> = vertices.iter().flat_map(|v| v.to_array()).collect();
         check_finite("vertices", &flat)?;
-        let flat: Vec<f32> = albedo.iter().flat_map(|v| v.to_array()).collect();
+        let flat: Vec<f32> = materials.iter().flat_map(|m| m.albedo.to_array()).collect();
         check_finite("albedo", &flat)?;
         if let Some(i) = flat.iter().position(|a| !(0.0..=1.0).contains(a)) {
             return Err(VplaceError::OutOfRange {
@@ -427,11 +480,11 @@ impl Scene {
                     });
                 }
             }
-            if m as usize >= albedo.len() {
+            if m as usize >= materials.len() {
                 return Err(VplaceError::IndexOutOfBounds {
                     what: format!("material_ids[{t}]"),
                     index: m as usize,
-                    len: albedo.len(),
+                    len: materials.len(),
                 });
             }
             let [a, b, c] = idx.map(|i| vertices[i as usize]);
@@ -444,7 +497,7 @@ impl Scene {
                 hi = hi.max(p);
             }
             normals.push(n.normalize_or_zero());
-            triangle_albedo.push(albedo[m as usize]);
+            triangle_albedo.push(materials[m as usize].albedo);
             tris.push(Triangle {
                 v0: a.into(),
                 v1: b.into(),

@@ -219,7 +219,13 @@ impl Batch {
 
     /// Shades `recv` by every VPL of `v` (at most as many as [`Batch::new`] was given) and
     /// builds the shadow rays from `recv.origin`.
-    pub(crate) fn prepare(&mut self, v: &VplSoa, recv: &Receiver, profile: Profile, radius_sq: f32) {
+    pub(crate) fn prepare(
+        &mut self,
+        v: &VplSoa,
+        recv: &Receiver,
+        profile: Profile,
+        radius_sq: f32,
+    ) {
         self.origin = recv.origin;
         let (pos, n, origin) = (recv.position, recv.normal, recv.origin);
         match profile {
@@ -348,7 +354,10 @@ mod tests {
     /// The exact irradiance of a Lambertian disk by numerical integration (a fine polar grid):
     /// the reference of [`irradiance_per_flux`]'s cosine profile.
     fn disk_integral(x: Vec3, n: Vec3, c: Vec3, m: Vec3, radius: f32) -> f64 {
-        let (t, b) = (m.any_orthonormal_vector(), m.cross(m.any_orthonormal_vector()));
+        let (t, b) = (
+            m.any_orthonormal_vector(),
+            m.cross(m.any_orthonormal_vector()),
+        );
         let (rings, sectors) = (400, 400);
         let mut sum = 0.0f64;
         for i in 0..rings {
@@ -429,7 +438,10 @@ mod tests {
         let omni = kernel(Profile::Omni, x, n, c, m, 0.2);
         assert!((omni / (cos_r / (2.0 * PI * r2)) - 1.0).abs() < 1e-5);
         // Nothing behind the disk's plane, at the centre, or behind an omni receiver.
-        assert_eq!(kernel(Profile::Cosine, -Vec3::Z * 0.1, Vec3::Z, c, m, radius), 0.0);
+        assert_eq!(
+            kernel(Profile::Cosine, -Vec3::Z * 0.1, Vec3::Z, c, m, radius),
+            0.0
+        );
         assert_eq!(kernel(Profile::Cosine, c, Vec3::Z, c, m, radius), 0.0);
         assert_eq!(kernel(Profile::Omni, Vec3::Z, Vec3::Z, c, m, radius), 0.0);
     }

@@ -22,12 +22,13 @@ use crate::view::{views_of, PyView};
 
 /// Saved-model format name and version (`Fit.to_json`).
 const FORMAT: &str = "vplace.fit";
-const VERSION: u32 = 2;
+const VERSION: u32 = 3;
 
-/// The feature registry: a list of `(name, doc, origin)` with origin `"paper"` or `"ours"`, in
-/// column order.
+/// The feature registry: a list of `(name, doc, origin, surface)` in column order, with origin
+/// `"paper"` or `"ours"` and `surface` true for a property of the surface (the same from every
+/// view; only these are fitted with `surface_only`).
 #[pyfunction]
-fn feature_registry() -> Vec<(&'static str, &'static str, &'static str)> {
+fn feature_registry() -> Vec<(&'static str, &'static str, &'static str, bool)> {
     FEATURES
         .iter()
         .map(|f| {
@@ -35,7 +36,7 @@ fn feature_registry() -> Vec<(&'static str, &'static str, &'static str)> {
                 features::Origin::Paper => "paper",
                 features::Origin::Ours => "ours",
             };
-            (f.name, f.doc, origin)
+            (f.name, f.doc, origin, f.surface)
         })
         .collect()
 }
@@ -61,6 +62,7 @@ pub struct PyFit {
 fn reason_text(r: &DropReason, names: &[String]) -> String {
     match r {
         DropReason::Unavailable(why) => format!("unavailable: {why}"),
+        DropReason::Excluded(why) => format!("excluded: {why}"),
         DropReason::Constant => "constant over the cells".into(),
         DropReason::ConstantLabel => "the label is constant".into(),
         DropReason::Collinear { residual, with } => {
@@ -306,6 +308,18 @@ impl PyFit {
         Ok(PyArray1::from_vec(py, out).reshape([cy, cx])?.into_any())
     }
 
+    /// Per kept feature name, the fraction of the cells of `view` outside the range the model
+    /// was fitted on (where `predict` holds the feature at the range's edge).
+    fn out_of_range(&self, py: Python<'_>, view: &PyView) -> PyResult<Vec<(String, f64)>> {
+        let model = self.cells()?.clone();
+        let v = Arc::clone(&view.inner);
+        let out = run(py, move || model.out_of_range_view(&v))?;
+        Ok(out
+            .into_iter()
+            .map(|(j, f)| (self.names[j].clone(), f))
+            .collect())
+    }
+
     /// The prediction for rows of the design columns (float64 (n, len(feature_names))).
     fn predict_design<'py>(
         &self,
@@ -345,6 +359,7 @@ impl PyFit {
             d.set_item("feature_min", &m.ranges.min)?;
             d.set_item("feature_max", &m.ranges.max)?;
             d.set_item("light", m.light.map(light_tuple))?;
+            d.set_item("label_max", m.label_max)?;
             let views = PyList::empty(py);
             for v in &m.views {
                 let e = PyDict::new(py);
@@ -456,6 +471,7 @@ impl PyFit {
                 cell_px: ex("cell_px")?.extract()?,
                 light,
                 views,
+                label_max: ex("label_max")?.extract()?,
             })
         } else {
             Model::Design(fit)
@@ -619,15 +635,16 @@ fn extract_features<'py>(
 
 /// Fits one model on the cells of every view (see `vplace.fit`).
 #[pyfunction]
-#[pyo3(signature = (scene, views, *, cell_px = 16, folds = 5, select = true,
-    min_cv_gain = 1e-3, collinear_rtol = 1e-6, rank_rtol = None, ridge_above = 1e6,
-    seed = 0x5eed))]
+#[pyo3(signature = (scene, views, *, cell_px = 16, surface_only = true, folds = 5,
+    select = true, min_cv_gain = 1e-3, collinear_rtol = 1e-6, rank_rtol = None,
+    ridge_above = 1e6, seed = 0x5eed))]
 #[allow(clippy::too_many_arguments)]
 fn fit(
     py: Python<'_>,
     scene: &PyScene,
     views: Vec<Bound<'_, PyView>>,
     cell_px: usize,
+    surface_only: bool,
     folds: usize,
     select: bool,
     min_cv_gain: f64,
@@ -649,7 +666,7 @@ fn fit(
     );
     let model = run(py, move || {
         let refs: Vec<&View> = views.iter().map(|v| v.as_ref()).collect();
-        features::fit_views(&refs, light, cell_px, &params)
+        features::fit_views(&refs, light, cell_px, surface_only, &params)
     })?;
     Ok(PyFit::new(registry_names(), Model::Views(model)))
 }

@@ -235,7 +235,7 @@ fn layout(
         },
         eval: EvalParams {
             profile,
-            radius: radius,
+            radius,
             tile,
         },
         stride,
