@@ -3,8 +3,10 @@
 Render settings are changed through :func:`settings.override` and restored however the render
 ends. The lights vplace wrote (the ``vplace VPLs`` collection) are hidden from the render, so a
 capture never sees bounce light it would then count twice. Results are cached on disk as
-``.npz`` keyed by the exported scene's content (without vplace's lights), the camera, the
-resolution, the samples and the seed.
+``.npz`` keyed by everything that changes the render (:func:`capture_key`: the exported scene,
+:mod:`render_key`'s signature of what else Cycles reads, both without vplace's lights, the
+camera, the resolution, the samples and the seed); the cache keeps under
+:data:`render_key.CACHE_LIMIT_BYTES`, least recently used entries removed first.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import bpy
 import numpy as np
 import OpenEXR
 
+from . import render_key
 from .errors import CaptureError
 from .export import VPL_MARKER, ExportedScene, export_scene
 from .settings import SettingsGuard, at_frame, override, standard_view
@@ -219,21 +222,37 @@ def camera_matrices(
     return np.array(camera.matrix_world.translation, dtype=np.float64), world_to_clip
 
 
+def vpl_objects(scene: bpy.types.Scene) -> list[bpy.types.Object]:
+    """The light objects vplace wrote (marked, or in a collection vplace marked)."""
+    return [
+        o
+        for o in scene.objects
+        if o.get(VPL_MARKER, False) or any(c.get(VPL_MARKER, False) for c in o.users_collection)
+    ]
+
+
 def capture_key(
+    scene: bpy.types.Scene,
     exported: ExportedScene,
     camera: bpy.types.Object,
     resolution: tuple[int, int],
     samples: int,
     seed: int,
+    view_layer: bpy.types.ViewLayer | None = None,
 ) -> str:
-    """The cache key: the exported scene's content (without vplace's own lights, which a capture
-    hides), the camera, resolution, samples and seed."""
+    """The cache key: the exported scene's content and what else Cycles reads
+    (:func:`render_key.scene_signature`), both without vplace's own lights (a capture hides
+    them), the camera, resolution, samples and seed."""
     h = hashlib.sha256()
     h.update(exported.fingerprint().encode())
+    h.update(
+        render_key.scene_signature(
+            scene, "CYCLES", skip=vpl_objects(scene), view_layer=view_layer
+        ).encode()
+    )
     h.update(repr([list(row) for row in camera.matrix_world]).encode())
     data = camera.data
-    h.update(repr((data.lens, data.sensor_width, data.sensor_fit)).encode())
-    h.update(repr((data.shift_x, data.shift_y, data.type)).encode())
+    h.update(repr(render_key.plain_values(data)).encode())
     h.update(repr((resolution, samples, seed, CAPTURE_VERSION)).encode())
     return h.hexdigest()[:24]
 
@@ -314,17 +333,18 @@ def _capture_now(
     include_vpls: bool,
 ) -> Capture:
     """:func:`capture` at the current frame."""
-    key = capture_key(exported, camera, resolution, samples, seed)
-    cached = cache_dir / f"capture-{key}.npz" if cache_dir is not None else None
-    if cached is not None and cached.exists():
-        try:
-            return Capture.load(cached)
-        except (KeyError, ValueError, OSError, EOFError):
-            pass  # unreadable or of another layout: render it again and replace it
-
     view_layer = scene.view_layers[0]
     if bpy.context.scene == scene:
         view_layer = bpy.context.view_layer
+    key = capture_key(scene, exported, camera, resolution, samples, seed, view_layer)
+    cached = cache_dir / f"capture-{key}.npz" if cache_dir is not None else None
+    if cached is not None and cached.exists():
+        try:
+            loaded = Capture.load(cached)
+            render_key.touch(cached)
+            return loaded
+        except (KeyError, ValueError, OSError, EOFError):
+            pass  # unreadable or of another layout: render it again and replace it
 
     def handler(stats: str, *_: object) -> None:
         if on_progress is not None:
@@ -375,4 +395,5 @@ def _capture_now(
     if cached is not None:
         cached.parent.mkdir(parents=True, exist_ok=True)
         result.save(cached)
+        render_key.prune(cached.parent, keep=cached)
     return result

@@ -39,7 +39,8 @@ import numpy as np
 import OpenEXR
 from mathutils import Vector
 
-from .capture import IMAGE_SETTINGS, hide_vpls
+from . import render_key
+from .capture import IMAGE_SETTINGS, hide_vpls, vpl_objects
 from .errors import AddonError
 from .export import VPL_MARKER, export_scene
 from .settings import SettingsGuard, override, standard_view
@@ -48,7 +49,7 @@ from .settings import SettingsGuard, override, standard_view
 #: as 16 (SSIM 0.946 against 0.949 on Sponza), at about a quarter of the time.
 EEVEE_SAMPLES = 4
 #: Bump when a cached render's meaning changes.
-RENDER_VERSION = 1
+RENDER_VERSION = 2
 
 
 @dataclass(frozen=True)
@@ -136,23 +137,23 @@ def _key(
     resolution: tuple[int, int],
     samples: int | None,
     engine: str,
-    setup: str,
+    setup: Setup | None,
     seed: int,
 ) -> str:
-    """What a render depends on: the scene with the VPLs (and every light probe), the camera,
-    the size, the samples, the engine and the set-up."""
+    """What a render depends on: the scene with its lights (vplace's too, unless the set-up
+    hides them) and everything else the engine reads (:mod:`render_key`), the camera, the size,
+    the samples and the set-up."""
     h = hashlib.sha256()
-    h.update(export_scene(scene, include_vpls=True).fingerprint().encode())
-    probes = [
-        (o.name, [list(r) for r in o.matrix_world])
-        for o in scene.objects
-        if o.type == "LIGHT_PROBE"
-    ]
-    h.update(repr(probes).encode())
+    with_vpls = setup is None or setup.vpls
+    h.update(export_scene(scene, include_vpls=with_vpls).fingerprint().encode())
+    skip = () if with_vpls else vpl_objects(scene)
+    h.update(render_key.scene_signature(scene, engine, skip=skip).encode())
+    if setup is None:  # the scene's own EEVEE settings, those a set-up sets included
+        h.update(repr(render_key.plain_values(scene.eevee)).encode())
     h.update(repr([list(r) for r in camera.matrix_world]).encode())
-    d = camera.data
-    h.update(repr((d.lens, d.sensor_width, d.sensor_fit, d.shift_x, d.shift_y)).encode())
-    h.update(repr((resolution, samples, engine, setup, seed, RENDER_VERSION)).encode())
+    h.update(repr(render_key.plain_values(camera.data)).encode())
+    name = setup.name if setup is not None else "scene"
+    h.update(repr((resolution, samples, engine, name, seed, RENDER_VERSION)).encode())
     return h.hexdigest()[:24]
 
 
@@ -175,12 +176,13 @@ def render(
     engine = setup.engine if setup is not None else "BLENDER_EEVEE"
     cached = None
     if cache_dir is not None:
-        name = setup.name if setup is not None else "scene"
-        key = _key(scene, camera, resolution, samples, engine, name, seed)
+        key = _key(scene, camera, resolution, samples, engine, setup, seed)
         cached = Path(cache_dir) / f"render-{key}.npz"
         if cached.exists():
             with np.load(cached) as data:
-                return EeveeImage(data["image"], float(data["seconds"]))
+                found = EeveeImage(data["image"], float(data["seconds"]))
+            render_key.touch(cached)
+            return found
     with tempfile.TemporaryDirectory(prefix="vplace-render-") as tmp:
         path = Path(tmp) / "render.exr"
         with override() as g:
@@ -212,6 +214,7 @@ def render(
         tmp_path = cached.with_suffix(".tmp.npz")
         np.savez(tmp_path, image=out.image, seconds=out.seconds)
         os.replace(tmp_path, cached)
+        render_key.prune(cached.parent, keep=cached)
     return out
 
 

@@ -1,0 +1,313 @@
+"""What a render depends on, as a hash, and the render cache's size limit.
+
+A cached capture (``capture.py``) or EEVEE render (``eevee.py``) is reused only when nothing
+that changes its pixels has changed. The exported scene's fingerprint covers what vplace itself
+reads (triangles, materials' albedo, lights); a render also depends on what only Blender reads.
+:func:`scene_signature` adds, at the current frame:
+
+- every material of the rendered objects and the world: their whole node trees (every node's
+  type and settings, every input's value, every link, node groups followed), and each image they
+  use: its file path with the file's size and modification time, or a packed image's size, or a
+  generated image's parameters, its colour space and alpha mode, and for an image edited in
+  memory and not saved, its pixels;
+- each rendered object's world matrix and ray visibility (camera, diffuse, glossy,
+  transmission, volume, shadow), holdout and shadow-catcher flags;
+- every light's settings (all of its plain properties);
+- the render settings (``scene.render``: film, motion blur...) and the engine's
+  (``scene.cycles`` and the view layer's Cycles settings, or ``scene.eevee``); not what
+  vplace's renders set themselves (size, samples, seed, passes, colour management).
+
+Everything is read at the current frame, so animated transforms and animated node values key
+each frame; the frame number itself does not (two frames that render the same image share it).
+
+Left out: mesh deformation (armatures, shape keys) that the exported geometry, evaluated at the
+frame the export ran, does not show at another frame; a texture file rewritten with the same
+size and modification time.
+
+:func:`prune` keeps a cache directory under :data:`CACHE_LIMIT_BYTES`, removing the least
+recently used entries first (a cache hit touches its file).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import bpy
+import numpy as np
+
+#: The most bytes a render cache directory keeps (captures and EEVEE renders together).
+CACHE_LIMIT_BYTES = 4 << 30
+
+#: Node properties that change how a node tree looks, not what it computes.
+_UI_PROPERTIES = frozenset(
+    {
+        "location",
+        "location_absolute",
+        "width",
+        "height",
+        "dimensions",
+        "select",
+        "show_options",
+        "show_preview",
+        "show_texture",
+        "hide",
+        "color",
+        "color_tag",
+        "use_custom_color",
+        "label",
+        "bl_description",
+        "bl_icon",
+        "bl_label",
+        "bl_width_default",
+        "bl_width_min",
+        "bl_width_max",
+        "bl_height_default",
+        "bl_height_min",
+        "bl_height_max",
+        "warning_propagation",
+    }
+)
+_SIMPLE = frozenset({"BOOLEAN", "INT", "FLOAT", "ENUM", "STRING"})
+#: Properties Blender 5 keeps only for old scripts (always true; reading them warns).
+_DEPRECATED = frozenset({"use_nodes"})
+
+
+def plain_values(struct: Any, skip: Iterable[str] = ()) -> list[tuple[str, Any]]:
+    """``(identifier, value)`` of every plain property of an RNA struct (numbers, flags,
+    enums, strings; arrays as tuples), in RNA order."""
+    skipped = {*skip, *_DEPRECATED}
+    out: list[tuple[str, Any]] = []
+    for prop in struct.bl_rna.properties:
+        key = prop.identifier
+        if key in skipped or key == "rna_type" or prop.type not in _SIMPLE:
+            continue
+        try:
+            value = getattr(struct, key)
+        except (AttributeError, RuntimeError):
+            continue
+        if prop.type in {"INT", "FLOAT", "BOOLEAN"} and getattr(prop, "is_array", False):
+            value = tuple(np.asarray(value, dtype=np.float64).ravel().tolist())
+        elif isinstance(value, set):
+            value = tuple(sorted(value))
+        out.append((key, value))
+    return out
+
+
+def image_signature(image: bpy.types.Image) -> tuple[Any, ...]:
+    """What an image's pixels depend on (see the module docs)."""
+    base: tuple[Any, ...] = (
+        image.name,
+        image.source,
+        image.colorspace_settings.name,
+        image.alpha_mode,
+    )
+    if image.packed_file is not None:
+        base += ("packed", image.packed_file.size)
+    elif image.source == "GENERATED":
+        base += (
+            "generated",
+            image.generated_type,
+            tuple(image.generated_color),
+            image.generated_width,
+            image.generated_height,
+        )
+    else:
+        path = bpy.path.abspath(image.filepath)
+        try:
+            st = os.stat(path)
+            base += ("file", path, st.st_size, st.st_mtime_ns)
+        except OSError:
+            base += ("missing", path)
+    if image.is_dirty and image.has_data:
+        pixels = np.empty(len(image.pixels), dtype=np.float32)
+        image.pixels.foreach_get(pixels)
+        base += ("edited", hashlib.sha256(pixels.tobytes()).hexdigest())
+    return base
+
+
+def _socket_value(socket: Any) -> Any:
+    value = getattr(socket, "default_value", None)
+    if value is None or isinstance(value, (int, float, bool, str)):
+        return value
+    if isinstance(value, bpy.types.ID):
+        return ("ID", value.name_full)
+    try:
+        return tuple(np.asarray(value, dtype=np.float64).ravel().tolist())
+    except (TypeError, ValueError):
+        return repr(value)
+
+
+def tree_signature(tree: bpy.types.NodeTree | None, seen: set[str] | None = None) -> list[Any]:
+    """Every node (type, settings, input values, image), every link, and the node groups it
+    uses (each group written out once per ``seen``)."""
+    if tree is None:
+        return []
+    seen = set() if seen is None else seen
+    if not tree.is_embedded_data:  # a node group: written out once, then named
+        if tree.name_full in seen:
+            return [("group", tree.name_full)]
+        seen.add(tree.name_full)
+    out: list[Any] = [("tree", tree.name_full)]
+    for node in sorted(tree.nodes, key=lambda n: n.name):
+        item: list[Any] = [node.bl_idname, node.name, plain_values(node, _UI_PROPERTIES)]
+        item += [(s.identifier, _socket_value(s)) for s in node.inputs if s.enabled]
+        image = getattr(node, "image", None)
+        if isinstance(image, bpy.types.Image):
+            item.append(image_signature(image))
+        group = getattr(node, "node_tree", None)
+        if isinstance(group, bpy.types.NodeTree):
+            item.append(tree_signature(group, seen))
+        out.append(item)
+    out += [
+        (
+            link.from_node.name,
+            link.from_socket.identifier,
+            link.to_node.name,
+            link.to_socket.identifier,
+            link.is_muted,
+        )
+        for link in tree.links
+    ]
+    return out
+
+
+#: Settings that every vplace render sets itself (capture and EEVEE renders): they do not
+#: key the cache. ``preview_*`` (viewport) settings are left out too.
+_OVERRIDDEN = {
+    "render": frozenset(
+        {
+            "engine",
+            "resolution_x",
+            "resolution_y",
+            "resolution_percentage",
+            "filepath",
+            "use_border",
+            "use_crop_to_border",
+            "use_single_layer",
+            "use_compositing",
+            "use_sequencer",
+            "use_lock_interface",
+        }
+    ),
+    "cycles": frozenset(
+        {
+            "device",
+            "samples",
+            "seed",
+            "use_adaptive_sampling",
+            "use_denoising",
+            "denoiser",
+            "use_animated_seed",
+            "pixel_filter_type",
+            "filter_width",
+        }
+    ),
+    "eevee": frozenset({"taa_render_samples", "use_raytracing", "use_fast_gi"}),
+}
+
+
+def _settings(struct: Any, overridden: frozenset[str]) -> list[tuple[str, Any]]:
+    return [
+        (k, v)
+        for k, v in plain_values(struct, overridden)
+        if not k.startswith(("preview_", "use_pass_"))
+    ]
+
+
+def _material_signature(mat: bpy.types.Material | None, seen: set[str]) -> list[Any]:
+    if mat is None:
+        return [None]
+    return [mat.name_full, plain_values(mat), tree_signature(mat.node_tree, seen)]
+
+
+_RAY_VISIBILITY = (
+    "visible_camera",
+    "visible_diffuse",
+    "visible_glossy",
+    "visible_transmission",
+    "visible_volume_scatter",
+    "visible_shadow",
+    "is_holdout",
+    "is_shadow_catcher",
+)
+
+
+def scene_signature(
+    scene: bpy.types.Scene,
+    engine: str,
+    *,
+    skip: Iterable[bpy.types.Object] = (),
+    view_layer: bpy.types.ViewLayer | None = None,
+) -> str:
+    """A hash of what Blender reads to render ``scene`` with ``engine`` (``"CYCLES"`` or
+    ``"BLENDER_EEVEE"``) beyond vplace's export, at the current frame (see the module docs);
+    ``skip``: objects the render hides (vplace's lights in a capture). The settings vplace's
+    renders set themselves (size, samples, seed, passes, colour management) are left out."""
+    h = hashlib.sha256()
+    seen: set[str] = set()
+    hidden = {o.name_full for o in skip}
+    materials: dict[str, bpy.types.Material] = {}
+    for obj in sorted(scene.objects, key=lambda o: o.name_full):
+        if obj.hide_render or obj.name_full in hidden:
+            continue
+        h.update(repr((obj.name_full, obj.type, [list(r) for r in obj.matrix_world])).encode())
+        h.update(repr([getattr(obj, k, None) for k in _RAY_VISIBILITY]).encode())
+        for slot in getattr(obj, "material_slots", ()):
+            if slot.material is not None:
+                materials[slot.material.name_full] = slot.material
+        if obj.type == "LIGHT":
+            h.update(repr(plain_values(obj.data)).encode())
+            h.update(repr(tree_signature(obj.data.node_tree, seen)).encode())
+        elif obj.type == "LIGHT_PROBE":
+            h.update(repr(plain_values(obj.data)).encode())
+    for name in sorted(materials):
+        h.update(repr(_material_signature(materials[name], seen)).encode())
+    world = scene.world
+    if world is not None:
+        h.update(repr(plain_values(world)).encode())
+        h.update(repr(tree_signature(world.node_tree, seen)).encode())
+    h.update(repr(_settings(scene.render, _OVERRIDDEN["render"])).encode())
+    layer = view_layer or scene.view_layers[0]
+    h.update(repr(_settings(layer, frozenset())).encode())
+    if engine == "CYCLES":
+        h.update(repr(_settings(scene.cycles, _OVERRIDDEN["cycles"])).encode())
+        h.update(repr(_settings(layer.cycles, frozenset())).encode())
+    else:
+        h.update(repr(_settings(scene.eevee, _OVERRIDDEN["eevee"])).encode())
+    h.update(engine.encode())
+    return h.hexdigest()
+
+
+def touch(path: Path) -> None:
+    """Marks a cache entry as just used (for :func:`prune`)."""
+    try:
+        os.utime(path)
+    except OSError:
+        pass
+
+
+def prune(cache_dir: Path, limit: int = CACHE_LIMIT_BYTES, keep: Path | None = None) -> int:
+    """Removes the least recently used ``.npz`` entries of ``cache_dir`` until the rest fit in
+    ``limit`` bytes (never ``keep``, the entry just written); returns how many were removed."""
+    try:
+        entries = [(p.stat(), p) for p in Path(cache_dir).glob("*.npz")]
+    except OSError:
+        return 0
+    total = sum(st.st_size for st, _ in entries)
+    removed = 0
+    for st, path in sorted(entries, key=lambda e: e[0].st_mtime_ns):
+        if total <= limit:
+            break
+        if keep is not None and path == keep:
+            continue
+        try:
+            path.unlink()
+        except OSError:
+            continue
+        total -= st.st_size
+        removed += 1
+    return removed

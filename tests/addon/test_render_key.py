@@ -1,0 +1,129 @@
+"""The render cache key covers what Blender reads beyond vplace's export (node trees, images,
+ray visibility, engine settings), not what vplace's renders set themselves; the cache keeps to
+its size limit, least recently used first."""
+
+import os
+import time
+
+import bpy
+import numpy as np
+import pytest
+from blender_util import cornell
+
+from addon import capture, render_key
+from addon.export import export_scene
+
+
+def key(scene):
+    cam = scene.camera
+    return capture.capture_key(scene, export_scene(scene), cam, (16, 16), 4, 0)
+
+
+def _principled(scene):
+    mat = next(o.active_material for o in scene.objects if o.type == "MESH" and o.active_material)
+    node = next(n for n in mat.node_tree.nodes if n.type in {"BSDF_PRINCIPLED", "BSDF_DIFFUSE"})
+    return mat, node
+
+
+@pytest.mark.parametrize(
+    "change",
+    [
+        "roughness input",
+        "new node linked",
+        "ray visibility",
+        "max bounces",
+        "film transparent",
+        "world strength",
+        "light spread",
+    ],
+)
+def test_what_the_render_reads_changes_the_key(change):
+    scene = cornell()
+    before = key(scene)
+    mat, node = _principled(scene)
+    if change == "roughness input":
+        node.inputs["Roughness"].default_value = 0.123
+    elif change == "new node linked":
+        noise = mat.node_tree.nodes.new("ShaderNodeTexNoise")
+        mat.node_tree.links.new(noise.outputs["Color"], node.inputs[0])
+    elif change == "ray visibility":
+        bpy.data.objects["tallBox"].visible_shadow = False
+    elif change == "max bounces":
+        scene.cycles.max_bounces = 3
+    elif change == "film transparent":
+        scene.render.film_transparent = True
+    elif change == "world strength":
+        bg = next(n for n in scene.world.node_tree.nodes if n.type == "BACKGROUND")
+        bg.inputs["Strength"].default_value = 2.5
+    elif change == "light spread":
+        bpy.data.objects["light"].data.spread = 1.0
+    assert key(scene) != before, change
+
+
+def test_what_vplace_sets_itself_or_only_moves_a_node_keeps_the_key():
+    scene = cornell()
+    before = key(scene)
+    _, node = _principled(scene)
+    node.location.x += 300  # how the tree looks, not what it computes
+    node.select = not node.select
+    scene.cycles.samples = 17  # every capture sets its own samples, seed, size and passes
+    scene.cycles.seed = 5
+    scene.render.resolution_x = 123
+    scene.render.filepath = "/tmp/elsewhere"
+    scene.view_settings.view_transform = "AgX"  # measured renders use the Standard view
+    scene.view_layers[0].use_pass_mist = True
+    assert key(scene) == before
+
+
+def test_an_image_file_keys_by_its_content_on_disk(tmp_path):
+    scene = cornell()
+    mat, node = _principled(scene)
+    path = tmp_path / "tex.png"
+    img = bpy.data.images.new("tex", 4, 4)
+    img.filepath_raw = str(path)
+    img.file_format = "PNG"
+    img.save()
+    tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image = bpy.data.images.load(str(path))
+    mat.node_tree.links.new(tex.outputs["Color"], node.inputs[0])
+    before = key(scene)
+    assert key(scene) == before
+    time.sleep(0.01)
+    path.write_bytes(path.read_bytes() + b"\0")  # the file changed on disk
+    assert key(scene) != before
+
+
+def _entry(directory, name, size, age):
+    path = directory / name
+    path.write_bytes(b"\0" * size)
+    stamp = time.time() - age
+    os.utime(path, (stamp, stamp))
+    return path
+
+
+def test_prune_removes_the_least_recently_used_entries_first(tmp_path):
+    old = _entry(tmp_path, "capture-old.npz", 400, age=300)
+    mid = _entry(tmp_path, "capture-mid.npz", 400, age=200)
+    new = _entry(tmp_path, "render-new.npz", 400, age=100)
+    other = _entry(tmp_path, "notes.txt", 5000, age=500)  # not a cache entry: kept
+    render_key.touch(old)  # used just now: the most recent
+    assert render_key.prune(tmp_path, limit=900, keep=new) == 1
+    assert old.exists() and not mid.exists() and new.exists() and other.exists()
+    # The entry just written is never removed, even when it alone is over the limit.
+    assert render_key.prune(tmp_path, limit=10, keep=new) == 1
+    assert new.exists() and not old.exists()
+
+
+def test_a_capture_hit_touches_its_file_and_the_cache_keeps_its_limit(tmp_path, monkeypatch):
+    scene = cornell()
+    capture.capture(scene, resolution=(8, 8), samples=1, cache_dir=tmp_path)
+    (first,) = tmp_path.glob("capture-*.npz")
+    os.utime(first, (1, 1))
+    capture.capture(scene, resolution=(8, 8), samples=1, cache_dir=tmp_path)
+    assert first.stat().st_mtime > 1  # a hit counts as a use
+    monkeypatch.setattr(render_key, "CACHE_LIMIT_BYTES", first.stat().st_size + 1)
+    monkeypatch.setattr(render_key.prune, "__defaults__", (render_key.CACHE_LIMIT_BYTES, None))
+    capture.capture(scene, resolution=(8, 8), samples=2, cache_dir=tmp_path)
+    assert [p for p in tmp_path.glob("capture-*.npz")] != [first]
+    assert len(list(tmp_path.glob("capture-*.npz"))) == 1
+    assert np.isfinite(capture.Capture.load(next(tmp_path.glob("capture-*.npz"))).combined).all()
