@@ -3,9 +3,9 @@
 Render settings are changed through :func:`settings.override` and restored however the render
 ends. The lights vplace wrote (the ``vplace VPLs`` collection) are hidden from the render, so a
 capture never sees bounce light it would then count twice. Results are cached on disk as
-``.npz`` keyed by everything that changes the render (:func:`capture_key`: the exported scene,
-:mod:`render_key`'s signature of what else Cycles reads, both without vplace's lights, the
-camera, the resolution, the samples and the seed); the cache keeps under
+``.npz`` keyed by everything that changes the render (:func:`capture_key`: :mod:`render_key`'s
+signature of what Cycles reads, without vplace's lights, the camera, the resolution, the
+samples and the seed); the cache keeps under
 :data:`render_key.CACHE_LIMIT_BYTES`, least recently used entries removed first.
 """
 
@@ -25,7 +25,7 @@ import OpenEXR
 
 from . import render_key
 from .errors import CaptureError
-from .export import VPL_MARKER, ExportedScene, export_scene
+from .export import VPL_MARKER
 from .settings import SettingsGuard, at_frame, override, standard_view
 
 #: Bump when the capture's content or layout changes, to invalidate caches.
@@ -233,21 +233,23 @@ def vpl_objects(scene: bpy.types.Scene) -> list[bpy.types.Object]:
 
 def capture_key(
     scene: bpy.types.Scene,
-    exported: ExportedScene,
     camera: bpy.types.Object,
     resolution: tuple[int, int],
     samples: int,
     seed: int,
     view_layer: bpy.types.ViewLayer | None = None,
+    include_vpls: bool = False,
 ) -> str:
-    """The cache key: the exported scene's content and what else Cycles reads
-    (:func:`render_key.scene_signature`), both without vplace's own lights (a capture hides
-    them), the camera, resolution, samples and seed."""
+    """The cache key: what Cycles reads to render the scene (:func:`render_key.scene_signature`,
+    without vplace's own lights: a capture hides them), the camera, resolution, samples and seed.
+    It does not depend on vplace's export, so a new vplace that exports more keeps the cache."""
     h = hashlib.sha256()
-    h.update(exported.fingerprint().encode())
     h.update(
         render_key.scene_signature(
-            scene, "CYCLES", skip=vpl_objects(scene), view_layer=view_layer
+            scene,
+            "CYCLES",
+            skip=() if include_vpls else vpl_objects(scene),
+            view_layer=view_layer,
         ).encode()
     )
     h.update(repr([list(row) for row in camera.matrix_world]).encode())
@@ -266,7 +268,6 @@ def hide_vpls(g: SettingsGuard) -> None:
 
 def capture(
     scene: bpy.types.Scene,
-    exported: ExportedScene | None = None,
     *,
     camera: bpy.types.Object | None = None,
     frame: int | None = None,
@@ -282,8 +283,7 @@ def capture(
     current one) with Cycles CPU and returns every pass as numpy; ``name`` names the view
     (default: the camera's).
 
-    ``exported`` is :func:`export.export_scene` of the same scene (it keys the cache; exported
-    here when not given). The lights vplace wrote are hidden from the render unless
+    The lights vplace wrote are hidden from the render unless
     ``include_vpls`` (to render what the written lights give, as a test or a comparison does).
     ``resolution`` defaults to the scene's output size. With ``cache_dir``, an identical earlier
     capture is loaded instead of rendering. ``on_progress`` receives Cycles' status lines.
@@ -303,12 +303,9 @@ def capture(
         )
     if min(resolution) < 1:
         raise CaptureError(f"resolution must be at least 1 x 1, got {resolution}")
-    if exported is None or include_vpls:
-        exported = export_scene(scene, include_vpls=include_vpls)
     with at_frame(scene, frame):
         return _capture_now(
             scene,
-            exported,
             camera,
             name or camera.name,
             resolution,
@@ -322,7 +319,6 @@ def capture(
 
 def _capture_now(
     scene: bpy.types.Scene,
-    exported: ExportedScene,
     camera: bpy.types.Object,
     name: str,
     resolution: tuple[int, int],
@@ -336,7 +332,7 @@ def _capture_now(
     view_layer = scene.view_layers[0]
     if bpy.context.scene == scene:
         view_layer = bpy.context.view_layer
-    key = capture_key(scene, exported, camera, resolution, samples, seed, view_layer)
+    key = capture_key(scene, camera, resolution, samples, seed, view_layer, include_vpls)
     cached = cache_dir / f"capture-{key}.npz" if cache_dir is not None else None
     if cached is not None and cached.exists():
         try:

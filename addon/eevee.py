@@ -42,14 +42,14 @@ from mathutils import Vector
 from . import render_key
 from .capture import IMAGE_SETTINGS, hide_vpls, vpl_objects
 from .errors import AddonError
-from .export import VPL_MARKER, export_scene
+from .export import VPL_MARKER
 from .settings import SettingsGuard, override, standard_view
 
 #: EEVEE's render samples in the scored renders: 4 were as close to Cycles' image of the VPLs
 #: as 16 (SSIM 0.946 against 0.949 on Sponza), at about a quarter of the time.
 EEVEE_SAMPLES = 4
 #: Bump when a cached render's meaning changes.
-RENDER_VERSION = 2
+RENDER_VERSION = 3
 
 
 @dataclass(frozen=True)
@@ -140,12 +140,11 @@ def _key(
     setup: Setup | None,
     seed: int,
 ) -> str:
-    """What a render depends on: the scene with its lights (vplace's too, unless the set-up
-    hides them) and everything else the engine reads (:mod:`render_key`), the camera, the size,
-    the samples and the set-up."""
+    """What a render depends on: what the engine reads to render the scene (:mod:`render_key`),
+    vplace's lights included unless the set-up hides them, the camera, the size, the samples
+    and the set-up."""
     h = hashlib.sha256()
     with_vpls = setup is None or setup.vpls
-    h.update(export_scene(scene, include_vpls=with_vpls).fingerprint().encode())
     skip = () if with_vpls else vpl_objects(scene)
     h.update(render_key.scene_signature(scene, engine, skip=skip).encode())
     if setup is None:  # the scene's own EEVEE settings, those a set-up sets included

@@ -220,7 +220,6 @@ def prepare(
             with timer.stage(f"capture {spec.name} (Cycles)"):
                 cap = capture.capture(
                     bl_scene,
-                    exported,
                     camera=spec.camera,
                     frame=spec.frame,
                     name=spec.name,
@@ -509,7 +508,6 @@ def main_reference(
     with timer.stage(f"reference render {cam.name} ({samples} spp, cached)"):
         ref = capture.capture(
             bl_scene,
-            prepared.exported,
             camera=cam,
             resolution=(first.width, first.height),
             samples=samples,

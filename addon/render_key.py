@@ -1,10 +1,11 @@
 """What a render depends on, as a hash, and the render cache's size limit.
 
 A cached capture (``capture.py``) or EEVEE render (``eevee.py``) is reused only when nothing
-that changes its pixels has changed. The exported scene's fingerprint covers what vplace itself
-reads (triangles, materials' albedo, lights); a render also depends on what only Blender reads.
-:func:`scene_signature` adds, at the current frame:
+that changes its pixels has changed: :func:`scene_signature` hashes what Blender reads to render
+the scene, independent of what vplace exports, at the current frame:
 
+- each rendered object's data: a mesh's vertex positions, faces and material slots, other
+  data's settings, and the object's modifiers with their settings;
 - every material of the rendered objects and the world: their whole node trees (every node's
   type and settings, every input's value, every link, node groups followed), and each image they
   use: its file path with the file's size and modification time, or a packed image's size, or a
@@ -218,6 +219,33 @@ def _settings(struct: Any, overridden: frozenset[str]) -> list[tuple[str, Any]]:
     ]
 
 
+def data_signature(obj: bpy.types.Object, done: dict[str, str]) -> str:
+    """A hash of an object's data as the render evaluates it: a mesh's vertex positions and
+    faces, other data's plain settings, and the object's modifiers (``done`` memoizes data
+    shared by several objects)."""
+    data = obj.data
+    if data is None:
+        return ""
+    name = data.name_full
+    if name not in done:
+        h = hashlib.sha256(repr((type(data).__name__, name)).encode())
+        if isinstance(data, bpy.types.Mesh):
+            co = np.empty(3 * len(data.vertices), dtype=np.float32)
+            data.vertices.foreach_get("co", co)
+            loops = np.empty(len(data.loops), dtype=np.int32)
+            data.loops.foreach_get("vertex_index", loops)
+            sizes = np.empty(len(data.polygons), dtype=np.int32)
+            data.polygons.foreach_get("loop_total", sizes)
+            for arr in (co, loops, sizes):
+                h.update(arr.tobytes())
+            h.update(repr([m.name_full if m else None for m in data.materials]).encode())
+        elif not isinstance(data, (bpy.types.Light, bpy.types.Camera)):
+            h.update(repr(plain_values(data)).encode())
+        done[name] = h.hexdigest()
+    mods = [(m.type, m.show_render, plain_values(m)) for m in getattr(obj, "modifiers", ())]
+    return done[name] + repr(mods)
+
+
 def _material_signature(mat: bpy.types.Material | None, seen: set[str]) -> list[Any]:
     if mat is None:
         return [None]
@@ -251,10 +279,14 @@ def scene_signature(
     seen: set[str] = set()
     hidden = {o.name_full for o in skip}
     materials: dict[str, bpy.types.Material] = {}
+    done: dict[str, str] = {}
+    depsgraph = bpy.context.evaluated_depsgraph_get()  # matrices after the latest edits
     for obj in sorted(scene.objects, key=lambda o: o.name_full):
         if obj.hide_render or obj.name_full in hidden:
             continue
-        h.update(repr((obj.name_full, obj.type, [list(r) for r in obj.matrix_world])).encode())
+        matrix = obj.evaluated_get(depsgraph).matrix_world
+        h.update(repr((obj.name_full, obj.type, [list(r) for r in matrix])).encode())
+        h.update(data_signature(obj, done).encode())
         h.update(repr([getattr(obj, k, None) for k in _RAY_VISIBILITY]).encode())
         for slot in getattr(obj, "material_slots", ()):
             if slot.material is not None:

@@ -297,7 +297,6 @@ def load_scene(
         with timer.stage(f"ground truth {name} ({truth_samples} spp, cached)"):
             truth = capture.capture(
                 bl_scene,
-                prepared.exported,
                 camera=cams[name],
                 resolution=resolution,
                 samples=truth_samples,

@@ -11,12 +11,11 @@ import pytest
 from blender_util import cornell
 
 from addon import capture, render_key
-from addon.export import export_scene
 
 
 def key(scene):
     cam = scene.camera
-    return capture.capture_key(scene, export_scene(scene), cam, (16, 16), 4, 0)
+    return capture.capture_key(scene, cam, (16, 16), 4, 0)
 
 
 def _principled(scene):
@@ -28,6 +27,8 @@ def _principled(scene):
 @pytest.mark.parametrize(
     "change",
     [
+        "vertex moved",
+        "modifier",
         "roughness input",
         "new node linked",
         "ray visibility",
@@ -41,7 +42,11 @@ def test_what_the_render_reads_changes_the_key(change):
     scene = cornell()
     before = key(scene)
     mat, node = _principled(scene)
-    if change == "roughness input":
+    if change == "vertex moved":
+        bpy.data.objects["tallBox"].data.vertices[0].co.z += 0.01
+    elif change == "modifier":
+        bpy.data.objects["tallBox"].modifiers.new("bevel", "BEVEL")
+    elif change == "roughness input":
         node.inputs["Roughness"].default_value = 0.123
     elif change == "new node linked":
         noise = mat.node_tree.nodes.new("ShaderNodeTexNoise")
