@@ -946,23 +946,19 @@ def run_scene(
             "triangles": data.prepared.scene.triangle_count,
         }
         stem = f"{preset.name}_{report_plots.slug(view.name)}"
-        grid = report_plots.image_grid(
-            out / f"grid_{stem}.png",
-            view.truth.gi,
-            view.truth.direct,
-            images[view.name],
-            title=f"{preset.name}, {view.name} ({view.role} view): the evaluator",
-        )
-        info["views"][view.name]["grid"] = grid.name
-        if shown[view.name]:
-            grid = report_plots.image_grid(
-                out / f"eevee_{stem}.png",
-                view.truth.gi,
-                view.truth.direct,
-                shown[view.name],
-                title=f"{preset.name}, {view.name} ({view.role} view): EEVEE and the alternatives",
-            )
-            info["views"][view.name]["eevee_grid"] = grid.name
+        for key, prefix, pictures, what in (
+            ("grid", "grid", images[view.name], "the evaluator"),
+            ("eevee_grid", "eevee", shown[view.name], "EEVEE and the alternatives"),
+        ):
+            if pictures:
+                grid = report_plots.image_grid(
+                    out / f"{prefix}_{stem}.png",
+                    view.truth.gi,
+                    view.truth.direct,
+                    pictures,
+                    title=f"{preset.name}, {view.name} ({view.role} view): {what}",
+                )
+                info["views"][view.name][key] = grid.name
     return rows, info
 
 
@@ -1147,7 +1143,8 @@ def markdown(result: dict[str, Any], rows: list[Row]) -> str:
                 "",
                 f"{v['resolution'][0]}x{v['resolution'][1]} px, {v['triangles']} triangles; ground "
                 f"truth {v['truth_samples']} spp in {v['truth_seconds']:.1f} s. Images: "
-                f"`{v['grid']}`" + (f", `{v['eevee_grid']}`" if "eevee_grid" in v else "") + ".",
+                + ", ".join(f"`{v[k]}`" for k in ("grid", "eevee_grid") if k in v)
+                + ".",
                 "",
                 "Evaluator, SSIM (sd) / RMSE by VPL budget:",
                 "",

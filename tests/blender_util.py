@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
+from collections.abc import Iterator
 from typing import Any
 
 import bpy
 
+import addon
 from addon.default_scene import build_cornell_box
 from addon.export import VPL_MARKER
 from addon.par2d_bake import OUTPUT_MARKER
@@ -49,6 +52,25 @@ def cornell() -> bpy.types.Scene:
     scene = build_cornell_box(CORNELL_OBJ)
     bpy.context.view_layer.update()  # evaluated matrices, as in a file opened from disk
     return scene
+
+
+@contextlib.contextmanager
+def addon_cornell(**settings: Any) -> Iterator[bpy.types.Scene]:
+    """The add-on registered and a fresh Cornell box with tiny run settings (16 px capture,
+    2 spp, 8 VPLs; ``settings`` override ``Scene.vplace`` fields) for the block."""
+    addon.register()
+    try:
+        empty_file()
+        scene = build_cornell_box(CORNELL_OBJ)
+        s = scene.vplace
+        s.capture_size, s.samples, s.vpl_budget = 16, 2, 8
+        for name, value in settings.items():
+            setattr(s, name, value)
+        scene.render.image_settings.file_format = "PNG"  # as a saved file has it (test_capture)
+        bpy.context.view_layer.update()
+        yield scene
+    finally:
+        addon.unregister()
 
 
 def _nan_safe(value: Any) -> Any:

@@ -5,25 +5,15 @@ import math
 import bpy
 import numpy as np
 import pytest
-from blender_util import CORNELL_OBJ, data_snapshot, diff, empty_file
+from blender_util import addon_cornell, data_snapshot, diff
 
-import addon
 from addon import apply
-from addon.default_scene import build_cornell_box
 
 
 @pytest.fixture
 def scene():
-    addon.register()
-    empty_file()
-    sc = build_cornell_box(CORNELL_OBJ)
-    s = sc.vplace
-    s.capture_size = 16
-    s.samples, s.vpl_budget = 2, 8
-    sc.render.image_settings.file_format = "PNG"  # see test_capture: a saved file has it set
-    bpy.context.view_layer.update()
-    yield sc
-    addon.unregister()
+    with addon_cornell() as sc:
+        yield sc
 
 
 def add_mesh(scene, name, verts, faces):

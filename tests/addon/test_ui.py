@@ -5,11 +5,9 @@ that records what it is asked to draw."""
 
 import bpy
 import pytest
-from blender_util import CORNELL_OBJ, empty_file
+from blender_util import addon_cornell
 
-import addon
 from addon import apply, pipeline, ui
-from addon.default_scene import build_cornell_box
 from addon.native import vplace
 
 
@@ -38,14 +36,8 @@ class Recorder:
 
 @pytest.fixture
 def scene():
-    addon.register()
-    empty_file()
-    sc = build_cornell_box(CORNELL_OBJ)
-    s = sc.vplace
-    s.capture_size = 16
-    s.samples, s.vpl_budget = 2, 8
-    yield sc
-    addon.unregister()
+    with addon_cornell() as sc:
+        yield sc
 
 
 def draw(scene, panel_class=ui.VPLACE_PT_main):

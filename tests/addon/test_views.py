@@ -3,25 +3,17 @@ views that cannot be used are left out with a message, and the file is left as i
 
 import bpy
 import pytest
-from blender_util import CORNELL_OBJ, data_snapshot, diff, empty_file
+from blender_util import addon_cornell, data_snapshot, diff
 
-import addon
 from addon import apply, pipeline, views
-from addon.default_scene import CORNELL_HELD_OUT_CAMERA, build_cornell_box
+from addon.default_scene import CORNELL_HELD_OUT_CAMERA
 from addon.errors import AddonError, CaptureError
 
 
 @pytest.fixture
 def scene():
-    addon.register()
-    empty_file()
-    sc = build_cornell_box(CORNELL_OBJ)
-    s = sc.vplace
-    s.capture_size, s.samples, s.vpl_budget, s.cell_px = 16, 2, 8, 8
-    sc.render.image_settings.file_format = "PNG"  # see test_capture: a saved file has it set
-    bpy.context.view_layer.update()
-    yield sc
-    addon.unregister()
+    with addon_cornell(cell_px=8) as sc:
+        yield sc
 
 
 def prepared(scene, **view_options):
