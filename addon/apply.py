@@ -16,6 +16,16 @@ ones the evaluator renders (``vplace.VplSet`` carries profile and near-field rad
   EEVEE's source). Each VPL light gets a custom cutoff of :data:`CUTOFF_DIAGONALS` scene
   diagonals: no two points of the scene are farther apart than one diagonal, where the fade then
   loses 0.32 % (two diagonals lost 12 %). The scene's own threshold is left alone.
+- Shadows: EEVEE keeps every shadowed light's shadow map in a pool of pages (256 x 256 each,
+  4 per MB of ``scene.eevee.shadow_pool_size``, at most 4,096). A light the pool cannot hold
+  loses its shadow silently and leaks through walls (Sponza, 256 VPLs, Blender's defaults:
+  6,405 pages wanted, 2,048 held, the image 1.4x too bright). So every VPL light's
+  ``shadow_maximum_resolution`` is :data:`SHADOW_TEXEL_DIAGONALS` of the scene diagonal: no
+  finer than the coarsest level EEVEE makes (one page per cube face: about
+  :data:`SHADOW_PAGES` pages per light; on Sponza 0.2 m and 2 m gave the same image), and the
+  jitter is off (the evaluator's shadow ray leaves the light's centre; jitter re-renders the
+  maps at every sample). Only the :data:`MAX_SHADOWED_VPLS` brightest VPLs are shadowed: the
+  largest pool holds no more.
 - VPLs whose refitted power is zero are not written (a light that gives nothing still costs
   EEVEE a shadow map); each light keeps its VPL's index as ``vplace_index``.
 """
@@ -40,6 +50,19 @@ POINT_DISK_DIAGONALS = 1e-4
 #: EEVEE shadow settings of every VPL light: the evaluator's shadow ray goes from the light's
 #: centre, so the shadow map is not jittered over the disk.
 SHADOW_SETTINGS: dict[str, object] = {"use_shadow_jitter": False}
+#: Every VPL light's ``shadow_maximum_resolution``, in scene diagonals: coarser than a 256-texel
+#: cube face at one diagonal's distance (1 / 128), so EEVEE makes its coarsest maps.
+SHADOW_TEXEL_DIAGONALS = 0.01
+#: Shadow pool pages one VPL light takes at the coarsest level (measured on Sponza: 1,195 pages
+#: for 256 AREA lights, about 4.7; a POINT light has 6 cube faces).
+SHADOW_PAGES = {"AREA": 5, "POINT": 6}
+#: Pages per MB of ``scene.eevee.shadow_pool_size``, and the largest pool (EEVEE's
+#: ``SHADOW_MAX_PAGE``: 4,096 pages).
+POOL_PAGES_PER_MB = 4
+MAX_POOL_PAGES = 4096
+#: The most VPL lights written with a shadow (the brightest): what the largest pool holds, with
+#: room for the user's own lights.
+MAX_SHADOWED_VPLS = 768
 
 
 def cutoff_loss(distance: float, cutoff: float) -> float:
@@ -105,6 +128,7 @@ def _new_vpl_object(
     radius: float,
     cutoff: float,
     shadows: bool,
+    texel: float,
 ) -> bpy.types.Object:
     """VPL ``i`` as a new light object in ``coll`` (see the module docs)."""
     energy = float(power.max())
@@ -120,6 +144,7 @@ def _new_vpl_object(
     light.volume_factor = 0.0
     for attr, value in SHADOW_SETTINGS.items():
         setattr(light, attr, value)
+    light.shadow_maximum_resolution = texel
     if profile == "cosine":
         light.shape = "DISK"
         light.size = 2.0 * radius
@@ -146,7 +171,8 @@ def write_vpls(
     name: str = COLLECTION_NAME,
 ) -> bpy.types.Collection:
     """Writes the VPLs of ``vpls`` that carry power as lights (by its profile and near-field
-    radius) in a fresh VPL collection linked to ``scene``; see the module docs."""
+    radius) in a fresh VPL collection linked to ``scene``; with ``shadows``, the
+    :data:`MAX_SHADOWED_VPLS` brightest cast shadows. See the module docs."""
     n = len(vpls)
     if n > MAX_VPLS:
         raise WriteBackError(
@@ -159,8 +185,11 @@ def write_vpls(
     # Build the new collection unlinked; only a complete one replaces the old one.
     coll = bpy.data.collections.new(name + " (writing)")
     coll[VPL_MARKER] = True
+    lum = power @ np.asarray(vplace.LUMINANCE, dtype=np.float64)
+    lit = np.flatnonzero(power.max(axis=1) > 0)
+    shadowed = set(lit[np.argsort(-lum[lit], kind="stable")[:MAX_SHADOWED_VPLS]].tolist())
     try:
-        for i in np.flatnonzero(power.max(axis=1) > 0):
+        for i in lit:
             _new_vpl_object(
                 coll,
                 int(i),
@@ -171,7 +200,8 @@ def write_vpls(
                 vpls.profile,
                 radius,
                 CUTOFF_DIAGONALS * scene_diagonal,
-                shadows,
+                shadows and int(i) in shadowed,
+                SHADOW_TEXEL_DIAGONALS * scene_diagonal,
             )
     except BaseException:
         _remove_collection(coll)

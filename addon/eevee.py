@@ -11,13 +11,16 @@ truth as the evaluator's.
 The ways to render a view, each a :class:`Setup` (what a user would set up):
 
 - ``vpl``: EEVEE with the written VPLs, ray tracing off (the VPLs carry the bounce light;
-  EEVEE's screen-space GI would count it twice);
-- ``vpl+rt``: the VPLs plus EEVEE's ray-traced reflections for glossy surfaces, with the fast
-  GI approximation off, so diffuse surfaces get their bounce from the VPLs only;
+  EEVEE's screen-space GI would count it twice), shadows on and a pool that holds them
+  (:mod:`eevee_setup`);
+- ``vpl+rt``: the same plus EEVEE's ray tracing for glossy reflections, its fast GI set to
+  ambient occlusion only (the global-illumination one would add the bounce again): what
+  :func:`eevee_setup.set_up` applies;
 - ``plain``: EEVEE without help (no VPLs, no ray tracing): EEVEE's own direct light;
 - ``rt``: EEVEE's own ray tracing with its fast GI approximation (no VPLs);
-- ``rt+volume``: that plus a light probe volume fitted to the scene's bounds and baked
-  (:func:`baked_volume`; the bake time is a one-time cost);
+- ``rt+volume``: that plus a light probe volume fitted to the scene's bounds and baked with
+  its default capture (:func:`eevee_setup.temporary_volume`; the bake time is a one-time
+  cost);
 - ``cycles+oidn``: Cycles at a few samples denoised with OpenImageDenoise.
 
 A set-up without VPLs hides vplace's lights for its render.
@@ -25,24 +28,20 @@ A set-up without VPLs hides vplace's lights for its render.
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import os
 import tempfile
 import time
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import bpy
 import numpy as np
 import OpenEXR
-from mathutils import Vector
 
-from . import render_key
+from . import eevee_setup, render_key
 from .capture import IMAGE_SETTINGS, hide_vpls, vpl_objects
 from .errors import AddonError
-from .export import VPL_MARKER
 from .settings import SettingsGuard, override, standard_view
 
 #: EEVEE's render samples in the scored renders: 4 were as close to Cycles' image of the VPLs
@@ -80,13 +79,22 @@ class Setup:
         g.set(e, "use_fast_gi", self.fast_gi)
         if self.raytracing:
             g.set(e, "ray_tracing_method", "SCREEN")
+        if self.vpls:
+            # What eevee_setup.set_up applies: shadows on, a pool that holds them, and ray
+            # tracing (when on) with ambient-occlusion-only fast GI: no second bounce.
+            g.set(e, "use_shadows", True)
+            mb = eevee_setup.pool_for(eevee_setup.shadow_pages(scene))
+            if int(e.shadow_pool_size) < mb:
+                g.set(e, "shadow_pool_size", str(mb))
+            if self.raytracing:
+                g.set(e, "fast_gi_method", "AMBIENT_OCCLUSION_ONLY")
 
 
 SETUPS = {
     s.name: s
     for s in (
         Setup("vpl", vpls=True),
-        Setup("vpl+rt", vpls=True, raytracing=True, fast_gi=False),
+        Setup("vpl+rt", vpls=True, raytracing=True),
         Setup("plain"),
         Setup("rt", raytracing=True),
         Setup("rt+volume", raytracing=True, volume=True),
@@ -215,48 +223,3 @@ def render(
         os.replace(tmp_path, cached)
         render_key.prune(cached.parent, keep=cached)
     return out
-
-
-def scene_bounds(scene: bpy.types.Scene) -> tuple[Vector, Vector]:
-    """The world-space bounds of the scene's render-visible meshes (vplace's lights excluded)."""
-    corners = [
-        obj.matrix_world @ Vector(c)
-        for obj in scene.objects
-        if obj.type == "MESH" and not obj.hide_render and not obj.get(VPL_MARKER, False)
-        for c in obj.bound_box
-    ]
-    if not corners:
-        raise AddonError("the scene has no visible mesh to fit a light probe volume to")
-    lo = Vector(tuple(min(c[i] for c in corners) for i in range(3)))
-    hi = Vector(tuple(max(c[i] for c in corners) for i in range(3)))
-    return lo, hi
-
-
-@contextlib.contextmanager
-def baked_volume(scene: bpy.types.Scene, resolution: int = 8) -> Iterator[float]:
-    """A light probe volume over the scene's bounds (``resolution`` probes along each side),
-    baked for the block; yields the bake's seconds and always removes the probe and its data
-    again."""
-    lo, hi = scene_bounds(scene)
-    data = bpy.data.lightprobes.new("vplace volume", "VOLUME")
-    data.resolution_x = data.resolution_y = data.resolution_z = resolution
-    obj = bpy.data.objects.new("vplace volume", data)
-    obj.location = (lo + hi) / 2
-    obj.scale = (hi - lo) / 2
-    scene.collection.objects.link(obj)
-    try:
-        with override() as g:
-            g.set(scene.render, "engine", "BLENDER_EEVEE")
-            with bpy.context.temp_override(
-                scene=scene, active_object=obj, object=obj, selected_objects=[obj]
-            ):
-                start = time.perf_counter()
-                result = bpy.ops.object.lightprobe_cache_bake(subset="ACTIVE")
-                seconds = time.perf_counter() - start
-        if "FINISHED" not in result:
-            raise AddonError(f"the light probe volume did not bake ({result})")
-        yield seconds
-    finally:
-        bpy.data.objects.remove(obj)
-        if data.users == 0:
-            bpy.data.lightprobes.remove(data)

@@ -16,7 +16,7 @@ from typing import Any, ClassVar
 
 import bpy
 
-from . import apply, par2d_bake, pipeline
+from . import apply, eevee_setup, par2d_bake, pipeline
 from .modal import BackgroundOperator
 from .native import vplace
 
@@ -181,7 +181,9 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
         scene.vplace.last_report = json.dumps(summary)
         if computed.fit is not None:
             _store_fit(scene, computed.fit, self.key)
-        self.report({"INFO"}, f"wrote {len(computed.vpls)} VPL lights")
+        self.report({"INFO"}, f"wrote {summary['lights_written']} VPL lights")
+        for problem in eevee_setup.problems(scene):
+            self.report({"WARNING"}, f"EEVEE: {problem} (Set up EEVEE for vplace fixes it)")
         return {"FINISHED"}
 
 
@@ -276,6 +278,28 @@ class VPLACE_OT_bake_par2d(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class VPLACE_OT_setup_eevee(bpy.types.Operator):
+    """Set EEVEE up for vplace's lights: shadow pool, shadows, ray tracing without a second
+    bounce, and a baked light probe volume that occludes the world"""
+
+    bl_idname = "vplace.setup_eevee"
+    bl_label = "Set up EEVEE for vplace"
+    bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return context.scene is not None
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        try:
+            changed = eevee_setup.set_up(context.scene)
+        except vplace.VplaceError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self.report({"INFO"}, "; ".join(changed) if changed else "EEVEE was already set up")
+        return {"FINISHED"}
+
+
 CLASSES = (
     VPLACE_OT_capture,
     VPLACE_OT_fit,
@@ -285,6 +309,7 @@ CLASSES = (
     VPLACE_OT_camera_add,
     VPLACE_OT_camera_remove,
     VPLACE_OT_bake_par2d,
+    VPLACE_OT_setup_eevee,
 )
 
 

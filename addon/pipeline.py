@@ -26,7 +26,7 @@ from typing import Any
 import bpy
 import numpy as np
 
-from . import apply, capture, export, images
+from . import apply, capture, eevee_setup, export, images
 from .errors import AddonError, CaptureError, ExportError
 from .native import build_scene, view_of, vplace
 from .settings import override
@@ -582,10 +582,14 @@ def run_main_job(
             prepared, replace(job, method=method), quiet, fitted=computed.fit, reference=reference
         )
         compared[method] = {"metrics": other.metrics, "seconds": sum(quiet.seconds.values())}
+    problems: list[str] = []
     if write_back:
         with timer.stage("write back"):
             apply.write_vpls(bl_scene, computed.vpls, scene_diagonal=prepared.scene.diagonal)
             bpy.ops.wm.save_as_mainfile(filepath=str(out_dir / "scene.blend"), copy=True)
+        problems = [str(p) for p in eevee_setup.problems(bl_scene)]
+        for problem in problems:
+            log(f"[vplace] warning: EEVEE: {problem} (Set up EEVEE for vplace fixes it)")
     ref, vpls = reference.capture, computed.vpls
     images.save_png(out_dir / "cycles_gi.png", ref.gi)
     images.save_png(out_dir / "direct.png", ref.direct)
@@ -608,6 +612,7 @@ def run_main_job(
     report = summary(bl_scene, job, prepared, computed, timer)
     report["reference"] = {"label": reference.label, "samples": ref.samples, "view": ref.view}
     report["eevee"] = shown
+    report["eevee_problems"] = problems
     report["baselines"] = compared
     report["files"] = sorted({*(p.name for p in out_dir.iterdir() if p.is_file()), "report.json"})
     (out_dir / "report.json").write_text(json.dumps(report, indent=2))

@@ -32,6 +32,7 @@ collection written for EEVEE is removed again.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import math
@@ -45,7 +46,7 @@ from typing import Any
 import bpy
 import numpy as np
 
-from . import apply, capture, default_scene, eevee, pipeline
+from . import apply, capture, default_scene, eevee, eevee_setup, pipeline
 from .errors import ReportError
 from .native import bench_par2d, view_of, vplace
 from .settings import override
@@ -143,8 +144,9 @@ class ReportConfig:
     #: Capture sample counts to lay out vplace+refit from (at the grid budget), every view
     #: scored: layout quality against capture cost. Empty: no curve.
     capture_curve: Sequence[int] = ()
-    #: Probes along each side of the baked light probe volume (``rt+volume``).
-    volume_resolution: int = 8
+    #: Probes along the longest side of the baked light probe volumes (``rt+volume``, and the
+    #: world's volume of the VPL renders when the world emits).
+    volume_resolution: int = eevee_setup.VOLUME_PROBES
     par2d: bool = True
     cache_dir: Path | None = None
 
@@ -611,7 +613,8 @@ def eevee_rows(
         and s.seed in (config.seeds[0], None)
         and s.method in config.eevee_methods
     }
-    for method, s in chosen.items():
+
+    def vpl_rows(method: str, s: LaidSet, world_bake: float) -> None:
         apply.write_vpls(bl_scene, s.vpls, scene_diagonal=diagonal)
         try:
             names = ["vpl"] + (
@@ -625,7 +628,7 @@ def eevee_rows(
                         label,
                         name,
                         img,
-                        s.one_time_seconds,
+                        s.one_time_seconds + world_bake,
                         config.eevee_samples,
                         seed=s.seed,
                     )
@@ -633,6 +636,19 @@ def eevee_rows(
                         images[view.name][method] = img.image
         finally:
             apply.clear_vpls()
+
+    with contextlib.ExitStack() as stack:
+        world_bake = 0.0
+        if chosen and eevee_setup.world_emits(bl_scene):
+            # The world's light, occluded, as eevee_setup.set_up bakes it (no indirect light).
+            world_bake = stack.enter_context(
+                eevee_setup.temporary_volume(
+                    bl_scene, probes=config.volume_resolution, capture_indirect=False
+                )
+            )
+            log(f"[vplace] the world's light probe volume baked in {world_bake:.1f} s")
+        for method, s in chosen.items():
+            vpl_rows(method, s, world_bake)
     for name in ("plain", "rt"):
         if name in config.alternatives:
             label = {"plain": "eevee", "rt": "eevee rt"}[name]
@@ -640,7 +656,7 @@ def eevee_rows(
                 add(view, label, name, img, 0.0, config.eevee_samples)
                 images[view.name][label] = img.image
     if "rt+volume" in config.alternatives:
-        with eevee.baked_volume(bl_scene, config.volume_resolution) as bake:
+        with eevee_setup.temporary_volume(bl_scene, probes=config.volume_resolution) as bake:
             log(f"[vplace] light probe volume baked in {bake:.1f} s")
             for view, img in each_view(eevee.SETUPS["rt+volume"], config.eevee_samples):
                 add(

@@ -7,6 +7,8 @@ from typing import Any
 
 import bpy
 
+from . import eevee_setup
+
 
 class _Panel:
     """Where vplace's panels live: Properties > Render."""
@@ -66,6 +68,14 @@ class VPLACE_PT_main(_Panel, bpy.types.Panel):
         row = layout.row(align=True)
         row.operator("vplace.apply", icon="LIGHT")
         row.operator("vplace.clear_vpls", icon="X")
+        layout.operator("vplace.setup_eevee", icon="SHADING_RENDERED")
+        found = eevee_setup.problems(context.scene)
+        if found:
+            box = layout.box()
+            box.label(text="EEVEE will not show these lights right:", icon="ERROR")
+            for problem in found:
+                box.label(text=problem.setting)
+                box.label(text=f"  {problem.message}")
         layout.operator("vplace.report", icon="TEXT")
         layout.operator("vplace.bake_par2d", icon="IMAGE_DATA")
         report = settings.report()

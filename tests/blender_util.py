@@ -138,7 +138,7 @@ DATA_COLLECTIONS = (
 def is_vplace(idblock: Any) -> bool:
     if _marked(idblock):
         return True
-    if isinstance(idblock, bpy.types.Light | bpy.types.Mesh):
+    if isinstance(idblock, bpy.types.Light | bpy.types.Mesh | bpy.types.LightProbe):
         return any(_marked(o) for o in bpy.data.objects if o.data == idblock)
     return False
 

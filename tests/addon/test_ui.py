@@ -81,6 +81,7 @@ def test_panel_shows_settings_buttons_and_last_results(scene):
         "vplace.fit",
         "vplace.apply",
         "vplace.clear_vpls",
+        "vplace.setup_eevee",
         "vplace.report",
         "vplace.bake_par2d",
     ]
@@ -90,6 +91,12 @@ def test_panel_shows_settings_buttons_and_last_results(scene):
     assert any(t.startswith("RMSE vs Cycles GI") for t in labels)
     assert any(t.startswith("R² ") for t in labels)
     assert any(t.startswith("capture Cornell camera (Cycles):") for t in labels)
+    assert "EEVEE will not show these lights right:" not in labels
+    # A setting that would drop the VPLs' shadows is named in the panel.
+    scene.eevee.use_shadows = False
+    labels = [t for kind, t in draw(scene) if kind == "label"]
+    assert "EEVEE will not show these lights right:" in labels
+    assert "scene.eevee.use_shadows" in labels
 
 
 def test_cancelled_compute_writes_nothing(scene):

@@ -1,0 +1,332 @@
+"""EEVEE set up for vplace's lights, and what in the current settings would drop or dim them.
+
+What EEVEE does with many small lights was measured (``docs/EEVEE_NOTES.md``): the VPL lights
+carry every bounce; EEVEE renders the direct light
+of the user's lamps; nothing may count a bounce twice. :func:`problems` names each setting that
+breaks this, :func:`set_up` (the operator "Set up EEVEE for vplace", undoable) applies the
+settings that fix it:
+
+- **shadow pool**: each shadowed VPL light takes about :data:`apply.SHADOW_PAGES` pages at the
+  coarsest level; a pool too small drops shadows silently and the light leaks through walls (the
+  image brightens). The pool is raised to hold them (at most 1,024 MB);
+- **shadows on** (``use_shadows``): without them VPL light leaks (Sponza 1.6x too bright);
+- **no second bounce**: EEVEE's ray tracing with the "global illumination" fast GI, or a light
+  probe volume that captures indirect light, adds the lamps' bounce again (x2 the direct light in
+  a test room): ray tracing is kept for reflections with fast GI set to ambient occlusion only,
+  and a volume vplace bakes captures no indirect light;
+- **the world in closed rooms**: EEVEE lights surfaces with the world unoccluded (+10 % of the
+  direct light in a closed room with the default grey world). When the world emits, a light
+  probe volume enclosing the scene (:data:`VOLUME_MARGIN` times its bounds) is baked with
+  ``capture_indirect`` off, so the world reaches only what sees it (4 % left in the test room,
+  2 % with ray-traced ambient occlusion);
+- each VPL light keeps its custom distance (then ``light_threshold`` does not cut it) and its
+  shadow (written by :mod:`apply`); a user's edit that removes either is named;
+- at most :data:`MAX_LIGHTS` lights (EEVEE drops the rest).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+import bpy
+from mathutils import Vector
+
+from . import apply
+from .errors import AddonError
+from .export import VPL_MARKER
+from .settings import override
+
+#: EEVEE's hard limit on lights in a scene (measured: 65,536; the excess is dropped).
+MAX_LIGHTS = 65536
+#: Pool sizes (MB) EEVEE offers, smallest first.
+POOL_SIZES = (16, 32, 64, 128, 256, 512, 1024)
+#: Of the pool's pages, the share vplace plans to fill (the user's lights take pages too).
+POOL_SHARE = 0.9
+#: The light probe volume encloses the scene's bounds times this (its walls inside it).
+VOLUME_MARGIN = 1.15
+#: Probes along the volume's longest side (the others in proportion, at least 2).
+VOLUME_PROBES = 12
+#: The collection of the probes vplace adds (replaced on each set-up).
+PROBE_COLLECTION = "vplace probes"
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A setting that drops, dims or double-counts light with vplace's VPLs."""
+
+    setting: str
+    message: str
+
+    def __str__(self) -> str:
+        return f"{self.setting}: {self.message}"
+
+
+def vpl_lights(scene: bpy.types.Scene) -> list[bpy.types.Object]:
+    """The light objects vplace wrote into ``scene``."""
+    return [o for o in scene.objects if o.type == "LIGHT" and o.get(VPL_MARKER, False)]
+
+
+def shadow_pages(scene: bpy.types.Scene) -> int:
+    """Shadow pool pages the scene's shadowed lights take at the coarsest level (an estimate:
+    vplace's lights make their coarsest maps; the user's lights may take more)."""
+    if not scene.eevee.use_shadows:
+        return 0
+    pages = 0
+    for obj in scene.objects:
+        if obj.type != "LIGHT" or obj.hide_render or not obj.data.use_shadow:
+            continue
+        kind = obj.data.type
+        pages += apply.SHADOW_PAGES.get(kind, 6) if kind != "SUN" else 16
+    return pages
+
+
+def pool_pages(scene: bpy.types.Scene) -> int:
+    """Pages the scene's shadow pool holds."""
+    return apply.POOL_PAGES_PER_MB * int(scene.eevee.shadow_pool_size)
+
+
+def pool_for(pages: int) -> int:
+    """The smallest pool size (MB) that holds ``pages`` within :data:`POOL_SHARE`, or the
+    largest."""
+    for mb in POOL_SIZES:
+        if pages <= POOL_SHARE * apply.POOL_PAGES_PER_MB * mb:
+            return mb
+    return POOL_SIZES[-1]
+
+
+def world_emits(scene: bpy.types.Scene) -> bool:
+    """Whether the world sends light into the scene (a Background with colour and strength, or
+    a texture on its colour)."""
+    world = scene.world
+    if world is None or world.node_tree is None:
+        return world is not None and max(world.color) > 0.0
+    for node in world.node_tree.nodes:
+        if node.type != "BACKGROUND" or node.mute:
+            continue
+        color, strength = node.inputs["Color"], node.inputs["Strength"]
+        if strength.is_linked or (strength.default_value > 0.0 and color.is_linked):
+            return True
+        if strength.default_value > 0.0 and max(color.default_value[:3]) > 0.0:
+            return True
+    return False
+
+
+def vplace_volume(scene: bpy.types.Scene) -> bpy.types.Object | None:
+    """The light probe volume :func:`set_up` added, if any."""
+    coll = bpy.data.collections.get(PROBE_COLLECTION)
+    if coll is None or not coll.get(VPL_MARKER, False):
+        return None
+    return next((o for o in coll.objects if o.type == "LIGHT_PROBE"), None)
+
+
+def problems(scene: bpy.types.Scene) -> list[Problem]:
+    """Every setting of ``scene`` that would drop, dim or double the light of vplace's VPLs in
+    EEVEE (none when there are no VPL lights)."""
+    vpls = vpl_lights(scene)
+    if not vpls:
+        return []
+    e = scene.eevee
+    found: list[Problem] = []
+    lights = sum(1 for o in scene.objects if o.type == "LIGHT" and not o.hide_render)
+    if lights > MAX_LIGHTS:
+        found.append(
+            Problem(
+                "lights",
+                f"{lights} lights: EEVEE renders at most {MAX_LIGHTS} and drops the rest; lower "
+                "the VPL budget",
+            )
+        )
+    if not e.use_shadows:
+        found.append(
+            Problem(
+                "scene.eevee.use_shadows",
+                "shadows are off: VPL light leaks through walls (the image comes out too bright)",
+            )
+        )
+    else:
+        need, have = shadow_pages(scene), pool_pages(scene)
+        if need > POOL_SHARE * have:
+            found.append(
+                Problem(
+                    "scene.eevee.shadow_pool_size",
+                    f"the shadowed lights need about {need} shadow pages and the "
+                    f"{e.shadow_pool_size} MB pool holds {have}: EEVEE drops the shadows it "
+                    "cannot hold and their light leaks (the image comes out too bright)",
+                )
+            )
+    unshadowed = [o.name for o in vpls if not o.data.use_shadow]
+    if len(unshadowed) > max(0, len(vpls) - apply.MAX_SHADOWED_VPLS):
+        found.append(
+            Problem(
+                "Light.use_shadow",
+                f"{len(unshadowed)} VPL lights cast no shadow (e.g. {unshadowed[0]!r}): their "
+                "light leaks through walls",
+            )
+        )
+    uncut = [o.name for o in vpls if not o.data.use_custom_distance]
+    if uncut and e.light_threshold > 0:
+        found.append(
+            Problem(
+                "scene.eevee.light_threshold",
+                f"{len(uncut)} VPL lights have no custom distance (e.g. {uncut[0]!r}): EEVEE cuts "
+                f"them where they fall below the light threshold {e.light_threshold:g}",
+            )
+        )
+    if e.use_raytracing and e.use_fast_gi and e.fast_gi_method == "GLOBAL_ILLUMINATION":
+        found.append(
+            Problem(
+                "scene.eevee.fast_gi_method",
+                "ray tracing with the global-illumination fast GI adds the bounce light the VPLs "
+                "already carry (counted twice): use ambient occlusion only",
+            )
+        )
+    for obj in scene.objects:
+        if obj.type == "LIGHT_PROBE" and obj.data.type == "VOLUME" and obj.data.capture_indirect:
+            found.append(
+                Problem(
+                    f"{obj.name}.capture_indirect",
+                    "this light probe volume bakes bounce light, which the VPLs already carry "
+                    "(counted twice): turn Capture Indirect off and bake again",
+                )
+            )
+    if world_emits(scene) and vplace_volume(scene) is None:
+        found.append(
+            Problem(
+                "world",
+                "EEVEE lights surfaces with the world as if nothing were in the way (indoors, "
+                "light through walls): Set up EEVEE for vplace bakes a probe volume that "
+                "occludes it",
+            )
+        )
+    return found
+
+
+def scene_bounds(scene: bpy.types.Scene) -> tuple[Vector, Vector]:
+    """The world-space bounds of the scene's render-visible meshes (vplace's lights excluded)."""
+    corners = [
+        obj.matrix_world @ Vector(c)
+        for obj in scene.objects
+        if obj.type == "MESH" and not obj.hide_render and not obj.get(VPL_MARKER, False)
+        for c in obj.bound_box
+    ]
+    if not corners:
+        raise AddonError("the scene has no visible mesh to fit a light probe volume to")
+    lo = Vector(tuple(min(c[i] for c in corners) for i in range(3)))
+    hi = Vector(tuple(max(c[i] for c in corners) for i in range(3)))
+    return lo, hi
+
+
+def new_volume(
+    scene: bpy.types.Scene,
+    collection: bpy.types.Collection,
+    *,
+    margin: float = 1.0,
+    probes: int = VOLUME_PROBES,
+    capture_indirect: bool = True,
+) -> bpy.types.Object:
+    """A light probe volume over the scene's bounds times ``margin``, ``probes`` along its
+    longest side, linked to ``collection`` (not baked)."""
+    lo, hi = scene_bounds(scene)
+    size = (hi - lo) * margin
+    longest = max(max(size), 1e-6)
+    data = bpy.data.lightprobes.new("vplace volume", "VOLUME")
+    res = [max(2, math.ceil(probes * s / longest)) for s in size]
+    data.resolution_x, data.resolution_y, data.resolution_z = res
+    data.capture_indirect = capture_indirect
+    obj = bpy.data.objects.new("vplace volume", data)
+    obj[VPL_MARKER] = True
+    obj.location = (lo + hi) / 2
+    obj.scale = [max(s / 2, 1e-4) for s in size]
+    collection.objects.link(obj)
+    return obj
+
+
+def bake(scene: bpy.types.Scene, volume: bpy.types.Object) -> float:
+    """Bakes ``volume`` with EEVEE (blocking); returns the seconds."""
+    with override() as g:
+        g.set(scene.render, "engine", "BLENDER_EEVEE")
+        with bpy.context.temp_override(
+            scene=scene, active_object=volume, object=volume, selected_objects=[volume]
+        ):
+            start = time.perf_counter()
+            result = bpy.ops.object.lightprobe_cache_bake(subset="ACTIVE")
+            seconds = time.perf_counter() - start
+    if "FINISHED" not in result:
+        raise AddonError(f"the light probe volume did not bake ({result})")
+    return seconds
+
+
+@contextmanager
+def temporary_volume(
+    scene: bpy.types.Scene,
+    *,
+    margin: float = VOLUME_MARGIN,
+    probes: int = VOLUME_PROBES,
+    capture_indirect: bool = True,
+) -> Iterator[float]:
+    """A light probe volume over the scene (see :func:`new_volume`), baked for the block;
+    yields the bake's seconds and always removes the probe and its data again."""
+    obj = new_volume(
+        scene, scene.collection, margin=margin, probes=probes, capture_indirect=capture_indirect
+    )
+    data = obj.data
+    try:
+        yield bake(scene, obj)
+    finally:
+        bpy.data.objects.remove(obj)
+        if data.users == 0:
+            bpy.data.lightprobes.remove(data)
+
+
+def _probe_collection(scene: bpy.types.Scene) -> bpy.types.Collection:
+    """A fresh, empty probe collection of vplace's, linked to ``scene``."""
+    old = bpy.data.collections.get(PROBE_COLLECTION)
+    if old is not None:
+        if not old.get(VPL_MARKER, False):
+            raise AddonError(
+                f"a collection named {PROBE_COLLECTION!r} exists but was not made by vplace; "
+                "rename it"
+            )
+        for obj in list(old.objects):
+            data = obj.data
+            bpy.data.objects.remove(obj)
+            if data is not None and data.users == 0:
+                bpy.data.lightprobes.remove(data)
+        bpy.data.collections.remove(old)
+    coll = bpy.data.collections.new(PROBE_COLLECTION)
+    coll[VPL_MARKER] = True
+    scene.collection.children.link(coll)
+    return coll
+
+
+def set_up(scene: bpy.types.Scene, *, bake_volume: bool = True) -> list[str]:
+    """Applies the settings of the module docs to ``scene`` (EEVEE settings; a probe volume in
+    its own collection when the world emits, baked unless ``bake_volume`` is false) and returns
+    what it changed, in words. The user's own objects are not touched."""
+    e = scene.eevee
+    changed: list[str] = []
+
+    def put(struct: object, attr: str, value: object, label: str) -> None:
+        if getattr(struct, attr) != value:
+            setattr(struct, attr, value)
+            changed.append(f"{label} = {value!r}")
+
+    put(e, "use_shadows", True, "scene.eevee.use_shadows")
+    mb = pool_for(shadow_pages(scene))
+    if int(e.shadow_pool_size) < mb:
+        put(e, "shadow_pool_size", str(mb), "scene.eevee.shadow_pool_size")
+    put(e, "use_raytracing", True, "scene.eevee.use_raytracing")
+    put(e, "use_fast_gi", True, "scene.eevee.use_fast_gi")
+    put(e, "fast_gi_method", "AMBIENT_OCCLUSION_ONLY", "scene.eevee.fast_gi_method")
+    if world_emits(scene):
+        coll = _probe_collection(scene)
+        volume = new_volume(scene, coll, margin=VOLUME_MARGIN, capture_indirect=False)
+        changed.append(f"added the light probe volume {volume.name!r} (world light, occluded)")
+        if bake_volume:
+            seconds = bake(scene, volume)
+            changed.append(f"baked it in {seconds:.1f} s")
+    return changed

@@ -1,0 +1,119 @@
+"""EEVEE set up for vplace's lights: every setting that would drop, dim or double their light is
+named, "Set up EEVEE for vplace" fixes it without touching the user's objects, and the written
+lights carry the shadow settings that keep the pool from overflowing."""
+
+import bpy
+import numpy as np
+import pytest
+from blender_util import addon_cornell, data_snapshot, diff
+
+from addon import apply, eevee_setup
+from addon.native import vplace
+
+
+@pytest.fixture
+def scene():
+    with addon_cornell() as sc:
+        yield sc
+
+
+def write(scene, n, seed=0):
+    rng = np.random.default_rng(seed)
+    pos = rng.uniform(-0.8, 0.8, (n, 3)).astype(np.float32) + np.float32([0, 0, 1])
+    up = np.tile(np.float32([0, 0, 1]), (n, 1))
+    flux = rng.uniform(0.1, 1.0, (n, 3)).astype(np.float32)
+    return apply.write_vpls(scene, vplace.VplSet(pos, up, flux), scene_diagonal=3.5)
+
+
+def settings(found):
+    return {p.setting for p in found}
+
+
+def test_no_vpls_no_problems(scene):
+    scene.eevee.use_shadows = False
+    assert eevee_setup.problems(scene) == []
+
+
+def test_every_problem_is_named_and_set_up_fixes_it(scene):
+    coll = write(scene, 300)
+    e = scene.eevee
+    e.shadow_pool_size = "64"  # 256 pages for about 1,500 wanted
+    e.use_raytracing, e.use_fast_gi, e.fast_gi_method = True, True, "GLOBAL_ILLUMINATION"
+    coll.objects[0].data.use_custom_distance = False
+    probe = bpy.data.objects.new("users volume", bpy.data.lightprobes.new("users", "VOLUME"))
+    scene.collection.objects.link(probe)
+    bg = scene.world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (0.05, 0.05, 0.05, 1)
+    bg.inputs["Strength"].default_value = 1.0
+    found = eevee_setup.problems(scene)
+    assert settings(found) == {
+        "scene.eevee.shadow_pool_size",
+        "scene.eevee.light_threshold",
+        "scene.eevee.fast_gi_method",
+        "users volume.capture_indirect",
+        "world",
+    }
+    pool = next(p for p in found if p.setting == "scene.eevee.shadow_pool_size")
+    # 300 VPL disks and the box's own area light, 5 pages each.
+    assert "1505 shadow pages" in pool.message and "64 MB pool holds 256" in pool.message
+    before = data_snapshot()
+    changed = eevee_setup.set_up(scene, bake_volume=False)
+    assert any("shadow_pool_size = '512'" in c for c in changed)
+    assert e.fast_gi_method == "AMBIENT_OCCLUSION_ONLY" and e.use_raytracing
+    volume = eevee_setup.vplace_volume(scene)
+    assert volume is not None and not volume.data.capture_indirect
+    lo, hi = eevee_setup.scene_bounds(scene)
+    assert all(2 * s >= 1.14 * (b - a) for s, a, b in zip(volume.scale, lo, hi, strict=True))
+    # What is left is the user's own: their edited light and their own probe volume.
+    assert settings(eevee_setup.problems(scene)) == {
+        "scene.eevee.light_threshold",
+        "users volume.capture_indirect",
+    }
+    # Only scene settings and vplace's own collection changed, never the user's objects.
+    changes = diff(before, data_snapshot())
+    assert changes and all(d.startswith("/scenes/Scene/eevee/") for d in changes), changes
+    # A second set-up replaces vplace's volume, it does not add one.
+    eevee_setup.set_up(scene, bake_volume=False)
+    assert sum(o.type == "LIGHT_PROBE" for o in scene.objects) == 2
+
+
+def test_shadows_off_and_unshadowed_vpls_are_named(scene):
+    coll = write(scene, 20)
+    scene.eevee.use_shadows = False
+    assert settings(eevee_setup.problems(scene)) == {"scene.eevee.use_shadows"}
+    scene.eevee.use_shadows = True
+    coll.objects[3].data.use_shadow = False
+    (problem,) = eevee_setup.problems(scene)
+    assert problem.setting == "Light.use_shadow" and "1 VPL lights cast no shadow" in str(problem)
+
+
+def test_written_lights_take_the_coarsest_shadows_and_only_the_brightest_are_shadowed(
+    scene, monkeypatch
+):
+    monkeypatch.setattr(apply, "MAX_SHADOWED_VPLS", 5)
+    coll = write(scene, 12, seed=3)
+    lights = sorted(coll.objects, key=lambda o: o["vplace_index"])
+    assert all(
+        o.data.shadow_maximum_resolution == pytest.approx(apply.SHADOW_TEXEL_DIAGONALS * 3.5)
+        and not o.data.use_shadow_jitter
+        for o in lights
+    )
+    lum = np.array([np.dot(o.data.color, vplace.LUMINANCE) * o.data.energy for o in lights])
+    shadowed = {o["vplace_index"] for o in lights if o.data.use_shadow}
+    assert shadowed == {lights[i]["vplace_index"] for i in np.argsort(-lum)[:5]}
+    # More lights unshadowed than the cap explains: named.
+    assert not eevee_setup.problems(scene)
+
+
+def test_the_pool_estimate_and_choice():
+    assert eevee_setup.pool_for(100) == 32  # 128 pages * 0.9 >= 100
+    assert eevee_setup.pool_for(2000) == 1024
+    assert eevee_setup.pool_for(10**6) == 1024  # the largest there is
+
+
+def test_the_operator_is_undoable_and_reports_what_it_changed(scene):
+    write(scene, 8)
+    scene.eevee.use_shadows = False
+    assert bpy.ops.vplace.setup_eevee() == {"FINISHED"}
+    assert scene.eevee.use_shadows
+    assert "UNDO" in bpy.types.VPLACE_OT_setup_eevee.bl_options
