@@ -1,17 +1,20 @@
-"""Benchmark of the whole layout and of the evaluator's shadow rays (BVH against brute force).
+"""Benchmark of the whole layout for one or more views, and of the evaluator's shadow rays (BVH
+against brute force).
 
-Run: ``python -m vplace.bench_layout [--width 640 --height 360 --budget 256 --repeat 5]``.
+Run: ``python -m vplace.bench_layout [--width 640 --height 360 --budget 256 --views 4
+--repeat 5]``.
 
 The scene is procedural and deterministic: a room 4 x 4 x 2.5 m with walls subdivided into a
-grid of quads (``--grid``), a pillar in the middle, a point light; the G-buffer, the DiffDir pass
-(with the pillar's shadow) and the direct image are ray cast in numpy, so they agree with the
-scene the native side traces. The indirect image stands in for Cycles with an evaluator render
-of many uniform VPLs.
+grid of quads (``--grid``), a pillar in the middle, a point light; each view's G-buffer, DiffDir
+pass (with the pillar's shadow) and direct image are ray cast in numpy from cameras spread around
+the room, so they agree with the scene the native side traces. The indirect images stand in for
+Cycles with an evaluator render of many uniform VPLs.
 
-Printed: the median time of the whole layout (features, fit, strata and allocation, three
-evaluator iterations at quarter resolution) and of its parts, of the optional refit of the VPL
-powers (``vplace.refit``, stride 4) of ``--budget`` uniform VPLs with its shadow rays and errors
-before and after, and the shadow rays per second of the evaluator with the BVH beside the
+Printed: the median time of the whole layout for all the views at once (features and one fit
+over every view, strata and allocation, three evaluator iterations at quarter resolution
+against every view), of its parts, of the refit of the VPL powers against every view
+(``vplace.refit``, stride 4), of layout plus refit (what "Lay out and apply" computes), the
+process's peak memory, and the shadow rays per second of the evaluator with the BVH beside the
 brute-force evaluator (every triangle tested) in the same run, on a strided sub-image for the
 brute force so it finishes.
 """
@@ -84,10 +87,15 @@ def _slab(o: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple
     return tmin.max(-1), tmax.min(-1), (tmin.argmax(-1), tmax.argmin(-1))
 
 
-def camera(width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Camera position, world_to_clip (OpenGL) and the unit view ray of every pixel."""
-    cam = np.array([0.2, -1.9, 1.2])
-    f, s, u = np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+def camera(
+    width: int, height: int, cam: np.ndarray, target: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Camera position, world_to_clip (OpenGL) and the unit view ray of every pixel of a camera
+    at ``cam`` looking at ``target`` (Z up, 60 degrees vertical field of view)."""
+    f = (target - cam) / np.linalg.norm(target - cam)
+    s = np.cross(f, [0.0, 0.0, 1.0])
+    s /= np.linalg.norm(s)
+    u = np.cross(s, f)
     tan_y = math.tan(math.radians(60.0) / 2)
     tan_x = tan_y * width / height
     near, far = 0.05, 50.0
@@ -110,9 +118,27 @@ def camera(width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     return cam, proj @ view, d
 
 
-def synthetic_capture(width: int, height: int) -> dict[str, Any]:
-    """G-buffer, DiffDir, direct image and camera of the room, ray cast in numpy."""
-    cam, world_to_clip, d = camera(width, height)
+def cameras(n: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``n`` cameras inside the room, 1.9 m from its centre at 1.2 m height, spread around it,
+    each looking at the far side of the room; the first is the single-view benchmark's."""
+    out = []
+    for k in range(n):
+        a = -math.pi / 2 + 2 * math.pi * k / max(n, 1)
+        cam = np.array([1.9 * math.cos(a), 1.9 * math.sin(a), 1.2])
+        if k == 0:
+            cam = np.array([0.2, -1.9, 1.2])
+        out.append((cam, np.array([-cam[0] * 0.1, -cam[1], 1.2])))
+    return out
+
+
+def synthetic_capture(
+    width: int, height: int, cam: np.ndarray | None = None, target: np.ndarray | None = None
+) -> dict[str, Any]:
+    """G-buffer, DiffDir, direct image and camera of the room, ray cast in numpy (default: the
+    first camera of :func:`cameras`)."""
+    if cam is None or target is None:
+        cam, target = cameras(1)[0]
+    cam, world_to_clip, d = camera(width, height, cam, target)
     o = np.broadcast_to(cam, d.shape)
     _, t_room, (_, exit_axis) = _slab(o, d, *ROOM)
     t_near, t_far, (near_axis, _) = _slab(o, d, *PILLAR)
@@ -135,7 +161,8 @@ def synthetic_capture(width: int, height: int) -> dict[str, Any]:
     irr = np.where(shadow, 0.0, cos / (4 * math.pi * dist**2))[..., None] * POWER
     diffdir = irr / math.pi
     direct = diffdir * albedo
-    depth = (d @ np.array([0.0, 1.0, 0.0])) * t
+    forward = (target - cam) / np.linalg.norm(target - cam)
+    depth = (d @ forward) * t
     f32 = np.float32
     return {
         "position": pos.astype(f32),
@@ -160,57 +187,114 @@ def median_time(fn: Callable[[], Any], repeat: int) -> tuple[float, Any]:
     return statistics.median(times), out
 
 
+def views_of(scene: _native.Scene, caps: list[dict[str, Any]]) -> list[vplace.View]:
+    """The captures as views, each with an indirect image: an evaluator render of 1,024 uniform
+    VPLs of every bounce (standing in for Cycles)."""
+    ref = vplace.uniform_vpls(scene, 1024, seed=11, bounces=vplace.MAX_BOUNCES)
+    out = []
+    for i, cap in enumerate(caps):
+        geometry = {
+            k: cap[k]
+            for k in (
+                "position",
+                "normal",
+                "albedo",
+                "covered",
+                "depth",
+                "direct",
+                "diffuse_direct",
+                "camera_position",
+                "world_to_clip",
+            )
+        }
+        bare = vplace.View(**geometry, name=f"view {i}")
+        ind, _ = vplace.evaluate(scene, bare, ref)
+        diffuse_indirect = (ind / cap["albedo"]).astype(np.float32)
+        out.append(
+            vplace.View(
+                **geometry,
+                diffuse_indirect=diffuse_indirect,
+                indirect=ind,
+                name=f"view {i}",
+            )
+        )
+    return out
+
+
+def peak_memory_mb() -> float:
+    """The process's peak resident memory so far, MB."""
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--width", type=int, default=640)
     ap.add_argument("--height", type=int, default=360)
     ap.add_argument("--budget", type=int, default=256)
+    ap.add_argument("--views", type=int, default=1, help="views laid out for at once")
     ap.add_argument("--grid", type=int, default=12, help="quads per wall side")
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--brute-stride", type=int, default=8)
     args = ap.parse_args(argv)
 
     scene, triangles = build_scene(args.grid)
-    cap = synthetic_capture(args.width, args.height)
-    g = (cap["position"], cap["normal"], cap["albedo"], cap["covered"])
-    ref = _native.uniform_vpls(scene, 1024, seed=11, bounces=_native.MAX_BOUNCES)
-    ind, _ = _native.evaluate(scene, *g, ref["position"], ref["normal"], ref["flux"])
-    cap["gi"] = (cap["direct"] + ind).astype(np.float32)
-    kw = {"camera_position": cap["camera_position"], "world_to_clip": cap["world_to_clip"]}
+    caps = [synthetic_capture(args.width, args.height, c, t) for c, t in cameras(args.views)]
+    views = views_of(scene, caps)
+    before = peak_memory_mb()
 
-    def whole() -> Any:
-        model = vplace.fit(cap, cell_px=16)
+    def fit() -> vplace.Fit:
+        return vplace.fit(scene, views, cell_px=16)
+
+    t_fit, model = median_time(fit, args.repeat)
+
+    def lay_out() -> vplace.Layout:
         return vplace.layout(
-            scene, cap, fit=model, budget=args.budget, iterations=3, tolerance=0.0, stride=4, **kw
+            scene, views, fit=fit(), budget=args.budget, iterations=3, tolerance=0.0, stride=4
         )
 
-    t_fit, model = median_time(lambda: vplace.fit(cap, cell_px=16), args.repeat)
+    def lay_out_and_refit() -> tuple[vplace.Layout, vplace.Refit]:
+        laid = lay_out()
+        return laid, vplace.refit(scene, views, laid.vpls, stride=4)
+
     t_alloc, _ = median_time(
-        lambda: vplace.layout(scene, cap, fit=model, budget=args.budget, iterate=False, **kw),
+        lambda: vplace.layout(scene, views, fit=model, budget=args.budget, iterate=False),
         args.repeat,
     )
-    t_whole, out = median_time(whole, args.repeat)
+    t_whole, out = median_time(lay_out, args.repeat)
+    t_both, (_, refitted) = median_time(lay_out_and_refit, args.repeat)
+    peak = peak_memory_mb()
 
-    vpls = _native.uniform_vpls(scene, args.budget, seed=3)
-    v = (vpls["position"], vpls["normal"], vpls["flux"])
-    t_refit, fitted = median_time(lambda: vplace.refit(scene, cap, vpls, stride=4), args.repeat)
-    t_bvh, (_, st_bvh) = median_time(lambda: _native.evaluate(scene, *g, *v), args.repeat)
+    vpls = vplace.uniform_vpls(scene, args.budget, seed=3)
+    t_refit, fitted = median_time(lambda: vplace.refit(scene, views, vpls, stride=4), args.repeat)
+    first = views[0]
+    t_bvh, (_, st_bvh) = median_time(lambda: vplace.evaluate(scene, first, vpls), args.repeat)
     s = args.brute_stride
-    sub = tuple(np.ascontiguousarray(a[::s, ::s]) for a in g)
-    _, st_sub = _native.evaluate(scene, *sub, *v)
+    c = caps[0]
+    sub = vplace.View(
+        **{
+            k: np.ascontiguousarray(c[k][::s, ::s])
+            for k in ("position", "normal", "albedo", "covered", "depth", "direct")
+        },
+        diffuse_direct=np.ascontiguousarray(c["diffuse_direct"][::s, ::s]),
+        camera_position=c["camera_position"],
+        world_to_clip=c["world_to_clip"],
+    )
+    _, st_sub = vplace.evaluate(scene, sub, vpls)
     t_brute, (_, st_brute) = median_time(
-        lambda: _native.evaluate(scene, *sub, *v, brute_force=True), 1
+        lambda: vplace.evaluate(scene, sub, vpls, brute_force=True), 1
     )
 
     threads = os.environ.get("RAYON_NUM_THREADS") or str(os.cpu_count())
     print(
-        f"vplace layout benchmark: {args.width}x{args.height}, {args.budget} VPLs, "
-        f"{triangles} triangles, {threads} threads, median of {args.repeat}"
+        f"vplace layout benchmark: {args.views} view(s) of {args.width}x{args.height}, "
+        f"{args.budget} VPLs, {triangles} triangles, {threads} threads, median of {args.repeat}"
     )
-    print(f"{'step':<52} {'seconds':>10}")
-    print(f"{'features + fit (vplace.fit)':<52} {t_fit:>10.3f}")
-    print(f"{'predict + strata + allocation (no iteration)':<52} {t_alloc:>10.3f}")
-    print(f"{'whole layout (fit + allocation + 3 iterations @ 1/4)':<52} {t_whole:>10.3f}")
+    print(f"{'step':<56} {'seconds':>10}")
+    print(f"{'features + one fit over every view (vplace.fit)':<56} {t_fit:>10.3f}")
+    print(f"{'predict + strata + allocation (no iteration)':<56} {t_alloc:>10.3f}")
+    print(f"{'whole layout (fit + allocation + 3 iterations @ 1/4)':<56} {t_whole:>10.3f}")
     print(
         f"  iteration errors (RMSE): {', '.join(f'{e:.4g}' for e in out.errors)}; best {out.best}"
     )
@@ -218,28 +302,38 @@ def main(argv: list[str] | None = None) -> None:
     traced = [f"{t} (+{r} reused)" if r else str(t) for t, r in pairs]
     print(f"  iteration shadow rays: {', '.join(traced)}")
     print(f"  iteration seconds: {', '.join(f'{x:.3f}' for x in out.seconds)}")
-    print(f"{f'refit of {args.budget} uniform VPLs (NNLS @ 1/4)':<52} {t_refit:>10.3f}")
+    print(f"{'layout + refit of its powers (Lay out and apply)':<56} {t_both:>10.3f}")
+    print(
+        f"  refit: {refitted.pixels} pixels, RMSE {refitted.error_before:.4g} -> "
+        f"{refitted.error_after:.4g}"
+    )
+    print(f"{f'refit of {args.budget} uniform VPLs (NNLS @ 1/4)':<56} {t_refit:>10.3f}")
     print(
         f"  refit: {fitted.pixels} pixels, {fitted.shadow_rays} shadow rays, RMSE "
         f"{fitted.error_before:.4g} -> {fitted.error_after:.4g}, "
         f"{int((fitted.scales == 0).sum())} VPLs switched off"
     )
+    print(
+        f"peak memory: {peak:.0f} MB (the views' captures and the scene: {before:.0f} MB before "
+        "the layout)"
+    )
     print()
     print(f"{'evaluator':<40} {'pixels':>9} {'shadow rays':>12} {'seconds':>9} {'rays/s':>12}")
     npx = args.width * args.height
     print(
-        f"{'BVH (full resolution)':<40} {npx:>9} {st_bvh['shadow_rays']:>12} "
-        f"{t_bvh:>9.3f} {st_bvh['shadow_rays'] / t_bvh:>12.3e}"
+        f"{'BVH (full resolution)':<40} {npx:>9} {st_bvh.shadow_rays:>12} "
+        f"{t_bvh:>9.3f} {st_bvh.shadow_rays / t_bvh:>12.3e}"
+    )
+    n_sub = sub.width * sub.height
+    print(
+        f"{f'BVH (stride {s})':<40} {n_sub:>9} "
+        f"{st_sub.shadow_rays:>12} {st_sub.seconds:>9.3f} {st_sub.rays_per_second:>12.3e}"
     )
     print(
-        f"{f'BVH (stride {s})':<40} {sub[0].shape[0] * sub[0].shape[1]:>9} "
-        f"{st_sub['shadow_rays']:>12} {st_sub['seconds']:>9.3f} {st_sub['rays_per_second']:>12.3e}"
+        f"{f'brute force, all triangles (stride {s})':<40} {n_sub:>9} "
+        f"{st_brute.shadow_rays:>12} {t_brute:>9.3f} {st_brute.shadow_rays / t_brute:>12.3e}"
     )
-    print(
-        f"{f'brute force, all triangles (stride {s})':<40} {sub[0].shape[0] * sub[0].shape[1]:>9} "
-        f"{st_brute['shadow_rays']:>12} {t_brute:>9.3f} {st_brute['shadow_rays'] / t_brute:>12.3e}"
-    )
-    speedup = st_sub["rays_per_second"] / (st_brute["shadow_rays"] / t_brute)
+    speedup = st_sub.rays_per_second / (st_brute.shadow_rays / t_brute)
     print(f"BVH / brute force: {speedup:.1f}x rays/s")
 
 
