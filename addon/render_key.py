@@ -75,12 +75,17 @@ _UI_PROPERTIES = frozenset(
 _SIMPLE = frozenset({"BOOLEAN", "INT", "FLOAT", "ENUM", "STRING"})
 #: Properties Blender 5 keeps only for old scripts (always true; reading them warns).
 _DEPRECATED = frozenset({"use_nodes"})
+#: What every data-block has (name, user count, session id, tags): bookkeeping, not content.
+#: ``session_uid`` changes each time a file is opened, so it must never reach a key.
+_ID_PROPERTIES = frozenset(p.identifier for p in bpy.types.ID.bl_rna.properties)
 
 
 def plain_values(struct: Any, skip: Iterable[str] = ()) -> list[tuple[str, Any]]:
     """``(identifier, value)`` of every plain property of an RNA struct (numbers, flags,
     enums, strings; arrays as tuples), in RNA order."""
     skipped = {*skip, *_DEPRECATED}
+    if isinstance(struct, bpy.types.ID):
+        skipped |= _ID_PROPERTIES
     out: list[tuple[str, Any]] = []
     for prop in struct.bl_rna.properties:
         key = prop.identifier

@@ -80,6 +80,15 @@ def test_what_vplace_sets_itself_or_only_moves_a_node_keeps_the_key():
     assert key(scene) == before
 
 
+def test_the_key_survives_saving_and_reopening_the_file(tmp_path):
+    scene = cornell()
+    before = key(scene)
+    path = tmp_path / "cornell.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    bpy.ops.wm.open_mainfile(filepath=str(path))  # new session ids for every data-block
+    assert key(bpy.context.scene) == before
+
+
 def test_an_image_file_keys_by_its_content_on_disk(tmp_path):
     scene = cornell()
     mat, node = _principled(scene)
