@@ -198,7 +198,7 @@ def problems(scene: bpy.types.Scene) -> list[Problem]:
             Problem(
                 "world",
                 "EEVEE lights surfaces with the world as if nothing were in the way (indoors, "
-                "light through walls): Set up EEVEE for vplace bakes a probe volume that "
+                "light through walls): a light probe volume baked without indirect light "
                 "occludes it",
             )
         )
