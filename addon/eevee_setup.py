@@ -21,6 +21,12 @@ settings that fix it:
   2 % with ray-traced ambient occlusion);
 - each VPL light keeps its custom distance (then ``light_threshold`` does not cut it) and its
   shadow (written by :mod:`apply`); a user's edit that removes either is named;
+- **the user's own lamps fade out**: a lamp without a custom distance is faded by
+  ``(1 - (d / R)^4)^2`` with ``R = sqrt(P / (100 * light_threshold))`` m for ``P`` W (measured;
+  Cycles does not fade). The Cornell box's 9.5 W area light at the default threshold 0.01 reaches
+  3.1 m, so its floor, 2 m below, gets 0.6-0.7 of Cycles' direct light. The threshold is lowered
+  until every lamp reaches :data:`LAMP_REACH_DIAGONALS` scene diagonals (at most 0.8 % lost
+  inside the scene);
 - at most :data:`MAX_LIGHTS` lights (EEVEE drops the rest).
 """
 
@@ -50,6 +56,8 @@ POOL_SHARE = 0.9
 VOLUME_MARGIN = 1.15
 #: Probes along the volume's longest side (the others in proportion, at least 2).
 VOLUME_PROBES = 12
+#: How far (in scene diagonals) EEVEE's automatic light distance must reach for every lamp.
+LAMP_REACH_DIAGONALS = 4.0
 #: The collection of the probes vplace adds (replaced on each set-up).
 PROBE_COLLECTION = "vplace probes"
 
@@ -68,6 +76,52 @@ class Problem:
 def vpl_lights(scene: bpy.types.Scene) -> list[bpy.types.Object]:
     """The light objects vplace wrote into ``scene``."""
     return [o for o in scene.objects if o.type == "LIGHT" and o.get(VPL_MARKER, False)]
+
+
+def lamp_reach(light: bpy.types.Light, threshold: float) -> float:
+    """How far (m) EEVEE's automatic light distance lets a lamp without a custom distance reach:
+    ``sqrt(P / (100 * threshold))`` for ``P`` its power in W (``inf`` for suns and at threshold
+    0)."""
+    power = light.energy * max(light.color)
+    if light.type == "SUN" or threshold <= 0.0:
+        return math.inf
+    return math.sqrt(max(power, 0.0) / (100.0 * threshold))
+
+
+def faded_lamps(scene: bpy.types.Scene) -> list[tuple[str, float]]:
+    """The user's lamps (not vplace's) that EEVEE fades out inside the scene at its current
+    ``light_threshold``, with the distance each reaches."""
+    try:
+        lo, hi = scene_bounds(scene)
+    except AddonError:
+        return []
+    need = LAMP_REACH_DIAGONALS * (hi - lo).length
+    threshold = scene.eevee.light_threshold
+    out = []
+    for obj in scene.objects:
+        if obj.type != "LIGHT" or obj.hide_render or obj.get(VPL_MARKER, False):
+            continue
+        if obj.data.use_custom_distance or obj.data.energy <= 0.0:
+            continue
+        reach = lamp_reach(obj.data, threshold)
+        if reach < need:
+            out.append((obj.name, reach))
+    return out
+
+
+def threshold_for(scene: bpy.types.Scene) -> float:
+    """The largest ``light_threshold`` at which every lamp of ``scene`` reaches
+    :data:`LAMP_REACH_DIAGONALS` scene diagonals (the current one when none falls short)."""
+    threshold = scene.eevee.light_threshold
+    faded = faded_lamps(scene)
+    if not faded:
+        return threshold
+    lo, hi = scene_bounds(scene)
+    need = LAMP_REACH_DIAGONALS * (hi - lo).length
+    powers = [
+        scene.objects[name].data.energy * max(scene.objects[name].data.color) for name, _ in faded
+    ]
+    return min(threshold, 0.99 * min(powers) / (100.0 * need * need))  # 0.5 % beyond
 
 
 def shadow_pages(scene: bpy.types.Scene) -> int:
@@ -174,6 +228,17 @@ def problems(scene: bpy.types.Scene) -> list[Problem]:
                 "scene.eevee.light_threshold",
                 f"{len(uncut)} VPL lights have no custom distance (e.g. {uncut[0]!r}): EEVEE cuts "
                 f"them where they fall below the light threshold {e.light_threshold:g}",
+            )
+        )
+    faded = faded_lamps(scene)
+    if faded:
+        name, reach = faded[0]
+        found.append(
+            Problem(
+                "scene.eevee.light_threshold",
+                f"EEVEE fades {len(faded)} lamp(s) out within the scene (e.g. {name!r} reaches "
+                f"{reach:.3g} m; Cycles does not fade): their light comes out too dark away "
+                f"from them; a threshold of {threshold_for(scene):.3g} lets them reach",
             )
         )
     if e.use_raytracing and e.use_fast_gi and e.fast_gi_method == "GLOBAL_ILLUMINATION":
@@ -316,6 +381,8 @@ def set_up(scene: bpy.types.Scene, *, bake_volume: bool = True) -> list[str]:
             changed.append(f"{label} = {value!r}")
 
     put(e, "use_shadows", True, "scene.eevee.use_shadows")
+    if faded_lamps(scene):
+        put(e, "light_threshold", threshold_for(scene), "scene.eevee.light_threshold")
     mb = pool_for(shadow_pages(scene))
     if int(e.shadow_pool_size) < mb:
         put(e, "shadow_pool_size", str(mb), "scene.eevee.shadow_pool_size")

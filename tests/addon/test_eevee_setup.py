@@ -14,6 +14,7 @@ from addon.native import vplace
 @pytest.fixture
 def scene():
     with addon_cornell() as sc:
+        sc.eevee.light_threshold = 1e-4  # the box's lamp reaches 31 m (see the faded-lamp test)
         yield sc
 
 
@@ -103,6 +104,27 @@ def test_written_lights_take_the_coarsest_shadows_and_only_the_brightest_are_sha
     assert shadowed == {lights[i]["vplace_index"] for i in np.argsort(-lum)[:5]}
     # More lights unshadowed than the cap explains: named.
     assert not eevee_setup.problems(scene)
+
+
+def test_a_lamp_eevee_fades_inside_the_scene_is_named_and_set_up_lets_it_reach():
+    with addon_cornell() as scene:
+        write(scene, 8)
+        lamp = scene.objects["light"].data  # 9.5 W: at threshold 0.01 EEVEE fades it by 3.09 m
+        assert scene.eevee.light_threshold == pytest.approx(0.01)
+        assert eevee_setup.lamp_reach(lamp, 0.01) == pytest.approx(3.0884, abs=1e-3)
+        (problem,) = eevee_setup.problems(scene)
+        assert problem.setting == "scene.eevee.light_threshold"
+        assert "'light' reaches 3.09 m" in problem.message
+        eevee_setup.set_up(scene, bake_volume=False)
+        lo, hi = eevee_setup.scene_bounds(scene)
+        reach = eevee_setup.lamp_reach(lamp, scene.eevee.light_threshold)
+        need = eevee_setup.LAMP_REACH_DIAGONALS * (hi - lo).length
+        assert need <= reach < 1.01 * need
+        assert not eevee_setup.problems(scene)
+        # A custom distance is the user's own choice: then the threshold does not apply.
+        scene.eevee.light_threshold = 0.01
+        lamp.use_custom_distance = True
+        assert not eevee_setup.faded_lamps(scene)
 
 
 def test_the_pool_estimate_and_choice():

@@ -61,8 +61,7 @@ def test_main_job_writes_everything_and_eevee_shows_what_the_evaluator_computed(
     assert all(o.get(VPL_MARKER) for o in coll.objects)
     # EEVEE, scored in float against the same truth, shows what the evaluator computed: the
     # light its VPLs add (EEVEE with them less EEVEE without) is the evaluator's VPL light, and
-    # its image is far closer to the truth than direct light alone. (EEVEE's own direct light
-    # from the box's area light is its own: about 0.85x Cycles' here.)
+    # its image is far closer to the truth than direct light alone.
     e = report["eevee"]
     truth = capture.capture(
         scene, resolution=(48, 48), samples=256, seed=pipeline.REFERENCE_SEED,
