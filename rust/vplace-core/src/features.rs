@@ -587,7 +587,9 @@ impl<'a> FeatureInput<'a> {
 
 /// The strongest light of `scene` seen from the mean covered position of `views`: the light
 /// with the largest luminance of irradiance there, `P / (4 pi r^2)` for a point or spot,
-/// `P / (pi r^2)` for an area light, `P` (W/m^2) for a sun. `None` without lights.
+/// `P / (pi r^2)` for an area light, `P` (W/m^2) for a sun, half the light of a world image
+/// with a dominant direction (a uniform world has none), `P / (2 pi r^2)` from the power-weighted
+/// centroid of the emissive triangles. `None` without such a light.
 #[must_use]
 pub fn strongest_light(scene: &Scene, views: &[&View]) -> Option<StrongestLight> {
     let (mut sum, mut n) = ([0.0f64; 3], 0u64);
@@ -605,21 +607,40 @@ pub fn strongest_light(scene: &Scene, views: &[&View]) -> Option<StrongestLight>
         [0.0; 3]
     };
     let mut best: Option<(f64, StrongestLight)> = None;
+    let at = |position: Vec3, power: f64, k: f64| {
+        let d = [0, 1, 2].map(|i| f64::from(position[i]) - centre[i]);
+        let r2 = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).max(1e-12);
+        (power / (k * r2), StrongestLight::Position(position))
+    };
+    let mut candidates = Vec::new();
     for light in &scene.lights {
         let power = f64::from(light.power.dot(LUMINANCE));
-        let (irradiance, found) = match light.kind {
-            LightKind::Sun => (power, StrongestLight::Direction(light.direction)),
-            kind => {
-                let d = [0, 1, 2].map(|i| f64::from(light.position[i]) - centre[i]);
-                let r2 = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).max(1e-12);
-                let k = if matches!(kind, LightKind::Area { .. }) {
-                    std::f64::consts::PI
-                } else {
-                    4.0 * std::f64::consts::PI
+        candidates.push(match &light.kind {
+            LightKind::Sun { .. } => (power, StrongestLight::Direction(light.direction)),
+            LightKind::World { map } => {
+                // An image with a dominant direction (a sun in the sky): light travelling away
+                // from it, half of the map's light; a uniform world has no direction.
+                let Some((m, dir)) = map
+                    .as_ref()
+                    .and_then(|m| m.dominant_direction().map(|d| (m, d)))
+                else {
+                    continue;
                 };
-                (power / (k * r2), StrongestLight::Position(light.position))
+                let integral = f64::from((light.power * m.integral()).dot(LUMINANCE));
+                (0.5 * integral, StrongestLight::Direction(-dir))
             }
-        };
+            LightKind::Area { .. } => at(light.position, power, std::f64::consts::PI),
+            LightKind::Point { .. } | LightKind::Spot { .. } => {
+                at(light.position, power, 4.0 * std::f64::consts::PI)
+            }
+        });
+    }
+    let mesh = scene.emissive();
+    if !mesh.is_empty() {
+        let power = f64::from(mesh.power().dot(LUMINANCE));
+        candidates.push(at(mesh.centroid(), power, 2.0 * std::f64::consts::PI));
+    }
+    for (irradiance, found) in candidates {
         if best.is_none_or(|(b, _)| irradiance > b) {
             best = Some((irradiance, found));
         }

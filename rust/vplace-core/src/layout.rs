@@ -373,7 +373,7 @@ fn pixel_emitters(
 /// view without a `diffuse_indirect` pass then reflects it ([`emitter_irradiance`]).
 ///
 /// Errors: no views, `cell_px == 0`, a prediction of the wrong size, or failing light rays
-/// (see [`light_path_vpls`]). A scene without lights gets empty off-screen strata (its pixels
+/// (see [`light_path_vpls`]). A scene without emitters gets empty off-screen strata (its pixels
 /// still emit).
 pub fn build_strata(
     scene: &Scene,
@@ -431,7 +431,7 @@ pub fn build_strata(
     let cells = per.len();
     let mut off: Vec<Emitter> = Vec::new();
     let mut light_hits_on_screen = 0;
-    if params.light_rays > 0 && !scene.lights.is_empty() {
+    if params.light_rays > 0 && scene.has_emitters() {
         for v in light_path_vpls(scene, params.light_rays, params.seed, params.bounces)? {
             if views.iter().any(|view| view.sees(v.position, occluded)) {
                 light_hits_on_screen += 1;

@@ -41,6 +41,8 @@
 //! ```
 
 pub mod color;
+pub mod direct;
+pub mod emitters;
 pub mod error;
 pub mod evaluator;
 pub mod features;

@@ -4,14 +4,18 @@
 //! Light `l` gets `n_l` of the `N` rays by largest remainder of `N * lum(P_l) / sum lum(P)`. Its
 //! rays form a rank-1 (Fibonacci) lattice over `[0, 1)^2`, a regular grid with exactly `n_l`
 //! points, mapped onto the light's view as a shadow map would be: the sphere (point), the cone
-//! (spot), the cosine-weighted hemisphere from the centre (area) or a disk of parallel rays
-//! covering the scene (sun). Each ray carries `P_l / n_l`; its first hit becomes a VPL of flux
-//! `P_l / n_l * albedo`, like a texel of the map. Rays that leave the scene make no VPL (a
+//! (spot, its rays weighted by the blend), the cosine-weighted hemisphere from the centre (area;
+//! with a spread, the spread's cone weighted by its attenuation) or a disk of parallel rays
+//! covering the scene (sun). The world and the emissive triangles, which have no single view,
+//! map the lattice through their emission sampler ([`sample_emission`], further dimensions from
+//! more rank-1 steps). Each ray carries `P_l / n_l` times its weight; its first hit becomes a VPL
+//! of flux `P_l / n_l * weight * albedo`, like a texel of the map. Rays that leave the scene make no VPL (a
 //! background texel), so an open scene gets fewer than `N`.
 
 use glam::Vec3;
 use std::f32::consts::PI;
 
+use crate::emitters::{area_direction, basis, sample_emission, spot_attenuation, Emitter};
 use crate::error::Result;
 use crate::layout::largest_remainder;
 use crate::scene::{LightKind, Scene};
@@ -20,42 +24,85 @@ use crate::vpl::{light_powers, Vpl};
 /// The golden ratio's fractional part, the generator of the Fibonacci lattice.
 const GOLDEN: f64 = 0.618_033_988_749_894_8;
 
-fn basis(n: Vec3) -> (Vec3, Vec3) {
-    let t = n.any_orthonormal_vector();
-    (t, n.cross(t))
-}
+/// Irrational steps of the lattice's further dimensions (a point's position on an area light,
+/// a sun's or the world's disk, a triangle's side and direction).
+const STEPS: [f64; 4] = [
+    0.414_213_562_373_095,
+    0.732_050_807_568_877,
+    0.236_067_977_499_79,
+    0.645_751_311_064_591,
+];
 
-/// The ray of lattice point `(u, v)` of `light`'s view: `(origin, unit direction)`.
-fn lattice_ray(light: &crate::scene::Light, scene: &Scene, u: f32, v: f32) -> (Vec3, Vec3) {
+/// The ray of lattice point `i` of `m` (coordinates `(u, v)`) of `emitter`'s view:
+/// `(origin, unit direction, weight)`, the weight the ray's flux over `P / m` (see
+/// [`sample_emission`]).
+fn lattice_ray(
+    emitter: Emitter<'_>,
+    scene: &Scene,
+    (u, v): (f32, f32),
+    i: usize,
+) -> (Vec3, Vec3, Vec3) {
     let phi = 2.0 * PI * v;
+    let light = match emitter {
+        Emitter::Light(l) if !matches!(l.kind, LightKind::World { .. }) => l,
+        _ => {
+            // The world and the emissive triangles: the emission sampler on the lattice.
+            let mut k = 0;
+            let mut next = || {
+                k += 1;
+                match k {
+                    1 => u,
+                    2 => v,
+                    _ => ((i as f64 + 0.5) * STEPS[(k - 3) % STEPS.len()]).fract() as f32,
+                }
+            };
+            let r = sample_emission(emitter, scene, &mut next);
+            return (r.origin, r.direction, r.weight);
+        }
+    };
     let (t, b) = basis(light.direction);
-    match light.kind {
-        LightKind::Point => {
+    let one = Vec3::ONE;
+    match &light.kind {
+        LightKind::Point { .. } => {
             let z = 1.0 - 2.0 * u;
             let r = (1.0 - z * z).max(0.0).sqrt();
-            (light.position, Vec3::new(r * phi.cos(), r * phi.sin(), z))
+            (
+                light.position,
+                Vec3::new(r * phi.cos(), r * phi.sin(), z),
+                one,
+            )
         }
-        LightKind::Spot { half_angle } => {
+        LightKind::Spot {
+            half_angle, blend, ..
+        } => {
             let cos_t = 1.0 - u * (1.0 - half_angle.cos());
             let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
             let d = light.direction * cos_t + (t * phi.cos() + b * phi.sin()) * sin_t;
-            (light.position, d.normalize())
+            let w = if *blend > 0.0 {
+                spot_attenuation(cos_t, *half_angle, *blend) / (1.0 - 0.5 * blend)
+            } else {
+                1.0
+            };
+            (light.position, d.normalize(), Vec3::splat(w))
+        }
+        LightKind::Area { spread, .. } if *spread < PI => {
+            let (d, w) = area_direction(light.direction, *spread, u, v);
+            (light.position, d, Vec3::splat(w))
         }
         LightKind::Area { .. } => {
             let r = u.sqrt();
             let d =
                 light.direction * (1.0 - u).max(0.0).sqrt() + (t * phi.cos() + b * phi.sin()) * r;
-            (light.position, d.normalize())
+            (light.position, d.normalize(), one)
         }
-        LightKind::Sun => {
-            let (lo, hi) = scene.bounds();
-            let centre = 0.5 * (lo + hi);
-            let radius = 0.5 * scene.diagonal();
+        LightKind::Sun { .. } => {
+            let (centre, radius) = scene.bounding_sphere();
             let r = radius * u.sqrt();
             let origin =
                 centre - light.direction * (2.0 * radius) + (t * phi.cos() + b * phi.sin()) * r;
-            (origin, light.direction)
+            (origin, light.direction, one)
         }
+        LightKind::World { .. } => unreachable!("handled above"),
     }
 }
 
@@ -67,7 +114,7 @@ pub fn rsm_vpls(scene: &Scene, n: usize) -> Result<Vec<Vpl>> {
     let eps = scene.ray_epsilon();
     let offset = Vpl::SURFACE_OFFSET * scene.diagonal();
     let mut out = Vec::with_capacity(n);
-    for ((light, power), &m) in scene.lights.iter().zip(&powers).zip(&counts) {
+    for ((emitter, power), &m) in scene.emitters().into_iter().zip(&powers).zip(&counts) {
         if m == 0 {
             continue;
         }
@@ -75,7 +122,10 @@ pub fn rsm_vpls(scene: &Scene, n: usize) -> Result<Vec<Vpl>> {
         for i in 0..m {
             let u = ((i as f64 + 0.5) / m as f64) as f32;
             let v = ((i as f64 * GOLDEN).fract()) as f32;
-            let (origin, dir) = lattice_ray(light, scene, u, v);
+            let (origin, dir, weight) = lattice_ray(emitter, scene, (u, v), i);
+            if weight == Vec3::ZERO {
+                continue;
+            }
             if let Some(h) = scene.closest_hit(origin, dir, eps, f32::INFINITY) {
                 let mut normal = scene.normal(h.triangle);
                 if normal.dot(dir) > 0.0 {
@@ -84,7 +134,7 @@ pub fn rsm_vpls(scene: &Scene, n: usize) -> Result<Vec<Vpl>> {
                 out.push(Vpl {
                     position: origin + dir * h.t + normal * offset,
                     normal,
-                    flux: per_ray * scene.albedo(h.triangle),
+                    flux: per_ray * weight * scene.albedo(h.triangle),
                 });
             }
         }

@@ -7,9 +7,10 @@ use glam::Vec3;
 use std::f32::consts::PI;
 
 use crate::color::luminance;
+use crate::emitters::{cosine_direction, emitter_power, light_power, sample_emission};
 use crate::error::{Result, VplaceError};
 use crate::rng::Rng;
-use crate::scene::{Light, LightKind, Scene};
+use crate::scene::{Light, Scene};
 
 /// How a VPL radiates its flux `Phi`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -65,82 +66,15 @@ impl Vpl {
     pub const SURFACE_OFFSET: f32 = 1e-3;
 }
 
-/// Total power a light emits into the scene (RGB watts).
+/// Total power a light emits into the scene (RGB watts; see [`crate::emitters`]).
 #[must_use]
 pub fn emitted_power(light: &Light, scene: &Scene) -> Vec3 {
-    match light.kind {
-        LightKind::Point | LightKind::Area { .. } => light.power,
-        LightKind::Spot { half_angle } => light.power * (1.0 - half_angle.cos()) / 2.0,
-        LightKind::Sun => {
-            let r = 0.5 * scene.diagonal();
-            light.power * PI * r * r
-        }
-    }
+    light_power(light, scene)
 }
 
-/// An orthonormal basis `(t, b)` around unit `n`.
-fn basis(n: Vec3) -> (Vec3, Vec3) {
-    let t = n.any_orthonormal_vector();
-    (t, n.cross(t))
-}
-
-/// Samples an emission ray `(origin, unit direction)` of `light` from two random numbers pairs.
-fn sample_emission(light: &Light, scene: &Scene, rng: &mut Rng) -> (Vec3, Vec3) {
-    let (u1, u2) = (rng.next_f32(), rng.next_f32());
-    match light.kind {
-        LightKind::Point => (light.position, uniform_sphere(u1, u2)),
-        LightKind::Spot { half_angle } => {
-            // Uniform over the spherical cap: cos theta uniform in [cos half_angle, 1].
-            let cos_t = 1.0 - u1 * (1.0 - half_angle.cos());
-            let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-            let phi = 2.0 * PI * u2;
-            let (t, b) = basis(light.direction);
-            let d = light.direction * cos_t + (t * phi.cos() + b * phi.sin()) * sin_t;
-            (light.position, d)
-        }
-        LightKind::Area {
-            disk,
-            size_x,
-            size_y,
-        } => {
-            let (v1, v2) = (rng.next_f32(), rng.next_f32());
-            let bitangent = light.direction.cross(light.tangent);
-            let offset = if disk {
-                let r = 0.5 * size_x * v1.sqrt();
-                let a = 2.0 * PI * v2;
-                light.tangent * (r * a.cos()) + bitangent * (r * a.sin())
-            } else {
-                light.tangent * ((v1 - 0.5) * size_x) + bitangent * ((v2 - 0.5) * size_y)
-            };
-            // Cosine-weighted direction about the emission axis.
-            let d = cosine_direction(light.direction, u1, u2);
-            (light.position + offset, d)
-        }
-        LightKind::Sun => {
-            // Parallel rays from a disk of radius R (half the scene diagonal) perpendicular to
-            // the direction, placed outside the scene bounds.
-            let (lo, hi) = scene.bounds();
-            let centre = 0.5 * (lo + hi);
-            let radius = 0.5 * scene.diagonal();
-            let (t, b) = basis(light.direction);
-            let r = radius * u1.sqrt();
-            let a = 2.0 * PI * u2;
-            let origin =
-                centre - light.direction * (2.0 * radius) + (t * a.cos() + b * a.sin()) * r;
-            (origin, light.direction)
-        }
-    }
-}
-
-fn uniform_sphere(u1: f32, u2: f32) -> Vec3 {
-    let z = 1.0 - 2.0 * u1;
-    let r = (1.0 - z * z).max(0.0).sqrt();
-    let phi = 2.0 * PI * u2;
-    Vec3::new(r * phi.cos(), r * phi.sin(), z)
-}
-
-/// Checks a budget of `n` VPLs against the scene's lights and returns each light's emitted
-/// power with its luminance (the weight lights are chosen by); the weights sum to more than 0.
+/// Checks a budget of `n` VPLs against the scene's emitters ([`Scene::emitters`]) and returns
+/// each emitter's power with its luminance (the weight emitters are chosen by); the weights sum
+/// to more than 0.
 pub(crate) fn light_powers(scene: &Scene, n: usize) -> Result<(Vec<Vec3>, Vec<f32>)> {
     if n == 0 {
         return Err(VplaceError::OutOfRange {
@@ -149,23 +83,23 @@ pub(crate) fn light_powers(scene: &Scene, n: usize) -> Result<(Vec<Vec3>, Vec<f3
             expected: ">= 1".into(),
         });
     }
-    if scene.lights.is_empty() {
+    if !scene.has_emitters() {
         return Err(VplaceError::Empty {
             what: "scene lights".into(),
-            hint: "add a light (point, spot, area or sun) to the scene".into(),
+            hint: "add a light (point, spot, area, sun or world) or an emissive material".into(),
         });
     }
     let powers: Vec<Vec3> = scene
-        .lights
-        .iter()
-        .map(|l| emitted_power(l, scene))
+        .emitters()
+        .into_iter()
+        .map(|e| emitter_power(e, scene))
         .collect();
     let weights: Vec<f32> = powers.iter().map(|&p| luminance(p)).collect();
     let total: f32 = weights.iter().sum();
     if total.is_nan() || total <= 0.0 {
         return Err(VplaceError::Invalid {
             what: "scene lights".into(),
-            reason: "every light has zero power".into(),
+            reason: "every light has zero power (and nothing else emits)".into(),
         });
     }
     Ok((powers, weights))
@@ -184,8 +118,10 @@ pub fn uniform_vpls(scene: &Scene, n: usize, seed: u64) -> Result<Vec<Vpl>> {
 /// paths long before it.
 pub const MAX_BOUNCES: usize = 16;
 
-/// Keller's instant radiosity: traces light paths from the lights (each light chosen with
-/// probability proportional to its emitted luminance) until `n` VPLs exist. A path leaves a VPL
+/// Keller's instant radiosity: traces light paths from the emitters (each chosen with
+/// probability proportional to its emitted luminance; [`sample_emission`] draws the rays of
+/// every kind, the world's and the sun's from a disk outside the scene's bounding sphere)
+/// until `n` VPLs exist. A path leaves a VPL
 /// at each of its first `bounces` surface hits; the VPL carries the flux the surface reflects,
 /// `f * albedo / paths`, where `f` is the flux the path brings to that hit and `paths` counts
 /// every emission ray traced, including those that escaped. After a hit the path goes on in a
@@ -215,6 +151,7 @@ pub fn light_path_vpls(scene: &Scene, n: usize, seed: u64, bounces: usize) -> Re
     }
     let eps = scene.ray_epsilon();
     let offset = Vpl::SURFACE_OFFSET * scene.diagonal();
+    let emitters = scene.emitters();
     let mut rng = Rng::new(seed, 0x5eed);
     // (position, normal, reflected flux of one path before dividing by the path count)
     let mut hits: Vec<(Vec3, Vec3, Vec3)> = Vec::with_capacity(n);
@@ -232,9 +169,9 @@ pub fn light_path_vpls(scene: &Scene, n: usize, seed: u64, bounces: usize) -> Re
         rays += 1;
         let u = rng.next_f32();
         let li = cdf.partition_point(|&c| c <= u).min(cdf.len() - 1);
-        let light = &scene.lights[li];
-        let (mut origin, mut dir) = sample_emission(light, scene, &mut rng);
-        let mut carried = powers[li] / (weights[li] / total);
+        let ray = sample_emission(emitters[li], scene, &mut || rng.next_f32());
+        let (mut origin, mut dir) = (ray.origin, ray.direction);
+        let mut carried = powers[li] / (weights[li] / total) * ray.weight;
         for bounce in 0..bounces {
             let Some(h) = scene.closest_hit(origin, dir, eps, f32::INFINITY) else {
                 break;
@@ -268,14 +205,6 @@ pub fn light_path_vpls(scene: &Scene, n: usize, seed: u64, bounces: usize) -> Re
             flux: f * inv_rays,
         })
         .collect())
-}
-
-/// A cosine-distributed unit direction about unit `n`.
-fn cosine_direction(n: Vec3, u1: f32, u2: f32) -> Vec3 {
-    let r = u1.sqrt();
-    let phi = 2.0 * PI * u2;
-    let (t, b) = basis(n);
-    (n * (1.0 - u1).max(0.0).sqrt() + (t * phi.cos() + b * phi.sin()) * r).normalize()
 }
 
 #[cfg(test)]
@@ -317,7 +246,7 @@ mod tests {
             ),
             Light::spot(Vec3::new(0., 0., 1.9), Vec3::NEG_Z, 0.5, Vec3::splat(8.)),
         ] {
-            let s = closed_box(vec![light]);
+            let s = closed_box(vec![light.clone()]);
             let v = uniform_vpls(&s, 500, 1).unwrap();
             let total: Vec3 = v.iter().map(|v| v.flux).sum();
             let expect = emitted_power(&light, &s) * 0.5;
@@ -333,7 +262,7 @@ mod tests {
         // A closed box of albedo 0.5: the expected flux reflected over bounces 1..=k is
         // P * (0.5 + 0.25 + ... + 0.5^k).
         let light = Light::point(Vec3::new(0.2, -0.1, 1.2), Vec3::new(10., 5., 1.));
-        let s = closed_box(vec![light]);
+        let s = closed_box(vec![light.clone()]);
         let p = emitted_power(&light, &s);
         for (bounces, expect) in [(2, 0.75), (MAX_BOUNCES, 1.0 - 0.5f32.powi(16))] {
             let v = light_path_vpls(&s, 20_000, 4, bounces).unwrap();

@@ -7,6 +7,7 @@
 use pyo3::prelude::*;
 
 mod arrays;
+mod direct;
 mod errors;
 mod fit;
 mod layout;
@@ -26,6 +27,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     fit::register(m)?;
     layout::register(m)?;
     par2d::register(m)?;
+    direct::register(m)?;
     refit::register(m)?;
     Ok(())
 }

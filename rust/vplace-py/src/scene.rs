@@ -1,18 +1,19 @@
 //! `Scene`, `Light`, `Progress`, uniform VPLs, the evaluator and the metrics.
 
-use glam::Vec3;
+use glam::{Mat3, Vec3};
 use numpy::PyUntypedArrayMethods;
 use pyo3::prelude::*;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use vplace_core::{
+    emitters::{emitter_power, Emitter, EnvironmentMap},
     evaluator, metrics,
-    scene::{Light, LightKind, Scene},
+    scene::{Light, LightKind, Material, Scene, SceneInput},
     LUMINANCE,
 };
 
 use crate::arrays::{array, slice, Dim};
-use crate::errors::run;
+use crate::errors::{input_error, run, to_py};
 
 fn vec3(v: [f32; 3]) -> Vec3 {
     Vec3::from_array(v)
@@ -22,45 +23,107 @@ fn vec3s(s: &[f32]) -> Vec<Vec3> {
     s.chunks_exact(3).map(Vec3::from_slice).collect()
 }
 
-/// A light of the scene (see DESIGN, Coordinates and units). Build with the static methods.
+/// A light of the scene, in Blender's units (see DESIGN, Coordinates and units, and the core's
+/// `emitters` module). Build with the static methods; each checks its parameters.
 #[pyclass(name = "Light", module = "vplace._native", frozen)]
 #[derive(Clone)]
 pub struct PyLight {
     pub inner: Light,
 }
 
+/// Python's spelling of a bool.
+fn py_bool(b: bool) -> &'static str {
+    if b {
+        "True"
+    } else {
+        "False"
+    }
+}
+
+/// The light, or an `InputError` naming the bad parameter.
+fn checked_light(light: Light) -> PyResult<PyLight> {
+    light.validate_as("light").map_err(to_py)?;
+    Ok(PyLight { inner: light })
+}
+
+/// `(disk, square_or_round)` of an area light's `shape`: a bool (True: disk) or one of
+/// Blender's names.
+fn area_shape(shape: &Bound<'_, PyAny>) -> PyResult<(bool, bool)> {
+    if let Ok(disk) = shape.extract::<bool>() {
+        return Ok((disk, false));
+    }
+    let name: String = shape.extract().map_err(|_| {
+        input_error("shape must be 'rectangle', 'square', 'disk', 'ellipse' or a bool (True: disk)")
+    })?;
+    match name.to_ascii_lowercase().as_str() {
+        "rectangle" => Ok((false, false)),
+        "square" => Ok((false, true)),
+        "disk" => Ok((true, true)),
+        "ellipse" => Ok((true, false)),
+        other => Err(input_error(format!(
+            "shape must be 'rectangle', 'square', 'disk' or 'ellipse', got {other:?}"
+        ))),
+    }
+}
+
 #[pymethods]
 impl PyLight {
-    /// A POINT light (radius 0) of RGB power `power` watts.
+    /// A POINT light of RGB power `power` watts. `radius` is Blender's `shadow_soft_size`
+    /// (metres): with `soft_falloff` (Blender's default) a disk of that radius facing the
+    /// receiver, without it a sphere; 0 is a point.
     #[staticmethod]
-    fn point(position: [f32; 3], power: [f32; 3]) -> Self {
-        Self {
-            inner: Light::point(vec3(position), vec3(power)),
-        }
+    #[pyo3(signature = (position, power, radius=0.0, soft_falloff=true))]
+    fn point(
+        position: [f32; 3],
+        power: [f32; 3],
+        radius: f32,
+        soft_falloff: bool,
+    ) -> PyResult<Self> {
+        checked_light(Light::point(vec3(position), vec3(power)).with_radius(radius, soft_falloff))
     }
 
-    /// A SPOT light (blend 0) with cone half angle `half_angle` radians about `direction`.
+    /// A SPOT light with cone half angle `half_angle` radians (half of Blender's `spot_size`)
+    /// about `direction`, Blender's `spot_blend` `blend` in [0, 1], and the point light's
+    /// `radius` and `soft_falloff`.
     #[staticmethod]
-    fn spot(position: [f32; 3], direction: [f32; 3], half_angle: f32, power: [f32; 3]) -> Self {
-        Self {
-            inner: Light::spot(vec3(position), vec3(direction), half_angle, vec3(power)),
-        }
+    #[pyo3(signature = (position, direction, half_angle, power, blend=0.0, radius=0.0, soft_falloff=true))]
+    fn spot(
+        position: [f32; 3],
+        direction: [f32; 3],
+        half_angle: f32,
+        power: [f32; 3],
+        blend: f32,
+        radius: f32,
+        soft_falloff: bool,
+    ) -> PyResult<Self> {
+        checked_light(
+            Light::spot(vec3(position), vec3(direction), half_angle, vec3(power))
+                .with_blend(blend)
+                .with_radius(radius, soft_falloff),
+        )
     }
 
-    /// An AREA light emitting along `direction`; `size_x` along `tangent` (diameter of a disk).
+    /// An AREA light (normalize on) emitting along `direction`; `size_x` along `tangent`.
+    /// `shape` is 'rectangle', 'square', 'disk' or 'ellipse' (or a bool, True for a disk);
+    /// a square or a disk takes `size_x` for both sizes. `spread` is Blender's spread angle
+    /// in radians ([0, pi]; pi: a cosine emitter).
     #[staticmethod]
-    #[pyo3(signature = (position, direction, tangent, disk, size_x, size_y, power))]
+    #[pyo3(signature = (position, direction, tangent, shape, size_x, size_y, power, spread=std::f32::consts::PI))]
+    #[allow(clippy::too_many_arguments)]
     fn area(
         position: [f32; 3],
         direction: [f32; 3],
         tangent: [f32; 3],
-        disk: bool,
+        shape: &Bound<'_, PyAny>,
         size_x: f32,
         size_y: f32,
         power: [f32; 3],
-    ) -> Self {
-        Self {
-            inner: Light::area(
+        spread: f32,
+    ) -> PyResult<Self> {
+        let (disk, same) = area_shape(shape)?;
+        let size_y = if same { size_x } else { size_y };
+        checked_light(
+            Light::area(
                 vec3(position),
                 vec3(direction),
                 vec3(tangent),
@@ -68,38 +131,104 @@ impl PyLight {
                 size_x,
                 size_y,
                 vec3(power),
-            ),
-        }
+            )
+            .with_spread(spread),
+        )
     }
 
-    /// A SUN travelling along `direction` with RGB irradiance `irradiance` W/m^2.
+    /// A SUN travelling along `direction` with RGB irradiance `irradiance` W/m^2 (Blender's
+    /// strength) from a disk of directions of full angle `angle` radians (Blender's `angle`).
     #[staticmethod]
-    fn sun(direction: [f32; 3], irradiance: [f32; 3]) -> Self {
-        Self {
-            inner: Light::sun(vec3(direction), vec3(irradiance)),
-        }
+    #[pyo3(signature = (direction, irradiance, angle=0.0))]
+    fn sun(direction: [f32; 3], irradiance: [f32; 3], angle: f32) -> PyResult<Self> {
+        checked_light(Light::sun(vec3(direction), vec3(irradiance)).with_angle(angle))
     }
 
-    /// `"point"`, `"spot"`, `"area"` or `"sun"`.
+    /// The world: radiance `color * strength` (W/(m^2 sr), Blender's Background colour and
+    /// strength) from every direction, times `image` where given: an equirectangular float32
+    /// (H, W, 3) image, linear, row 0 at the top (+Z), Blender's Environment Texture
+    /// convention. `rotation` (3 x 3, rows) takes world directions to image directions (a
+    /// Mapping node's rotation matrix); None is the identity. The image is importance-sampled.
+    #[staticmethod]
+    #[pyo3(signature = (color=[1.0, 1.0, 1.0], strength=1.0, image=None, rotation=None))]
+    fn world(
+        py: Python<'_>,
+        color: [f32; 3],
+        strength: f32,
+        image: Option<&Bound<'_, PyAny>>,
+        rotation: Option<[[f32; 3]; 3]>,
+    ) -> PyResult<Self> {
+        let radiance = vec3(color) * strength;
+        if !strength.is_finite() {
+            return Err(input_error(format!(
+                "strength must be finite, got {strength}"
+            )));
+        }
+        let rotation =
+            rotation.map_or(Mat3::IDENTITY, |r| Mat3::from_cols_array_2d(&r).transpose());
+        let map = match image {
+            None => {
+                if rotation != Mat3::IDENTITY {
+                    // Checked all the same: a bad rotation is a mistake even without an image.
+                    EnvironmentMap::new(1, 1, &[1.0, 1.0, 1.0], rotation).map_err(to_py)?;
+                }
+                None
+            }
+            Some(img) => {
+                let a = array::<f32>(img, "image", &[Dim::Any, Dim::Any, Dim::Is(3)], "float32")?;
+                let (h, w) = (a.shape()[0], a.shape()[1]);
+                let data = slice(&a, "image")?.to_vec();
+                let m = run(py, move || EnvironmentMap::new(w, h, &data, rotation))?;
+                Some(Arc::new(m))
+            }
+        };
+        checked_light(Light::world(radiance, map))
+    }
+
+    /// `"point"`, `"spot"`, `"area"`, `"sun"` or `"world"`.
     #[getter]
     fn kind(&self) -> &'static str {
-        match self.inner.kind {
-            LightKind::Point => "point",
-            LightKind::Spot { .. } => "spot",
-            LightKind::Area { .. } => "area",
-            LightKind::Sun => "sun",
-        }
+        Emitter::Light(&self.inner).name()
     }
 
-    /// RGB power, watts (W/m^2 for a sun).
+    /// RGB power, watts (W/m^2 for a sun, radiance W/(m^2 sr) for the world).
     #[getter]
     fn power(&self) -> [f32; 3] {
         self.inner.power.to_array()
     }
 
     fn __repr__(&self) -> String {
+        let params = match &self.inner.kind {
+            LightKind::Point {
+                radius,
+                soft_falloff,
+            } => format!("radius={radius}, soft_falloff={}", py_bool(*soft_falloff)),
+            LightKind::Spot {
+                half_angle,
+                blend,
+                radius,
+                soft_falloff,
+            } => format!(
+                "half_angle={half_angle}, blend={blend}, radius={radius}, soft_falloff={}",
+                py_bool(*soft_falloff)
+            ),
+            LightKind::Area {
+                disk,
+                size_x,
+                size_y,
+                spread,
+            } => format!(
+                "shape={:?}, size=({size_x}, {size_y}), spread={spread}",
+                if *disk { "ellipse" } else { "rectangle" }
+            ),
+            LightKind::Sun { angle } => format!("angle={angle}"),
+            LightKind::World { map } => match map {
+                Some(m) => format!("image={}x{}", m.width(), m.height()),
+                None => "image=None".into(),
+            },
+        };
         format!(
-            "Light.{}(power={:?})",
+            "Light.{}(power={:?}, {params})",
             self.kind(),
             self.inner.power.to_array()
         )
@@ -115,9 +244,11 @@ pub struct PyScene {
 #[pymethods]
 impl PyScene {
     /// Builds the scene. `vertices` float32 (V, 3), `triangles` uint32 (T, 3),
-    /// `material_ids` uint32 (T,), `albedo` float32 (M, 3) in [0, 1], `lights` a list of Light.
+    /// `material_ids` uint32 (T,), `albedo` float32 (M, 3) in [0, 1], `lights` a list of Light;
+    /// `emission` float32 (M, 3), the radiance each material emits from both sides (W/(m^2 sr),
+    /// Blender's emission colour times strength), or None for none.
     #[new]
-    #[pyo3(signature = (vertices, triangles, material_ids, albedo, lights))]
+    #[pyo3(signature = (vertices, triangles, material_ids, albedo, lights, *, emission=None))]
     fn new(
         py: Python<'_>,
         vertices: &Bound<'_, PyAny>,
@@ -125,6 +256,7 @@ impl PyScene {
         material_ids: &Bound<'_, PyAny>,
         albedo: &Bound<'_, PyAny>,
         lights: Vec<Bound<'_, PyLight>>,
+        emission: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let v = array::<f32>(vertices, "vertices", &[Dim::Any, Dim::Is(3)], "float32")?;
         let t = array::<u32>(triangles, "triangles", &[Dim::Any, Dim::Is(3)], "uint32")?;
@@ -137,8 +269,29 @@ impl PyScene {
             .collect();
         let mats = slice(&m, "material_ids")?.to_vec();
         let alb = vec3s(slice(&a, "albedo")?);
-        let lights: Vec<Light> = lights.iter().map(|l| l.get().inner).collect();
-        let scene = run(py, move || Scene::build(&verts, &tris, &mats, &alb, lights))?;
+        let emit = match emission {
+            Some(e) => {
+                let dims = [Dim::Is(alb.len()), Dim::Is(3)];
+                let e = array::<f32>(e, "emission", &dims, "float32")?;
+                vec3s(slice(&e, "emission")?)
+            }
+            None => vec![Vec3::ZERO; alb.len()],
+        };
+        let materials: Vec<Material> = alb
+            .iter()
+            .zip(&emit)
+            .map(|(&a, &e)| Material::diffuse(a).with_emission(e))
+            .collect();
+        let lights: Vec<Light> = lights.iter().map(|l| l.get().inner.clone()).collect();
+        let scene = run(py, move || {
+            Scene::new(SceneInput {
+                vertices: &verts,
+                triangles: &tris,
+                material_ids: &mats,
+                materials: &materials,
+                lights,
+            })
+        })?;
         Ok(Self {
             inner: Arc::new(scene),
         })
@@ -154,6 +307,23 @@ impl PyScene {
     #[getter]
     fn light_count(&self) -> usize {
         self.inner.lights.len()
+    }
+
+    /// Number of triangles whose material emits.
+    #[getter]
+    fn emissive_triangle_count(&self) -> usize {
+        self.inner.emissive().len()
+    }
+
+    /// Every source of light with the power it emits into the scene: `(kind, [r, g, b])`, the
+    /// lights in order then `"emissive triangles"` when any (watts; a sun's and the world's
+    /// through the disk of the scene's bounding sphere).
+    fn emitted_powers(&self) -> Vec<(&'static str, [f32; 3])> {
+        self.inner
+            .emitters()
+            .into_iter()
+            .map(|e| (e.name(), emitter_power(e, &self.inner).to_array()))
+            .collect()
     }
 
     /// Number of zero-area triangles (kept; never hit).
@@ -184,9 +354,10 @@ impl PyScene {
 
     fn __repr__(&self) -> String {
         format!(
-            "Scene(triangles={}, lights={})",
+            "Scene(triangles={}, lights={}, emissive_triangles={})",
             self.inner.triangle_count(),
-            self.inner.lights.len()
+            self.inner.lights.len(),
+            self.inner.emissive().len()
         )
     }
 }

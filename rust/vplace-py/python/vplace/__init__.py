@@ -7,7 +7,9 @@ vplace.bench_layout``, ``bench_fit``, ``bench_par2d``) and the PAR 2D wrapper
 
 The pieces, in pipeline order:
 
-- :class:`Scene` (triangles, per-triangle albedo, :class:`Light` objects, a BVH) and
+- :class:`Scene` (triangles, per-material albedo and emission, :class:`Light` objects of
+  every Blender kind: point, spot, area, sun and the world with its environment image; a BVH)
+  and
   :class:`View` (one captured view: G-buffer, lighting passes, camera; checked once: a
   non-finite G-buffer value on a covered pixel is an :class:`InputError`, a non-finite lighting
   value masks the pixel and is counted in ``View.masked_pixels``). A view's ``indirect`` image
@@ -21,6 +23,8 @@ The pieces, in pipeline order:
   light, then iterations against every view's indirect image); :func:`refit` refits the VPL
   powers against every view at once (non-negative least squares); :func:`uniform_vpls` (Keller)
   and :func:`rsm_vpls` are the baselines.
+- :func:`direct_light` estimates every light source's direct light over a view's G-buffer
+  with shadow rays (irradiance / pi, what Cycles' DiffDir pass holds).
 - :func:`evaluate` renders a VPL set's indirect light over a view's G-buffer with shadow rays.
   A :class:`VplSet` carries its ``profile`` (``"cosine"``: AREA disk lights, ``"omni"``: POINT
   lights) and near-field ``radius``: exactly the lights the add-on writes.
@@ -34,6 +38,7 @@ from vplace import par2d as par2d
 from vplace._native import (
     LUMINANCE,
     MAX_BOUNCES,
+    MAX_DIRECT_SAMPLES,
     NEAR_FIELD_FRACTION,
     VPL_SURFACE_OFFSET,
     CancelledError,
@@ -50,6 +55,7 @@ from vplace._native import (
     VplaceError,
     VplSet,
     __version__,
+    direct_light,
     evaluate,
     extract_features,
     feature_registry,
@@ -67,6 +73,7 @@ from vplace._native import (
 __all__ = [
     "LUMINANCE",
     "MAX_BOUNCES",
+    "MAX_DIRECT_SAMPLES",
     "NEAR_FIELD_FRACTION",
     "VPL_SURFACE_OFFSET",
     "CancelledError",
@@ -83,6 +90,7 @@ __all__ = [
     "VplSet",
     "VplaceError",
     "__version__",
+    "direct_light",
     "evaluate",
     "extract_features",
     "feature_registry",

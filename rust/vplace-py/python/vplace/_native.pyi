@@ -26,21 +26,39 @@ _F32: TypeAlias = npt.NDArray[np.float32]
 @final
 class Light:
     @staticmethod
-    def point(position: _Vec3, power: _Vec3) -> Light: ...
+    def point(
+        position: _Vec3, power: _Vec3, radius: float = 0.0, soft_falloff: bool = True
+    ) -> Light: ...
     @staticmethod
-    def spot(position: _Vec3, direction: _Vec3, half_angle: float, power: _Vec3) -> Light: ...
+    def spot(
+        position: _Vec3,
+        direction: _Vec3,
+        half_angle: float,
+        power: _Vec3,
+        blend: float = 0.0,
+        radius: float = 0.0,
+        soft_falloff: bool = True,
+    ) -> Light: ...
     @staticmethod
     def area(
         position: _Vec3,
         direction: _Vec3,
         tangent: _Vec3,
-        disk: bool,
+        shape: bool | str,
         size_x: float,
         size_y: float,
         power: _Vec3,
+        spread: float = ...,
     ) -> Light: ...
     @staticmethod
-    def sun(direction: _Vec3, irradiance: _Vec3) -> Light: ...
+    def sun(direction: _Vec3, irradiance: _Vec3, angle: float = 0.0) -> Light: ...
+    @staticmethod
+    def world(
+        color: _Vec3 = ...,
+        strength: float = 1.0,
+        image: _F32 | None = None,
+        rotation: Sequence[Sequence[float]] | npt.NDArray[np.floating[Any]] | None = None,
+    ) -> Light: ...
     @property
     def kind(self) -> str: ...
     @property
@@ -55,11 +73,16 @@ class Scene:
         material_ids: npt.NDArray[np.uint32],
         albedo: _F32,
         lights: list[Light],
+        *,
+        emission: _F32 | None = None,
     ) -> Scene: ...
     @property
     def triangle_count(self) -> int: ...
     @property
     def light_count(self) -> int: ...
+    @property
+    def emissive_triangle_count(self) -> int: ...
+    def emitted_powers(self) -> list[tuple[str, list[float]]]: ...
     @property
     def degenerate_triangles(self) -> int: ...
     @property
@@ -400,3 +423,15 @@ def refit(
     ridge: float = 0.1,
     progress: Progress | None = None,
 ) -> Refit: ...
+
+# --- the direct-light estimator (direct.rs) -----------------------------------------------
+MAX_DIRECT_SAMPLES: int
+
+def direct_light(
+    scene: Scene,
+    view: View,
+    *,
+    samples: int = 64,
+    seed: int = 0,
+    progress: Progress | None = None,
+) -> _F32: ...
