@@ -391,10 +391,13 @@ impl ShadowNode {
             ..CwBvhNode::default()
         }
         .get_child_and_index_bits(oct_inv4);
+        // The slabs' near side follows the sign of `inv_direction`, which obvhs takes from
+        // the direction's sign bit: a -0.0 component (a sun straight down, negated) has a
+        // negative inverse although `-0.0 < 0.0` is false.
         let neg = [
-            ray.direction.x < 0.0,
-            ray.direction.y < 0.0,
-            ray.direction.z < 0.0,
+            ray.inv_direction.x < 0.0,
+            ray.inv_direction.y < 0.0,
+            ray.inv_direction.z < 0.0,
         ];
         let mut hit_mask = 0u32;
         for i in 0..2 {
@@ -928,5 +931,27 @@ mod tests {
             }
         }
         assert!(blocked > 500 && open > 500, "{blocked} {open}");
+    }
+
+    #[test]
+    fn axis_rays_with_negative_zero_components_are_blocked() {
+        // The negated direction of a sun straight down is (-0, -0, 1): the ceiling blocks it
+        // as it blocks (0, 0, 1), whatever the signs of the zeros.
+        let s = closed_box(vec![]);
+        let mut state = s.shadow_state();
+        for x in [0.0f32, -0.0] {
+            for y in [0.0f32, -0.0] {
+                let up = Ray::new(Vec3A::new(0.1, -0.05, 0.5), Vec3A::new(x, y, 1.0), 0.0, 9.0);
+                assert!(s.occluded_ray(&mut state, &up), "{x} {y}");
+                assert!(s.occluded_ray_brute_force(&up), "{x} {y}");
+                let down = Ray::new(
+                    Vec3A::new(0.1, -0.05, 0.5),
+                    Vec3A::new(x, y, -1.0),
+                    0.0,
+                    9.0,
+                );
+                assert!(s.occluded_ray(&mut state, &down), "{x} {y}");
+            }
+        }
     }
 }
