@@ -2,8 +2,12 @@
 
 Triangles in world space with a material id each; materials reduced to what the core shades
 (diffuse albedo = base colour x (1 - metallic), the mean texture colour where the base colour is
-textured; roughness; metallic; emission); lights with their effective RGB power; the camera.
-The VPLs that vplace wrote itself (objects marked ``vplace_vpl``) are never exported.
+textured; roughness; metallic; emission: an Emission shader's or the Principled BSDF's colour x
+strength, radiance from both sides); lights with their effective RGB power and every parameter
+Cycles renders them with (point and spot radius and soft falloff, spot size and blend, area
+shape, sizes and spread, sun angle); the world's light (``world.py``: a colour, an environment
+image with its rotation, or a baked node setup); the camera. The VPLs that vplace wrote itself
+(objects marked ``vplace_vpl``) are never exported.
 """
 
 from __future__ import annotations
@@ -19,8 +23,16 @@ import bpy
 import numpy as np
 
 from .errors import ExportError
+from .world import WorldInfo, world_info
 
-__all__ = ["ExportError", "ExportedScene", "export_scene", "light_info", "material_info"]
+__all__ = [
+    "ExportError",
+    "ExportedScene",
+    "WorldInfo",
+    "export_scene",
+    "light_info",
+    "material_info",
+]
 
 #: Custom property that marks the objects and the collection vplace writes.
 VPL_MARKER = "vplace_vpl"
@@ -50,11 +62,15 @@ class LightInfo:
     direction: tuple[float, float, float]  # emission axis: the light's local -Z
     tangent: tuple[float, float, float]  # the light's local +X
     power: tuple[float, float, float]  # W per channel (W/m^2 for SUN)
-    radius: float = 0.0
+    radius: float = 0.0  # POINT, SPOT: Blender's shadow_soft_size
     spot_half_angle: float = math.pi
-    area_disk: bool = False
+    area_disk: bool = False  # AREA: DISK or ELLIPSE (sizes size_x x size_y)
     size_x: float = 0.0
     size_y: float = 0.0
+    soft_falloff: bool = True  # POINT, SPOT: Blender's use_soft_falloff
+    spot_blend: float = 0.0
+    spread: float = math.pi  # AREA
+    angle: float = 0.0  # SUN: the full angle of its disk
 
 
 @dataclass
@@ -80,11 +96,29 @@ class ExportedScene:
     camera: CameraInfo | None
     world_color: tuple[float, float, float] = (0.0, 0.0, 0.0)
     objects: list[str] = field(default_factory=list)
+    #: The world's light (None without a world).
+    world: WorldInfo | None = None
+    #: What the export approximated, in words (a baked world, an unreadable image, ...).
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def albedo(self) -> np.ndarray:
         """(M, 3) float32 diffuse albedo per material."""
         return np.array([m.albedo for m in self.materials], dtype=np.float32).reshape(-1, 3)
+
+    @property
+    def emission(self) -> np.ndarray:
+        """(M, 3) float32 emitted radiance per material (W/(m^2 sr), both sides)."""
+        e = np.array([m.emission for m in self.materials], dtype=np.float32).reshape(-1, 3)
+        return np.ascontiguousarray(np.maximum(e, 0.0))
+
+    def emitters(self) -> list[str]:
+        """What sends light, in words: lights with power, the world, emissive materials."""
+        out = [f"light {light.name!r}" for light in self.lights if max(light.power) > 0.0]
+        if self.world is not None and self.world.emits:
+            out.append(f"world {self.world.name!r}")
+        out += [f"material {m.name!r}" for m in self.materials if max(m.emission) > 0.0]
+        return out
 
     def fingerprint(self) -> str:
         """A hash of everything that changes a render of this scene (for capture caches)."""
@@ -94,6 +128,8 @@ class ExportedScene:
         h.update(repr([vars(m) for m in self.materials]).encode())
         h.update(repr([vars(light) for light in self.lights]).encode())
         h.update(repr(self.world_color).encode())
+        if self.world is not None:
+            h.update(self.world.fingerprint())
         return h.hexdigest()
 
 
@@ -200,18 +236,22 @@ def light_info(name: str, light: bpy.types.Light, matrix: Any) -> LightInfo:
         tuple(power),  # type: ignore[arg-type]
         radius=float(getattr(light, "shadow_soft_size", 0.0)),
     )
+    if light.type in {"POINT", "SPOT"}:
+        info.soft_falloff = bool(getattr(light, "use_soft_falloff", True))
     if light.type == "SPOT":
         info.spot_half_angle = float(light.spot_size) / 2.0
+        info.spot_blend = float(light.spot_blend)
     elif light.type == "AREA":
         info.area_disk = light.shape in {"DISK", "ELLIPSE"}
         sx = light.size * scale_x
         sy = (light.size_y if light.shape in {"RECTANGLE", "ELLIPSE"} else light.size) * scale_y
-        if info.area_disk:
-            sx = sy = math.sqrt(sx * sy)  # an ellipse becomes the disk of the same area
         info.size_x, info.size_y = sx, sy
+        info.spread = float(getattr(light, "spread", math.pi))
         if not light.normalize:
-            area = math.pi * sx * sx / 4.0 if info.area_disk else sx * sy
+            area = math.pi * sx * sy / 4.0 if info.area_disk else sx * sy
             info.power = tuple(p * area for p in info.power)  # type: ignore[assignment]
+    elif light.type == "SUN":
+        info.angle = float(getattr(light, "angle", 0.0))
     return info
 
 
@@ -231,22 +271,6 @@ def evaluated_mesh(obj: bpy.types.Object) -> Iterator[bpy.types.Mesh | None]:
 def _is_vpl(obj: bpy.types.Object) -> bool:
     original = obj.original if obj.original is not None else obj
     return bool(original.get(VPL_MARKER, False))
-
-
-def _world_color(world: bpy.types.World | None) -> tuple[float, float, float]:
-    """The world's uniform background radiance (colour x strength); black without a world.
-
-    Only a plain Background node is read; a textured world gives its node's default colour.
-    """
-    if world is None:
-        return (0.0, 0.0, 0.0)
-    tree = world.node_tree
-    bg = next((n for n in tree.nodes if n.type == "BACKGROUND"), None) if tree else None
-    if bg is None:
-        return (float(world.color[0]), float(world.color[1]), float(world.color[2]))
-    c = bg.inputs["Color"].default_value
-    s = float(bg.inputs["Strength"].default_value)
-    return (c[0] * s, c[1] * s, c[2] * s)
 
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES"}
@@ -332,7 +356,8 @@ def export_scene(
             cam.data.sensor_width,
             (int(r.resolution_x * scale), int(r.resolution_y * scale)),
         )
-    world_color = _world_color(scene.world)
+    world = world_info(scene.world)
+    world_color = world.mean_color if world is not None else (0.0, 0.0, 0.0)
     return ExportedScene(
         np.concatenate(verts).astype(np.float32),
         np.concatenate(tris).astype(np.uint32),
@@ -342,4 +367,6 @@ def export_scene(
         camera,
         world_color,
         names,
+        world,
+        list(world.warnings) if world is not None else [],
     )

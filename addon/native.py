@@ -15,40 +15,66 @@ import vplace.bench_par2d as bench_par2d
 
 if TYPE_CHECKING:
     from .capture import Capture
-    from .export import ExportedScene, LightInfo
+    from .export import ExportedScene, LightInfo, WorldInfo
 
-__all__ = ["bench_par2d", "build_scene", "native_light", "view_of", "vplace"]
+__all__ = ["bench_par2d", "build_scene", "native_light", "native_world", "view_of", "vplace"]
 
 
 def native_light(info: LightInfo) -> vplace.Light:
-    """The core light for an exported Blender light."""
+    """The core light for an exported Blender light, with every parameter Cycles uses."""
     if info.type == "POINT":
-        return vplace.Light.point(info.position, info.power)
+        return vplace.Light.point(
+            info.position, info.power, radius=info.radius, soft_falloff=info.soft_falloff
+        )
     if info.type == "SPOT":
-        return vplace.Light.spot(info.position, info.direction, info.spot_half_angle, info.power)
+        return vplace.Light.spot(
+            info.position,
+            info.direction,
+            info.spot_half_angle,
+            info.power,
+            blend=info.spot_blend,
+            radius=info.radius,
+            soft_falloff=info.soft_falloff,
+        )
     if info.type == "AREA":
         return vplace.Light.area(
             info.position,
             info.direction,
             info.tangent,
-            info.area_disk,
+            "ellipse" if info.area_disk else "rectangle",
             info.size_x,
             info.size_y,
             info.power,
+            spread=info.spread,
         )
     if info.type == "SUN":
-        return vplace.Light.sun(info.direction, info.power)
+        return vplace.Light.sun(info.direction, info.power, angle=info.angle)
     raise vplace.InputError(f"light {info.name!r} has an unsupported type {info.type!r}")
 
 
+def native_world(info: WorldInfo) -> vplace.Light:
+    """The core's world light for an exported Blender world."""
+    return vplace.Light.world(
+        info.color,
+        1.0,
+        image=info.image,
+        rotation=None if info.rotation is None else info.rotation.tolist(),
+    )
+
+
 def build_scene(exported: ExportedScene) -> vplace.Scene:
-    """A ``vplace.Scene`` (with its BVH) from an exported Blender scene."""
+    """A ``vplace.Scene`` (with its BVH) from an exported Blender scene: its lights, its world
+    when that sends light, its materials' emission."""
+    lights = [native_light(light) for light in exported.lights]
+    if exported.world is not None and exported.world.emits:
+        lights.append(native_world(exported.world))
     return vplace.Scene(
         exported.vertices,
         exported.triangles,
         exported.material_ids,
         exported.albedo,
-        [native_light(light) for light in exported.lights],
+        lights,
+        emission=exported.emission,
     )
 
 

@@ -163,14 +163,19 @@ class Prepared:
 
 
 def check_lights(exported: export.ExportedScene) -> None:
-    """Refuses a scene whose lights cannot make VPLs."""
-    if not exported.lights:
+    """Refuses a scene where nothing emits light: no light with power, a black world (or none)
+    and no emissive material. A scene lit by the world or by emissive meshes alone is fine."""
+    if exported.emitters():
+        return
+    if exported.lights:
         raise ExportError(
-            "the scene has no lights that render: VPLs are traced from light objects "
-            "(emissive meshes are not light sources for vplace yet)"
+            "every light has zero power, the world is black and no material emits: "
+            "there is no light to bounce"
         )
-    if all(max(light.power) <= 0.0 for light in exported.lights):
-        raise ExportError("every light has zero power: there is no light to bounce")
+    raise ExportError(
+        "the scene has no lights that render: no light object, a black world and no emissive "
+        "material (add a light, a world colour or texture, or an Emission shader)"
+    )
 
 
 def prepare(
@@ -189,6 +194,8 @@ def prepare(
     job.validate()
     with timer.stage("export scene"):
         exported = export.export_scene(bl_scene)
+    for warning in exported.warnings:
+        timer.log(f"[vplace] warning: {warning}")
     check_lights(exported)
     with timer.stage("build BVH"):
         scene = build_scene(exported)

@@ -57,6 +57,41 @@ def test_mesh_with_nan_vertices(scene):
     fails_cleanly("'broken' has vertices with NaN")
 
 
+def light_by_world_only(scene):
+    bpy.data.objects["light"].hide_render = True
+    world = bpy.data.worlds.new("sky")
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.5, 0.6, 0.9, 1.0)
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 2.0
+    scene.world = world
+
+
+def light_by_emissive_mesh_only(scene):
+    bpy.data.objects["light"].hide_render = True
+    panel = add_mesh(
+        scene,
+        "panel",
+        [(-0.25, -0.2, 1.95), (0.25, -0.2, 1.95), (0.25, 0.2, 1.95), (-0.25, 0.2, 1.95)],
+        [(0, 3, 2, 1)],  # facing down
+    )
+    mat = bpy.data.materials.new("glow")
+    nodes = mat.node_tree.nodes
+    nodes.remove(nodes["Principled BSDF"])
+    emission = nodes.new("ShaderNodeEmission")
+    emission.inputs["Strength"].default_value = 20.0
+    mat.node_tree.links.new(emission.outputs[0], nodes["Material Output"].inputs["Surface"])
+    panel.data.materials.append(mat)
+
+
+@pytest.mark.parametrize("light_by", [light_by_world_only, light_by_emissive_mesh_only])
+def test_lit_without_light_objects(scene, light_by):
+    light_by(scene)
+    bpy.context.view_layer.update()
+    assert bpy.ops.vplace.apply() == {"FINISHED"}
+    report = scene.vplace.report()
+    assert len(apply.find_collection().objects) == report["lights_written"] > 0
+    assert report["metrics"]["rmse"] > 0
+
+
 def test_zero_area_faces_are_harmless(scene):
     add_mesh(scene, "flat", [(0, 0, 1), (0.1, 0, 1), (0.2, 0, 1)], [(0, 1, 2)])
     assert bpy.ops.vplace.apply() == {"FINISHED"}

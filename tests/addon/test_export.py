@@ -73,3 +73,27 @@ def test_bad_scenes_give_clear_errors():
     bpy.context.scene.collection.objects.link(bpy.data.objects.new("broken", mesh))
     with pytest.raises(export.ExportError, match="'broken' has vertices with NaN"):
         export.export_scene(bpy.context.scene)
+
+
+def test_emissive_materials_and_what_emits():
+    from addon.errors import ExportError
+    from addon.pipeline import check_lights
+
+    scene = cornell()
+    bpy.data.objects["light"].hide_render = True
+    ex = export.export_scene(scene)
+    assert ex.lights == [] and ex.emitters() == []
+    with pytest.raises(ExportError, match="no lights that render"):
+        check_lights(ex)
+    # A Principled BSDF's emission colour x strength, for both an Emission shader and it.
+    mat = bpy.data.materials["floor"]
+    p = mat.node_tree.nodes["Principled BSDF"]
+    p.inputs["Emission Color"].default_value = (1.0, 0.5, 0.25, 1.0)
+    p.inputs["Emission Strength"].default_value = 4.0
+    ex = export.export_scene(scene)
+    (floor,) = [m for m in ex.materials if m.name == "floor"]
+    np.testing.assert_allclose(floor.emission, (4.0, 2.0, 1.0))
+    assert ex.emission.shape == (len(ex.materials), 3) and ex.emitters() == ["material 'floor'"]
+    check_lights(ex)
+    native = build_scene(ex)
+    assert native.light_count == 0 and native.emissive_triangle_count > 0
