@@ -840,6 +840,7 @@ mod tests {
                 material_ids: &[0, 0, 1, 1],
                 materials: &mats,
                 lights: vec![],
+                ..Default::default()
             })
             .unwrap();
             assert_eq!(s.emissive().len(), 2);

@@ -59,6 +59,7 @@ pub mod shading;
 mod shadow_cache;
 #[cfg(any(test, feature = "test-util"))]
 pub mod test_util;
+pub mod texture;
 pub mod view;
 pub mod vpl;
 

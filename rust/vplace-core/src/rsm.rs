@@ -134,7 +134,7 @@ pub fn rsm_vpls(scene: &Scene, n: usize) -> Result<Vec<Vpl>> {
                 out.push(Vpl {
                     position: origin + dir * h.t + normal * offset,
                     normal,
-                    flux: per_ray * weight * scene.albedo(h.triangle),
+                    flux: per_ray * weight * scene.albedo_at(h.triangle, h.barycentrics),
                 });
             }
         }

@@ -1,7 +1,17 @@
 //! The scene model: world-space triangles with per-triangle albedo, the scene's lights, and an
 //! obvhs compressed-wide BVH for closest-hit and shadow rays.
+//!
+//! **Materials.** A [`Material`] is diffuse: its albedo is a constant, or, with a base-colour
+//! [`TextureRef`], `albedo + texture_tint * rgb(texture at the hit's UV)` (clamped to
+//! `[0, 1]`; [`Scene::albedo_at`]). UVs come per triangle corner ([`SceneInput::uvs`]) and are
+//! interpolated with the hit's barycentric coordinates ([`Hit::barycentrics`]). A material with
+//! an [`AlphaTest`] is cut where its alpha is below the cutoff: closest-hit queries
+//! ([`Scene::closest_hit`], so light paths and the RSM rays) and shadow rays
+//! ([`Scene::occluded`] and the evaluator's batched rays) pass through it there, an any-hit
+//! filter in the traversal. A scene without any texture or alpha test keeps no per-hit material
+//! data at all and traverses exactly as before.
 
-use glam::{UVec2, Vec3, Vec3A};
+use glam::{UVec2, Vec2, Vec3, Vec3A};
 use obvhs::{
     cwbvh::{
         builder::build_cwbvh_from_tris,
@@ -18,6 +28,7 @@ use std::time::Duration;
 use crate::emitters::{EmissiveMesh, EnvironmentMap};
 use crate::error::{check_finite, Result, VplaceError};
 use crate::shading::NEAR_FIELD_FRACTION;
+use crate::texture::{AlphaTest, Texture, TextureRef};
 
 /// obvhs's `medium_build` with the full PLOC search distance from the first pass
 /// (`search_depth_threshold: 0`; the preset uses distance 1 for the first 3 passes). On rooms of
@@ -489,6 +500,9 @@ pub struct Hit {
     pub t: f32,
     /// Index into the triangles passed to [`Scene::build`].
     pub triangle: u32,
+    /// Barycentric coordinates `(b1, b2)` of the hit: the weights of the triangle's second and
+    /// third vertex (the first has `1 - b1 - b2`), each in `[0, 1]` up to rounding.
+    pub barycentrics: Vec2,
 }
 
 /// Triangles, materials and lights with a BVH over the triangles.
@@ -515,6 +529,43 @@ pub struct Scene {
     pub degenerate_triangles: usize,
     /// The triangles whose material emits, sampled by power ([`crate::emitters`]).
     emissive: EmissiveMesh,
+    /// Textures, UVs and alpha tests; `None` when no material has a texture or an alpha test
+    /// (then nothing per hit is looked up).
+    surfaces: Option<Box<Surfaces>>,
+}
+
+/// What textured and alpha-tested materials need at a hit.
+struct Surfaces {
+    textures: Vec<Texture>,
+    materials: Vec<Material>,
+    /// Material of each original triangle.
+    triangle_material: Vec<u32>,
+    /// UV of each corner of each original triangle (zero when the input had none and no
+    /// material reads a texture).
+    uvs: Vec<[Vec2; 3]>,
+    /// Per triangle in BVH leaf order: the material's index when it is alpha-tested, else
+    /// [`Surfaces::OPAQUE`]. Empty when no material is alpha-tested.
+    bvh_alpha: Vec<u32>,
+}
+
+impl Surfaces {
+    const OPAQUE: u32 = u32::MAX;
+
+    /// The UV at barycentrics `b` of original triangle `t`.
+    #[inline]
+    fn uv(&self, t: u32, b: Vec2) -> Vec2 {
+        let [a, p, q] = self.uvs[t as usize];
+        a * (1.0 - b.x - b.y) + p * b.x + q * b.y
+    }
+
+    /// The textured albedo at `b` of triangle `t`, `None` for a constant material.
+    #[inline]
+    fn albedo_at(&self, t: u32, b: Vec2) -> Option<Vec3> {
+        let m = &self.materials[self.triangle_material[t as usize] as usize];
+        let map = m.texture.as_ref()?;
+        let rgb = map.sample(&self.textures, self.uv(t, b)).truncate();
+        Some((m.albedo + m.texture_tint * rgb).clamp(Vec3::ZERO, Vec3::ONE))
+    }
 }
 
 impl std::fmt::Debug for Scene {
@@ -531,11 +582,19 @@ impl std::fmt::Debug for Scene {
 /// The surface of one material.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Material {
-    /// Diffuse albedo, every channel in `[0, 1]`.
+    /// Diffuse albedo, every channel in `[0, 1]`; with a `texture`, the constant that the
+    /// tinted texture is added to.
     pub albedo: Vec3,
     /// Emitted radiance, W/(m^2 sr) per channel, finite and `>= 0`, from both sides of the
     /// surface (Blender's Emission shader or Principled emission: colour times strength).
     pub emission: Vec3,
+    /// A base-colour texture: the albedo at a hit is `albedo + texture_tint * rgb`, clamped to
+    /// `[0, 1]` ([`Scene::albedo_at`]).
+    pub texture: Option<TextureRef>,
+    /// Multiplies the texture's RGB; finite, `>= 0`.
+    pub texture_tint: Vec3,
+    /// Where the surface is cut away for every ray ([`AlphaTest`]); `None`: opaque.
+    pub alpha_test: Option<AlphaTest>,
 }
 
 impl Material {
@@ -545,6 +604,9 @@ impl Material {
         Self {
             albedo,
             emission: Vec3::ZERO,
+            texture: None,
+            texture_tint: Vec3::ONE,
+            alpha_test: None,
         }
     }
 
@@ -554,10 +616,72 @@ impl Material {
         self.emission = radiance;
         self
     }
+
+    /// A diffuse material whose albedo is the texture `map` (times `tint`).
+    #[must_use]
+    pub const fn textured(map: TextureRef, tint: Vec3) -> Self {
+        Self {
+            albedo: Vec3::ZERO,
+            emission: Vec3::ZERO,
+            texture: Some(map),
+            texture_tint: tint,
+            alpha_test: None,
+        }
+    }
+
+    /// True when hits need the material's UVs (a texture or a textured alpha test).
+    #[must_use]
+    pub fn reads_uvs(&self) -> bool {
+        self.texture.is_some() || self.alpha_test.is_some_and(|a| a.texture.is_some())
+    }
+
+    /// Checks the texture references and values; `index` names the material in errors.
+    fn validate(&self, index: usize, textures: usize) -> Result<()> {
+        let what = format!("materials[{index}]");
+        let mut refs = Vec::new();
+        if let Some(map) = &self.texture {
+            refs.push(("texture", *map));
+            check_finite(
+                &format!("{what}.texture_tint"),
+                &self.texture_tint.to_array(),
+            )?;
+            if self.texture_tint.min_element() < 0.0 {
+                return Err(VplaceError::OutOfRange {
+                    what: format!("{what}.texture_tint"),
+                    value: format!("{:?}", self.texture_tint.to_array()),
+                    expected: "every channel >= 0".into(),
+                });
+            }
+        }
+        if let Some(a) = &self.alpha_test {
+            check_finite(
+                &format!("{what}.alpha_test"),
+                &[a.offset, a.scale, a.cutoff],
+            )?;
+            if let Some(map) = &a.texture {
+                refs.push(("alpha_test.texture", *map));
+            }
+        }
+        for (name, map) in refs {
+            if map.texture as usize >= textures {
+                return Err(VplaceError::IndexOutOfBounds {
+                    what: format!("{what}.{name}"),
+                    index: map.texture as usize,
+                    len: textures,
+                });
+            }
+            let flat = [map.uv_scale.to_array(), map.uv_offset.to_array()].concat();
+            check_finite(&format!("{what}.{name} UV transform"), &flat)?;
+        }
+        Ok(())
+    }
 }
 
 /// What a [`Scene`] is built from: indexed triangles, one material per triangle, lights.
-#[derive(Debug, Clone)]
+///
+/// `SceneInput { vertices, triangles, material_ids, materials, ..Default::default() }` leaves
+/// out everything optional.
+#[derive(Debug, Clone, Default)]
 pub struct SceneInput<'a> {
     /// Vertex positions, world space.
     pub vertices: &'a [Vec3],
@@ -569,6 +693,11 @@ pub struct SceneInput<'a> {
     pub materials: &'a [Material],
     /// The lights.
     pub lights: Vec<Light>,
+    /// UV of each corner of each triangle (same order as `triangles`); required when a
+    /// material reads a texture.
+    pub uvs: Option<&'a [[Vec2; 3]]>,
+    /// The textures the materials refer to by index.
+    pub textures: Vec<Texture>,
 }
 
 impl Scene {
@@ -588,6 +717,7 @@ impl Scene {
             material_ids,
             materials: &materials,
             lights,
+            ..Default::default()
         })
     }
 
@@ -595,7 +725,9 @@ impl Scene {
     ///
     /// Errors: no triangles, or only zero-area ones; a material id or vertex index out of
     /// range; no materials; non-finite vertices; an albedo outside `[0, 1]`; a non-finite or
-    /// negative emission; an invalid light.
+    /// negative emission; an invalid light; a texture index out of range, a negative or
+    /// non-finite tint, a non-finite UV, UV transform or alpha test; UVs of the wrong length,
+    /// or none while a material reads a texture.
     pub fn new(input: SceneInput<'_>) -> Result<Self> {
         let SceneInput {
             vertices,
@@ -603,6 +735,8 @@ impl Scene {
             material_ids,
             materials,
             lights,
+            uvs,
+            textures,
         } = input;
         if triangles.is_empty() {
             return Err(VplaceError::Empty {
@@ -637,6 +771,33 @@ impl Scene {
         for (i, l) in lights.iter().enumerate() {
             l.validate(i)?;
         }
+        for (i, m) in materials.iter().enumerate() {
+            m.validate(i, textures.len())?;
+        }
+        if let Some(uv) = uvs {
+            if uv.len() != triangles.len() {
+                return Err(VplaceError::Shape {
+                    what: "uvs".into(),
+                    expected: format!("({}, 3, 2) (one UV per triangle corner)", triangles.len()),
+                    got: format!("({}, 3, 2)", uv.len()),
+                });
+            }
+            let corners = uv.iter().flatten();
+            if let Some(i) = corners
+                .flat_map(|c| c.to_array())
+                .position(|x| !x.is_finite())
+            {
+                return Err(VplaceError::NonFinite {
+                    what: "uvs".into(),
+                    index: i,
+                });
+            }
+        } else if let Some(i) = materials.iter().position(Material::reads_uvs) {
+            return Err(VplaceError::Invalid {
+                what: format!("materials[{i}]"),
+                reason: "it reads a texture, but the scene has no UVs: pass uvs".into(),
+            });
+        }
         let nv = vertices.len();
         let mut tris = Vec::with_capacity(triangles.len());
         let mut normals = Vec::with_capacity(triangles.len());
@@ -670,7 +831,7 @@ impl Scene {
                 hi = hi.max(p);
             }
             normals.push(n.normalize_or_zero());
-            triangle_albedo.push(materials[m as usize].albedo);
+            triangle_albedo.push(mean_albedo(&materials[m as usize], &textures));
             tris.push(Triangle {
                 v0: a.into(),
                 v1: b.into(),
@@ -688,6 +849,7 @@ impl Scene {
         let shadow = ShadowBvh::new(&bvh);
         let bvh_ids = bvh.primitive_indices.clone();
         let bvh_triangles = bvh_ids.iter().map(|&i| tris[i as usize]).collect();
+        let surfaces = Surfaces::new(materials, material_ids, uvs, textures, &bvh_ids);
         Ok(Self {
             bvh_triangles,
             bvh_ids,
@@ -700,6 +862,7 @@ impl Scene {
             bounds_max: hi,
             degenerate_triangles: degenerate,
             emissive,
+            surfaces,
         })
     }
 
@@ -752,31 +915,105 @@ impl Scene {
         self.normals[t as usize]
     }
 
-    /// Albedo of triangle `t`.
+    /// Albedo of triangle `t`: its material's constant albedo, or for a textured material the
+    /// albedo of the texture's mean colour (see [`Scene::albedo_at`] for the albedo at a point).
     #[must_use]
     pub fn albedo(&self, t: u32) -> Vec3 {
         self.triangle_albedo[t as usize]
     }
 
+    /// Albedo of triangle `t` at barycentrics `b` (see [`Hit::barycentrics`]): the material's
+    /// texture at the interpolated UV (`albedo + tint * rgb`, clamped to `[0, 1]`), or its
+    /// constant albedo. The albedo the light paths, the RSM and the layout's off-screen emitters
+    /// reflect with.
+    #[inline]
+    #[must_use]
+    pub fn albedo_at(&self, t: u32, b: Vec2) -> Vec3 {
+        if let Some(s) = &self.surfaces {
+            if let Some(a) = s.albedo_at(t, b) {
+                return a;
+            }
+        }
+        self.triangle_albedo[t as usize]
+    }
+
+    /// The UV at barycentrics `b` of triangle `t`; `None` when the scene has no UVs (no
+    /// material reads a texture).
+    #[must_use]
+    pub fn uv_at(&self, t: u32, b: Vec2) -> Option<Vec2> {
+        self.surfaces
+            .as_ref()
+            .filter(|s| !s.uvs.is_empty())
+            .map(|s| s.uv(t, b))
+    }
+
+    /// Number of textures.
+    #[must_use]
+    pub fn texture_count(&self) -> usize {
+        self.surfaces.as_ref().map_or(0, |s| s.textures.len())
+    }
+
+    /// True when some material is alpha-tested (rays then run the any-hit filter).
+    #[must_use]
+    pub fn has_alpha_tests(&self) -> bool {
+        self.surfaces
+            .as_ref()
+            .is_some_and(|s| !s.bvh_alpha.is_empty())
+    }
+
+    /// True when `ray`, meeting BVH-order triangle `i` at distance `ray.tmax`, passes through
+    /// it: its material is alpha-tested and cut at the hit. `s` is `self.surfaces`.
+    #[inline]
+    fn cut(&self, s: &Surfaces, i: usize, ray: &Ray) -> bool {
+        let m = s.bvh_alpha[i];
+        if m == Surfaces::OPAQUE {
+            return false;
+        }
+        let Some(test) = &s.materials[m as usize].alpha_test else {
+            return false;
+        };
+        let b = barycentrics(&self.bvh_triangles[i], ray);
+        test.cut(&s.textures, s.uv(self.bvh_ids[i], b))
+    }
+
+    /// The alpha-test data when some material is alpha-tested.
+    #[inline(always)]
+    fn alpha_surfaces(&self) -> Option<&Surfaces> {
+        self.surfaces.as_deref().filter(|s| !s.bvh_alpha.is_empty())
+    }
+
     /// Closest hit along `origin + t * dir` for `t` in `(tmin, tmax)`; `dir` must be unit length.
+    /// Alpha-tested surfaces are skipped where they are cut.
     #[must_use]
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
         let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), tmin, tmax);
         let mut hit = RayHit::none();
-        if self
-            .bvh
-            .ray_traverse(ray, &mut hit, |r, id| self.bvh_triangles[id].intersect(r))
-        {
-            Some(Hit {
+        let found = match self.alpha_surfaces() {
+            None => self
+                .bvh
+                .ray_traverse(ray, &mut hit, |r, id| self.bvh_triangles[id].intersect(r)),
+            Some(s) => self.bvh.ray_traverse(ray, &mut hit, |r, id| {
+                let t = self.bvh_triangles[id].intersect(r);
+                if t < r.tmax && self.cut(s, id, &Ray { tmax: t, ..*r }) {
+                    f32::INFINITY
+                } else {
+                    t
+                }
+            }),
+        };
+        found.then(|| {
+            let i = hit.primitive_id as usize;
+            let at = Ray { tmax: hit.t, ..ray };
+            Hit {
                 t: hit.t,
-                triangle: self.bvh_ids[hit.primitive_id as usize],
-            })
-        } else {
-            None
-        }
+                triangle: self.bvh_ids[i],
+                barycentrics: barycentrics(&self.bvh_triangles[i], &at),
+            }
+        })
     }
 
-    /// True when any triangle lies on the open segment from `from` to `to` (an any-hit shadow ray).
+    /// True when any triangle lies on the open segment from `from` to `to` (an any-hit shadow ray),
+    /// alpha-tested surfaces counting only where they are not cut.
     /// The caller offsets both ends off their surfaces.
     #[must_use]
     pub fn occluded(&self, from: Vec3, to: Vec3) -> bool {
@@ -799,6 +1036,20 @@ impl Scene {
     /// segment's length), with a reused traversal state: the same answer as `occluded`.
     #[inline]
     pub(crate) fn occluded_ray(&self, state: &mut Traversal, ray: &Ray) -> bool {
+        match self.alpha_surfaces() {
+            None => self.occluded_ray_with::<false>(state, ray, None),
+            Some(s) => self.occluded_ray_with::<true>(state, ray, Some(s)),
+        }
+    }
+
+    /// [`Scene::occluded_ray`] with (`ALPHA`) or without the alpha-test filter at each hit.
+    #[inline(always)]
+    fn occluded_ray_with<const ALPHA: bool>(
+        &self,
+        state: &mut Traversal,
+        ray: &Ray,
+        surfaces: Option<&Surfaces>,
+    ) -> bool {
         state.reinit(ray.direction);
         let mut node;
         let mut hit = false;
@@ -809,10 +1060,15 @@ impl Scene {
                 *state,
                 node.intersect(ray, state.oct_inv4),
                 {
-                    let t = self.bvh_triangles[state.primitive_id as usize].intersect(ray);
+                    let i = state.primitive_id as usize;
+                    let t = self.bvh_triangles[i].intersect(ray);
                     if t < ray.tmax {
-                        hit = true;
-                        break 'any;
+                        let cut = ALPHA
+                            && surfaces.is_some_and(|s| self.cut(s, i, &Ray { tmax: t, ..*ray }));
+                        if !cut {
+                            hit = true;
+                            break 'any;
+                        }
                     }
                 }
             );
@@ -822,9 +1078,12 @@ impl Scene {
 
     /// [`Scene::occluded_ray`] testing every triangle (see [`Scene::occluded_brute_force`]).
     pub(crate) fn occluded_ray_brute_force(&self, ray: &Ray) -> bool {
-        self.bvh_triangles.iter().any(|t| {
+        let surfaces = self.alpha_surfaces();
+        self.bvh_triangles.iter().enumerate().any(|(i, t)| {
             let h = t.intersect(ray);
-            h > ray.tmin && h < ray.tmax
+            h > ray.tmin
+                && h < ray.tmax
+                && !surfaces.is_some_and(|s| self.cut(s, i, &Ray { tmax: h, ..*ray }))
         })
     }
 
@@ -838,6 +1097,73 @@ impl Scene {
         }
         let ray = Ray::new(Vec3A::from(from), Vec3A::from(d / len), 0.0, len);
         self.occluded_ray_brute_force(&ray)
+    }
+}
+
+/// The barycentric coordinates `(b1, b2)` (weights of `v1` and `v2`) where `ray` meets the
+/// plane of `tri` at distance `ray.tmax`.
+#[inline]
+fn barycentrics(tri: &Triangle, ray: &Ray) -> Vec2 {
+    let p = ray.origin + ray.direction * ray.tmax;
+    let (e1, e2) = (tri.v1 - tri.v0, tri.v2 - tri.v0);
+    let n = e1.cross(e2);
+    let n2 = n.length_squared();
+    if n2 <= 0.0 {
+        return Vec2::ZERO;
+    }
+    let d = p - tri.v0;
+    Vec2::new(d.cross(e2).dot(n) / n2, e1.cross(d).dot(n) / n2)
+}
+
+/// The albedo of a material's mean colour: its constant albedo, or `albedo + tint * mean rgb`
+/// of its texture (clamped to `[0, 1]`). `textures` holds every index (validated).
+fn mean_albedo(m: &Material, textures: &[Texture]) -> Vec3 {
+    match &m.texture {
+        None => m.albedo,
+        Some(map) => {
+            let mean = textures[map.texture as usize].mean().truncate();
+            (m.albedo + m.texture_tint * mean).clamp(Vec3::ZERO, Vec3::ONE)
+        }
+    }
+}
+
+impl Surfaces {
+    /// The per-hit data of `materials`; `None` when no material has a texture or an alpha test.
+    fn new(
+        materials: &[Material],
+        material_ids: &[u32],
+        uvs: Option<&[[Vec2; 3]]>,
+        textures: Vec<Texture>,
+        bvh_ids: &[u32],
+    ) -> Option<Box<Self>> {
+        let any = materials
+            .iter()
+            .any(|m| m.texture.is_some() || m.alpha_test.is_some());
+        if !any {
+            return None;
+        }
+        let bvh_alpha = if materials.iter().any(|m| m.alpha_test.is_some()) {
+            bvh_ids
+                .iter()
+                .map(|&t| {
+                    let m = material_ids[t as usize];
+                    if materials[m as usize].alpha_test.is_some() {
+                        m
+                    } else {
+                        Self::OPAQUE
+                    }
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        Some(Box::new(Self {
+            textures,
+            materials: materials.to_vec(),
+            triangle_material: material_ids.to_vec(),
+            uvs: uvs.map_or_else(|| vec![[Vec2::ZERO; 3]; material_ids.len()], <[_]>::to_vec),
+            bvh_alpha,
+        }))
     }
 }
 
@@ -953,5 +1279,314 @@ mod tests {
                 assert!(s.occluded_ray(&mut state, &down), "{x} {y}");
             }
         }
+    }
+    /// The test box (albedo 0.5) with a 1 x 1 card at height 1 over the floor's middle, corners
+    /// `(-0.5, -0.5)`, `(0.5, -0.5)`, `(0.5, 0.5)`, `(-0.5, 0.5)`, its UVs the unit square
+    /// (`u` along x, `v` along y), material 1 = `card`; box UVs zero. Texture 0: 2 x 1 texels,
+    /// left (u < 0.5) red with alpha 0, right green with alpha 1, read with `Extend`.
+    fn card_scene(card: Material, lights: Vec<Light>) -> Scene {
+        let corners = [
+            Vec3::new(-0.5, -0.5, 1.0),
+            Vec3::new(0.5, -0.5, 1.0),
+            Vec3::new(0.5, 0.5, 1.0),
+            Vec3::new(-0.5, 0.5, 1.0),
+        ];
+        let (v, t) = crate::test_util::box_geometry(&[corners]);
+        let mut ids = vec![0u32; t.len()];
+        let mut uvs = vec![[Vec2::ZERO; 3]; t.len()];
+        let (a, b, c, d) = (Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y);
+        ids[12..].fill(1);
+        uvs[12] = [a, b, c];
+        uvs[13] = [a, c, d];
+        let texture = Texture::new("t", 2, 1, 4, &[1., 0., 0., 0., 0., 1., 0., 1.]).unwrap();
+        Scene::new(SceneInput {
+            vertices: &v,
+            triangles: &t,
+            material_ids: &ids,
+            materials: &[Material::diffuse(Vec3::splat(0.5)), card],
+            lights,
+            uvs: Some(&uvs),
+            textures: vec![texture],
+        })
+        .unwrap()
+    }
+
+    fn extend(texture: u32) -> TextureRef {
+        TextureRef {
+            wrap: crate::texture::Wrap::Extend,
+            ..TextureRef::new(texture)
+        }
+    }
+
+    #[test]
+    fn albedo_at_hits_reads_the_texture() {
+        let card = Material::textured(extend(0), Vec3::new(0.8, 0.6, 1.0));
+        let s = card_scene(card, vec![]);
+        for x in [-0.45f32, -0.3, -0.1, 0.0, 0.2, 0.4] {
+            let h = s
+                .closest_hit(Vec3::new(x, 0.1, 1.5), Vec3::NEG_Z, 0.0, f32::INFINITY)
+                .unwrap();
+            assert!((h.t - 0.5).abs() < 1e-5);
+            let uv = s.uv_at(h.triangle, h.barycentrics).unwrap();
+            assert!(
+                (uv - Vec2::new(x + 0.5, 0.6)).abs().max_element() < 1e-5,
+                "{uv}"
+            );
+            // Red at u <= 0.25, green at u >= 0.75, linear between (Extend).
+            let g = ((x + 0.5 - 0.25) / 0.5).clamp(0.0, 1.0);
+            let expect = Vec3::new(0.8 * (1.0 - g), 0.6 * g, 0.0);
+            let got = s.albedo_at(h.triangle, h.barycentrics);
+            assert!(
+                (got - expect).abs().max_element() < 1e-5,
+                "{x}: {got} {expect}"
+            );
+        }
+        // The constant path: the box's own triangles, and the mean for `albedo`.
+        let floor = s
+            .closest_hit(Vec3::new(0.8, 0.8, 1.5), Vec3::NEG_Z, 0.0, f32::INFINITY)
+            .unwrap();
+        assert_eq!(
+            s.albedo_at(floor.triangle, floor.barycentrics),
+            Vec3::splat(0.5)
+        );
+        assert_eq!(s.albedo(12), Vec3::new(0.4, 0.3, 0.0));
+        // Barycentrics name the triangle's vertices in input order.
+        assert!((s.albedo_at(12, Vec2::ZERO) - Vec3::new(0.8, 0.0, 0.0)).length() < 1e-6);
+        assert!((s.albedo_at(12, Vec2::X) - Vec3::new(0.0, 0.6, 0.0)).length() < 1e-6);
+        assert_eq!(s.texture_count(), 1);
+        assert!(!s.has_alpha_tests());
+        // A constant plus a tinted texture, clamped to [0, 1].
+        let card = Material {
+            albedo: Vec3::new(0.5, 0.1, 0.2),
+            ..Material::textured(extend(0), Vec3::ONE)
+        };
+        let s = card_scene(card, vec![]);
+        assert_eq!(s.albedo_at(12, Vec2::ZERO), Vec3::new(1.0, 0.1, 0.2));
+    }
+
+    #[test]
+    fn alpha_tested_shadow_rays_pass_cut_texels_only() {
+        let card = Material {
+            alpha_test: Some(AlphaTest::texture(extend(0))),
+            ..Material::diffuse(Vec3::splat(0.5))
+        };
+        let s = card_scene(card, vec![]);
+        assert!(s.has_alpha_tests());
+        let below = |x: f32| Vec3::new(x, 0.0, 0.2);
+        let above = |x: f32| Vec3::new(x, 0.0, 1.8);
+        // Cut (alpha 0) where u < 0.25, i.e. x < -0.25; opaque where x > 0.
+        for x in [-0.45, -0.3] {
+            assert!(!s.occluded(below(x), above(x)), "{x}");
+            assert!(!s.occluded_brute_force(below(x), above(x)), "{x}");
+        }
+        for x in [0.05, 0.3, 0.45] {
+            assert!(s.occluded(below(x), above(x)), "{x}");
+            assert!(s.occluded_brute_force(below(x), above(x)), "{x}");
+        }
+        // Closest hits go through the cut half to the floor and stop at the opaque half.
+        let down = |x: f32| s.closest_hit(above(x), Vec3::NEG_Z, 0.0, f32::INFINITY);
+        assert!((down(-0.4).unwrap().t - 1.8).abs() < 1e-5);
+        assert!((down(0.4).unwrap().t - 0.8).abs() < 1e-5);
+        // Random segments: the BVH's any-hit filter agrees with the brute force.
+        let mut rng = crate::rng::Rng::new(5, 2);
+        let mut r = || rng.next_f32();
+        let mut passed = 0;
+        for _ in 0..3000 {
+            let mut point = || Vec3::new(1.8 * r() - 0.9, 1.8 * r() - 0.9, 1.9 * r() + 0.05);
+            let (a, b) = (point(), point());
+            let got = s.occluded(a, b);
+            assert_eq!(got, s.occluded_brute_force(a, b), "{a} {b}");
+            let crosses = (a.z - 1.0) * (b.z - 1.0) < 0.0;
+            passed += usize::from(crosses && !got);
+        }
+        assert!(passed > 100, "{passed}");
+        // A constant alpha below the cutoff removes the card; above it, keeps it.
+        for (alpha, blocked) in [(0.3, false), (0.7, true)] {
+            let card = Material {
+                alpha_test: Some(AlphaTest::constant(alpha)),
+                ..Material::diffuse(Vec3::splat(0.5))
+            };
+            let s = card_scene(card, vec![]);
+            assert_eq!(s.occluded(below(0.3), above(0.3)), blocked, "{alpha}");
+        }
+    }
+
+    #[test]
+    fn light_paths_pass_cut_texels_and_stop_at_opaque_ones() {
+        let light = Light::point(Vec3::new(0.0, 0.0, 1.9), Vec3::splat(10.0));
+        let card = Material {
+            alpha_test: Some(AlphaTest::texture(extend(0))),
+            ..Material::diffuse(Vec3::splat(0.5))
+        };
+        let s = card_scene(card, vec![light.clone()]);
+        let opaque = card_scene(Material::diffuse(Vec3::splat(0.5)), vec![light]);
+        let v = crate::vpl::uniform_vpls(&s, 4000, 3).unwrap();
+        let on_card = |v: &&crate::vpl::Vpl| {
+            (v.position.z - 1.0).abs() < 0.01
+                && v.position.x.abs() < 0.5
+                && v.position.y.abs() < 0.5
+        };
+        // Seen from the light, the card's point at x lies over the floor's point at x / 0.47:
+        // the cut part (x < -0.25) shades nothing beyond x < -0.53 on the floor, the opaque
+        // part (x > 0) shades the floor's x in (0, 1).
+        let under = |v: &&crate::vpl::Vpl, x0: f32, x1: f32| {
+            v.position.z < 0.01 && (x0..x1).contains(&v.position.x) && v.position.y.abs() < 0.8
+        };
+        let (cut, opaque_half) = ((-0.95, -0.6), (0.05, 0.9));
+        // No VPL on the cut half of the card; VPLs on its opaque half.
+        assert_eq!(
+            v.iter()
+                .filter(on_card)
+                .filter(|v| v.position.x < -0.25)
+                .count(),
+            0
+        );
+        assert!(
+            v.iter()
+                .filter(on_card)
+                .filter(|v| v.position.x > 0.0)
+                .count()
+                > 100
+        );
+        // The floor under the cut half is lit through it; under the opaque half it is not.
+        assert!(v.iter().filter(|v| under(v, cut.0, cut.1)).count() > 30);
+        assert_eq!(
+            v.iter()
+                .filter(|v| under(v, opaque_half.0, opaque_half.1))
+                .count(),
+            0
+        );
+        // The opaque card shadows both halves.
+        let w = crate::vpl::uniform_vpls(&opaque, 4000, 3).unwrap();
+        assert_eq!(w.iter().filter(|v| under(v, cut.0, cut.1)).count(), 0);
+        // RSM rays too.
+        let r = crate::rsm::rsm_vpls(&s, 2000).unwrap();
+        assert_eq!(
+            r.iter()
+                .filter(on_card)
+                .filter(|v| v.position.x < -0.25)
+                .count(),
+            0
+        );
+        assert!(r.iter().filter(|v| under(v, cut.0, cut.1)).count() > 10);
+        assert_eq!(
+            r.iter()
+                .filter(|v| under(v, opaque_half.0, opaque_half.1))
+                .count(),
+            0
+        );
+    }
+
+    #[test]
+    fn light_paths_reflect_the_textured_albedo() {
+        // A textured floor under a point light: VPLs on the red half carry red flux only.
+        let light = Light::point(Vec3::new(0.0, 0.0, 1.9), Vec3::splat(10.0));
+        let s = card_scene(Material::textured(extend(0), Vec3::ONE), vec![light]);
+        let v = crate::vpl::uniform_vpls(&s, 3000, 8).unwrap();
+        let card: Vec<_> = v
+            .iter()
+            .filter(|v| (v.position.z - 1.0).abs() < 0.01)
+            .filter(|v| v.position.x.abs() < 0.5 && v.position.y.abs() < 0.5)
+            .collect();
+        assert!(card.len() > 100);
+        for v in card {
+            let u = v.position.x + 0.5;
+            let g = ((u - 0.25) / 0.5).clamp(0.0, 1.0);
+            let ratio = v.flux / v.flux.max_element();
+            let expect = Vec3::new(1.0 - g, g, 0.0) / (1.0 - g).max(g);
+            assert!(
+                (ratio - expect).abs().max_element() < 1e-3,
+                "{u}: {ratio} {expect}"
+            );
+        }
+    }
+
+    #[test]
+    fn bad_materials_are_errors() {
+        let (v, t) = crate::test_util::box_geometry(&[]);
+        let ids = vec![0u32; t.len()];
+        let uvs = vec![[Vec2::ZERO; 3]; t.len()];
+        let tex = || vec![Texture::new("t", 1, 1, 3, &[0.5; 3]).unwrap()];
+        let build = |m: Material, uvs: Option<&[[Vec2; 3]]>| {
+            Scene::new(SceneInput {
+                vertices: &v,
+                triangles: &t,
+                material_ids: &ids,
+                materials: &[m],
+                uvs,
+                textures: tex(),
+                ..Default::default()
+            })
+        };
+        assert!(build(
+            Material::textured(TextureRef::new(0), Vec3::ONE),
+            Some(&uvs)
+        )
+        .is_ok());
+        assert!(matches!(
+            build(
+                Material::textured(TextureRef::new(1), Vec3::ONE),
+                Some(&uvs)
+            ),
+            Err(VplaceError::IndexOutOfBounds {
+                index: 1,
+                len: 1,
+                ..
+            })
+        ));
+        assert!(matches!(
+            build(Material::textured(TextureRef::new(0), Vec3::ONE), None),
+            Err(VplaceError::Invalid { .. })
+        ));
+        assert!(matches!(
+            build(
+                Material::textured(TextureRef::new(0), Vec3::ONE),
+                Some(&uvs[1..])
+            ),
+            Err(VplaceError::Shape { .. })
+        ));
+        let mut nan = uvs.clone();
+        nan[2][1].y = f32::NAN;
+        assert!(matches!(
+            build(
+                Material::textured(TextureRef::new(0), Vec3::ONE),
+                Some(&nan)
+            ),
+            Err(VplaceError::NonFinite { index: 15, .. })
+        ));
+        assert!(matches!(
+            build(
+                Material::textured(TextureRef::new(0), Vec3::NEG_ONE),
+                Some(&uvs)
+            ),
+            Err(VplaceError::OutOfRange { .. })
+        ));
+        let scaled = TextureRef {
+            uv_scale: Vec2::new(f32::INFINITY, 1.0),
+            ..TextureRef::new(0)
+        };
+        assert!(matches!(
+            build(Material::textured(scaled, Vec3::ONE), Some(&uvs)),
+            Err(VplaceError::NonFinite { .. })
+        ));
+        let alpha = Material {
+            alpha_test: Some(AlphaTest::texture(TextureRef::new(3))),
+            ..Material::diffuse(Vec3::ONE)
+        };
+        assert!(matches!(
+            build(alpha, Some(&uvs)),
+            Err(VplaceError::IndexOutOfBounds { index: 3, .. })
+        ));
+        let alpha = Material {
+            alpha_test: Some(AlphaTest::constant(f32::NAN)),
+            ..Material::diffuse(Vec3::ONE)
+        };
+        assert!(build(alpha, None).is_err());
+        // A constant alpha test needs no UVs.
+        let alpha = Material {
+            alpha_test: Some(AlphaTest::constant(0.2)),
+            ..Material::diffuse(Vec3::ONE)
+        };
+        assert!(build(alpha, None).is_ok());
     }
 }

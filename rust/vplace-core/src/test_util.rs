@@ -34,6 +34,15 @@ pub const BLOCKER: [Vec3; 4] = [
 /// [`closed_box`] with extra quads (corners in order) inside it, e.g. occluders.
 #[must_use]
 pub fn box_with(lights: Vec<Light>, extra: &[[Vec3; 4]]) -> Scene {
+    let (v, t) = box_geometry(extra);
+    let ids = vec![0; t.len()];
+    Scene::build(&v, &t, &ids, &[Vec3::splat(0.5)], lights).expect("the test box is a valid scene")
+}
+
+/// The vertices and triangles of [`box_with`]: two triangles per quad, `[a, b, c]` and
+/// `[a, c, d]`, the box's six quads first (12 triangles), then `extra`'s.
+#[must_use]
+pub fn box_geometry(extra: &[[Vec3; 4]]) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     let mut v = Vec::new();
     let mut t = Vec::new();
     let mut quad = |a: Vec3, b: Vec3, c: Vec3, d: Vec3| {
@@ -72,8 +81,7 @@ pub fn box_with(lights: Vec<Light>, extra: &[[Vec3; 4]]) -> Scene {
     for &[a, b, c, d] in extra {
         quad(a, b, c, d);
     }
-    let ids = vec![0; t.len()];
-    Scene::build(&v, &t, &ids, &[Vec3::splat(0.5)], lights).expect("the test box is a valid scene")
+    (v, t)
 }
 
 /// The arrays of a G-buffer, owned; [`GBufferArrays::gbuffer`] borrows them.

@@ -181,7 +181,7 @@ pub fn light_path_vpls(scene: &Scene, n: usize, seed: u64, bounces: usize) -> Re
                 normal = -normal;
             }
             let p = origin + dir * h.t + normal * offset;
-            let reflected = carried * scene.albedo(h.triangle);
+            let reflected = carried * scene.albedo_at(h.triangle, h.barycentrics);
             hits.push((p, normal, reflected));
             if hits.len() == n || bounce + 1 == bounces {
                 break;
