@@ -11,6 +11,7 @@ mod direct;
 mod errors;
 mod fit;
 mod layout;
+mod materials;
 mod par2d;
 mod refit;
 mod scene;
@@ -22,6 +23,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     errors::register(m)?;
     scene::register(m)?;
+    materials::register(m)?;
     view::register(m)?;
     vpls::register(m)?;
     fit::register(m)?;

@@ -1,7 +1,7 @@
 //! `Scene`, `Light`, `Progress`, uniform VPLs, the evaluator and the metrics.
 
-use glam::{Mat3, Vec3};
-use numpy::PyUntypedArrayMethods;
+use glam::{Mat3, Vec2, Vec3};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
@@ -14,6 +14,7 @@ use vplace_core::{
 
 use crate::arrays::{array, slice, Dim};
 use crate::errors::{input_error, run, to_py};
+use crate::materials::{PyAlphaTest, PyTextureMap};
 
 fn vec3(v: [f32; 3]) -> Vec3 {
     Vec3::from_array(v)
@@ -247,8 +248,18 @@ impl PyScene {
     /// `material_ids` uint32 (T,), `albedo` float32 (M, 3) in [0, 1], `lights` a list of Light;
     /// `emission` float32 (M, 3), the radiance each material emits from both sides (W/(m^2 sr),
     /// Blender's emission colour times strength), or None for none.
+    ///
+    /// Textured and alpha-tested materials (all optional): `uvs` float32 (T, 3, 2), the UV of
+    /// each triangle corner; `textures` a list of float32 (H, W, 3 or 4) linear images, row 0 at
+    /// the top; `base_textures` one `TextureMap` or None per material (the albedo at a hit is
+    /// `albedo + texture_tint * rgb`, clamped to [0, 1]); `texture_tint` float32 (M, 3), default
+    /// ones; `alpha_tests` one `AlphaTest` or None per material.
     #[new]
-    #[pyo3(signature = (vertices, triangles, material_ids, albedo, lights, *, emission=None))]
+    #[pyo3(signature = (
+        vertices, triangles, material_ids, albedo, lights, *, emission = None,
+        uvs = None, textures = None, base_textures = None, texture_tint = None, alpha_tests = None
+    ))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         vertices: &Bound<'_, PyAny>,
@@ -257,6 +268,11 @@ impl PyScene {
         albedo: &Bound<'_, PyAny>,
         lights: Vec<Bound<'_, PyLight>>,
         emission: Option<&Bound<'_, PyAny>>,
+        uvs: Option<&Bound<'_, PyAny>>,
+        textures: Option<Vec<Bound<'_, PyAny>>>,
+        base_textures: Option<Vec<Option<Bound<'_, PyTextureMap>>>>,
+        texture_tint: Option<&Bound<'_, PyAny>>,
+        alpha_tests: Option<Vec<Option<Bound<'_, PyAlphaTest>>>>,
     ) -> PyResult<Self> {
         let v = array::<f32>(vertices, "vertices", &[Dim::Any, Dim::Is(3)], "float32")?;
         let t = array::<u32>(triangles, "triangles", &[Dim::Any, Dim::Is(3)], "uint32")?;
@@ -277,12 +293,14 @@ impl PyScene {
             }
             None => vec![Vec3::ZERO; alb.len()],
         };
-        let materials: Vec<Material> = alb
-            .iter()
-            .zip(&emit)
-            .map(|(&a, &e)| Material::diffuse(a).with_emission(e))
-            .collect();
         let lights: Vec<Light> = lights.iter().map(|l| l.get().inner.clone()).collect();
+        let surf = crate::materials::surfaces(uvs, textures)?;
+        let materials: Vec<Material> =
+            crate::materials::materials(alb, base_textures, texture_tint, alpha_tests)?
+                .into_iter()
+                .zip(&emit)
+                .map(|(m, &e)| m.with_emission(e))
+                .collect();
         let scene = run(py, move || {
             Scene::new(SceneInput {
                 vertices: &verts,
@@ -290,6 +308,8 @@ impl PyScene {
                 material_ids: &mats,
                 materials: &materials,
                 lights,
+                uvs: surf.uvs.as_deref(),
+                textures: surf.textures,
             })
         })?;
         Ok(Self {
@@ -352,6 +372,127 @@ impl PyScene {
         self.inner.near_field_radius()
     }
 
+    /// Number of textures.
+    #[getter]
+    fn texture_count(&self) -> usize {
+        self.inner.texture_count()
+    }
+
+    /// True when some material is alpha-tested.
+    #[getter]
+    fn has_alpha_tests(&self) -> bool {
+        self.inner.has_alpha_tests()
+    }
+
+    /// Closest hits of rays `origins` + t `directions` (float32 (N, 3) each; directions are
+    /// normalized here), t in (`tmin`, inf), alpha-tested surfaces skipped where cut. Returns
+    /// `(t, triangle, barycentrics)`: float32 (N,) (inf on a miss), int64 (N,) (-1 on a miss),
+    /// float32 (N, 2) (the weights of the triangle's second and third vertex).
+    #[pyo3(signature = (origins, directions, tmin = 0.0))]
+    #[allow(clippy::type_complexity)]
+    fn intersect<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        tmin: f32,
+    ) -> PyResult<(
+        Bound<'py, PyArray1<f32>>,
+        Bound<'py, PyArray1<i64>>,
+        Bound<'py, PyArray2<f32>>,
+    )> {
+        let (o, d) = ray_pairs(origins, directions, "directions")?;
+        let scene = Arc::clone(&self.inner);
+        let hits = run(py, move || {
+            Ok(o.iter()
+                .zip(&d)
+                .map(|(&o, &d)| {
+                    let d = d.normalize_or_zero();
+                    (d != Vec3::ZERO)
+                        .then(|| scene.closest_hit(o, d, tmin, f32::INFINITY))
+                        .flatten()
+                })
+                .collect::<Vec<_>>())
+        })?;
+        let t: Vec<f32> = hits
+            .iter()
+            .map(|h| h.map_or(f32::INFINITY, |h| h.t))
+            .collect();
+        let tri: Vec<i64> = hits
+            .iter()
+            .map(|h| h.map_or(-1, |h| i64::from(h.triangle)))
+            .collect();
+        let bary: Vec<Vec<f32>> = hits
+            .iter()
+            .map(|h| h.map_or(vec![0.0, 0.0], |h| h.barycentrics.to_array().to_vec()))
+            .collect();
+        let bary = if bary.is_empty() {
+            numpy::ndarray::Array2::zeros((0, 2)).into_pyarray(py)
+        } else {
+            PyArray2::from_vec2(py, &bary)?
+        };
+        Ok((t.into_pyarray(py), tri.into_pyarray(py), bary))
+    }
+
+    /// The albedo at barycentrics `barycentrics` (float32 (N, 2)) of triangles `triangles`
+    /// (uint32 (N,)): the texture at the interpolated UV for a textured material. float32
+    /// (N, 3).
+    fn albedo_at<'py>(
+        &self,
+        py: Python<'py>,
+        triangles: &Bound<'py, PyAny>,
+        barycentrics: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let t = array::<u32>(triangles, "triangles", &[Dim::Any], "uint32")?;
+        let n = t.shape()[0];
+        let b = array::<f32>(
+            barycentrics,
+            "barycentrics",
+            &[Dim::Is(n), Dim::Is(2)],
+            "float32",
+        )?;
+        let (t, b) = (slice(&t, "triangles")?, slice(&b, "barycentrics")?);
+        let count = self.inner.triangle_count();
+        if let Some(&bad) = t.iter().find(|&&i| i as usize >= count) {
+            return Err(input_error(format!(
+                "triangles: index {bad} is out of bounds for {count} triangles"
+            )));
+        }
+        if let Some(i) = b.iter().position(|x| !x.is_finite()) {
+            return Err(input_error(format!(
+                "barycentrics holds a non-finite value at index {i}"
+            )));
+        }
+        let out: Vec<f32> = t
+            .iter()
+            .zip(b.chunks_exact(2))
+            .flat_map(|(&t, b)| self.inner.albedo_at(t, Vec2::new(b[0], b[1])).to_array())
+            .collect();
+        Ok(numpy::ndarray::Array2::from_shape_vec((n, 3), out)
+            .map_err(|e| input_error(e.to_string()))?
+            .into_pyarray(py))
+    }
+
+    /// Whether something blocks the segment from each of `origins` to the matching `targets`
+    /// (float32 (N, 3) each; an any-hit shadow ray, alpha-tested surfaces counting only where
+    /// they are not cut). The caller offsets both ends off their surfaces. bool (N,).
+    fn occluded<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        targets: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<bool>>> {
+        let (a, b) = ray_pairs(origins, targets, "targets")?;
+        let scene = Arc::clone(&self.inner);
+        let out = run(py, move || {
+            Ok(a.iter()
+                .zip(&b)
+                .map(|(&a, &b)| scene.occluded(a, b))
+                .collect::<Vec<bool>>())
+        })?;
+        Ok(out.into_pyarray(py))
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "Scene(triangles={}, lights={}, emissive_triangles={})",
@@ -399,6 +540,26 @@ impl PyProgress {
     fn cancelled(&self) -> bool {
         self.inner.cancel.load(Ordering::Relaxed)
     }
+}
+
+/// Two float32 (N, 3) arrays of the same N, finite, as points.
+fn ray_pairs(
+    origins: &Bound<'_, PyAny>,
+    other: &Bound<'_, PyAny>,
+    other_name: &str,
+) -> PyResult<(Vec<Vec3>, Vec<Vec3>)> {
+    let o = array::<f32>(origins, "origins", &[Dim::Any, Dim::Is(3)], "float32")?;
+    let n = o.shape()[0];
+    let d = array::<f32>(other, other_name, &[Dim::Is(n), Dim::Is(3)], "float32")?;
+    let (o, d) = (slice(&o, "origins")?, slice(&d, other_name)?);
+    for (name, values) in [("origins", o), (other_name, d)] {
+        if let Some(i) = values.iter().position(|x| !x.is_finite()) {
+            return Err(input_error(format!(
+                "{name} holds a non-finite value at index {i}"
+            )));
+        }
+    }
+    Ok((vec3s(o), vec3s(d)))
 }
 
 fn pair<'py>(

@@ -8,8 +8,10 @@ vplace.bench_layout``, ``bench_fit``, ``bench_par2d``) and the PAR 2D wrapper
 The pieces, in pipeline order:
 
 - :class:`Scene` (triangles, per-material albedo and emission, :class:`Light` objects of
-  every Blender kind: point, spot, area, sun and the world with its environment image; a BVH)
-  and
+  every Blender kind: point, spot, area, sun and the world with its environment image; a BVH;
+  optionally UVs, textures read through a :class:`TextureMap` per material and
+  :class:`AlphaTest` cut-outs, so the albedo at a ray hit is the texture's and rays pass cut
+  texels) and
   :class:`View` (one captured view: G-buffer, lighting passes, camera; checked once: a
   non-finite G-buffer value on a covered pixel is an :class:`InputError`, a non-finite lighting
   value masks the pixel and is counted in ``View.masked_pixels``). A view's ``indirect`` image
@@ -41,6 +43,7 @@ from vplace._native import (
     MAX_DIRECT_SAMPLES,
     NEAR_FIELD_FRACTION,
     VPL_SURFACE_OFFSET,
+    AlphaTest,
     CancelledError,
     EvalStats,
     Fit,
@@ -51,6 +54,7 @@ from vplace._native import (
     Progress,
     Refit,
     Scene,
+    TextureMap,
     View,
     VplaceError,
     VplSet,
@@ -76,6 +80,7 @@ __all__ = [
     "MAX_DIRECT_SAMPLES",
     "NEAR_FIELD_FRACTION",
     "VPL_SURFACE_OFFSET",
+    "AlphaTest",
     "CancelledError",
     "EvalStats",
     "Fit",
@@ -86,6 +91,7 @@ __all__ = [
     "Progress",
     "Refit",
     "Scene",
+    "TextureMap",
     "View",
     "VplSet",
     "VplaceError",

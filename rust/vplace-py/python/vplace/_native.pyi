@@ -65,6 +65,47 @@ class Light:
     def power(self) -> list[float]: ...
 
 @final
+class TextureMap:
+    def __new__(
+        cls,
+        texture: int,
+        *,
+        uv_scale: tuple[float, float] = ...,
+        uv_offset: tuple[float, float] = ...,
+        wrap: str = "repeat",
+    ) -> TextureMap: ...
+    @property
+    def texture(self) -> int: ...
+    @property
+    def uv_scale(self) -> tuple[float, float]: ...
+    @property
+    def uv_offset(self) -> tuple[float, float]: ...
+    @property
+    def wrap(self) -> str: ...
+
+@final
+class AlphaTest:
+    def __new__(
+        cls,
+        offset: float,
+        scale: float = 0.0,
+        texture: TextureMap | None = None,
+        *,
+        source: str = "alpha",
+        cutoff: float = 0.5,
+    ) -> AlphaTest: ...
+    @property
+    def offset(self) -> float: ...
+    @property
+    def scale(self) -> float: ...
+    @property
+    def texture(self) -> TextureMap | None: ...
+    @property
+    def source(self) -> str: ...
+    @property
+    def cutoff(self) -> float: ...
+
+@final
 class Scene:
     def __new__(
         cls,
@@ -75,7 +116,21 @@ class Scene:
         lights: list[Light],
         *,
         emission: _F32 | None = None,
+        uvs: _F32 | None = None,
+        textures: Sequence[_F32] | None = None,
+        base_textures: Sequence[TextureMap | None] | None = None,
+        texture_tint: _F32 | None = None,
+        alpha_tests: Sequence[AlphaTest | None] | None = None,
     ) -> Scene: ...
+    def intersect(
+        self, origins: _F32, directions: _F32, tmin: float = 0.0
+    ) -> tuple[_F32, npt.NDArray[np.int64], _F32]: ...
+    def albedo_at(self, triangles: npt.NDArray[np.uint32], barycentrics: _F32) -> _F32: ...
+    def occluded(self, origins: _F32, targets: _F32) -> npt.NDArray[np.bool_]: ...
+    @property
+    def texture_count(self) -> int: ...
+    @property
+    def has_alpha_tests(self) -> bool: ...
     @property
     def triangle_count(self) -> int: ...
     @property

@@ -1,0 +1,278 @@
+//! `TextureMap`, `AlphaTest` and the checked conversion of a scene's textured materials (UVs,
+//! textures, per-material maps) for `Scene`.
+
+use glam::{Vec2, Vec3};
+use numpy::PyUntypedArrayMethods;
+use pyo3::prelude::*;
+use vplace_core::{
+    scene::Material,
+    texture::{AlphaSource, AlphaTest, Texture, TextureRef, Wrap},
+};
+
+use crate::arrays::{array, slice, Dim};
+use crate::errors::input_error;
+
+/// How a material reads one of the scene's textures: `uv' = uv * uv_scale + uv_offset`, then a
+/// bilinear lookup with `wrap` ("repeat" or "extend") past the edges.
+#[pyclass(name = "TextureMap", module = "vplace._native", frozen)]
+#[derive(Clone)]
+pub struct PyTextureMap {
+    pub inner: TextureRef,
+}
+
+fn wrap_name(w: Wrap) -> &'static str {
+    match w {
+        Wrap::Repeat => "repeat",
+        Wrap::Extend => "extend",
+    }
+}
+
+#[pymethods]
+impl PyTextureMap {
+    #[new]
+    #[pyo3(signature = (texture, *, uv_scale = (1.0, 1.0), uv_offset = (0.0, 0.0), wrap = "repeat"))]
+    fn new(
+        texture: u32,
+        uv_scale: (f32, f32),
+        uv_offset: (f32, f32),
+        wrap: &str,
+    ) -> PyResult<Self> {
+        let wrap = match wrap {
+            "repeat" => Wrap::Repeat,
+            "extend" => Wrap::Extend,
+            other => {
+                return Err(input_error(format!(
+                    "wrap must be \"repeat\" or \"extend\", got {other:?}"
+                )))
+            }
+        };
+        Ok(Self {
+            inner: TextureRef {
+                texture,
+                uv_scale: Vec2::new(uv_scale.0, uv_scale.1),
+                uv_offset: Vec2::new(uv_offset.0, uv_offset.1),
+                wrap,
+            },
+        })
+    }
+
+    /// Index into the scene's textures.
+    #[getter]
+    fn texture(&self) -> u32 {
+        self.inner.texture
+    }
+
+    /// `(scale_u, scale_v)`.
+    #[getter]
+    fn uv_scale(&self) -> (f32, f32) {
+        self.inner.uv_scale.into()
+    }
+
+    /// `(offset_u, offset_v)`.
+    #[getter]
+    fn uv_offset(&self) -> (f32, f32) {
+        self.inner.uv_offset.into()
+    }
+
+    /// `"repeat"` or `"extend"`.
+    #[getter]
+    fn wrap(&self) -> &'static str {
+        wrap_name(self.inner.wrap)
+    }
+
+    fn __repr__(&self) -> String {
+        let r = &self.inner;
+        format!(
+            "TextureMap({}, uv_scale={:?}, uv_offset={:?}, wrap={:?})",
+            r.texture,
+            r.uv_scale.to_array(),
+            r.uv_offset.to_array(),
+            wrap_name(r.wrap)
+        )
+    }
+}
+
+/// An alpha-tested surface: rays pass where `offset + scale * value < cutoff`, `value` the
+/// texture's alpha channel (`source="alpha"`) or the luminance of its RGB
+/// (`source="luminance"`) at the hit; without a texture the alpha is `offset`.
+#[pyclass(name = "AlphaTest", module = "vplace._native", frozen)]
+#[derive(Clone)]
+pub struct PyAlphaTest {
+    pub inner: AlphaTest,
+}
+
+#[pymethods]
+impl PyAlphaTest {
+    #[new]
+    #[pyo3(signature = (offset, scale = 0.0, texture = None, *, source = "alpha", cutoff = 0.5))]
+    fn new(
+        offset: f32,
+        scale: f32,
+        texture: Option<Bound<'_, PyTextureMap>>,
+        source: &str,
+        cutoff: f32,
+    ) -> PyResult<Self> {
+        let source = match source {
+            "alpha" => AlphaSource::Alpha,
+            "luminance" => AlphaSource::Luminance,
+            other => {
+                return Err(input_error(format!(
+                    "source must be \"alpha\" or \"luminance\", got {other:?}"
+                )))
+            }
+        };
+        Ok(Self {
+            inner: AlphaTest {
+                offset,
+                scale,
+                texture: texture.map(|t| t.get().inner),
+                source,
+                cutoff,
+            },
+        })
+    }
+
+    /// The alpha without a texture, or what the texture's value is added to.
+    #[getter]
+    fn offset(&self) -> f32 {
+        self.inner.offset
+    }
+
+    /// Multiplies the texture's value.
+    #[getter]
+    fn scale(&self) -> f32 {
+        self.inner.scale
+    }
+
+    /// The texture the alpha is read from, or None.
+    #[getter]
+    fn texture(&self) -> Option<PyTextureMap> {
+        self.inner.texture.map(|inner| PyTextureMap { inner })
+    }
+
+    /// `"alpha"` or `"luminance"`.
+    #[getter]
+    fn source(&self) -> &'static str {
+        match self.inner.source {
+            AlphaSource::Alpha => "alpha",
+            AlphaSource::Luminance => "luminance",
+        }
+    }
+
+    /// Rays pass where the alpha is below this.
+    #[getter]
+    fn cutoff(&self) -> f32 {
+        self.inner.cutoff
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "AlphaTest({}, {}, texture={}, source={:?}, cutoff={})",
+            self.inner.offset,
+            self.inner.scale,
+            self.texture().map_or("None".into(), |t| t.__repr__()),
+            self.source(),
+            self.inner.cutoff
+        )
+    }
+}
+
+/// The optional material inputs of `Scene`, checked and converted.
+pub struct Surfaces {
+    pub uvs: Option<Vec<[Vec2; 3]>>,
+    pub textures: Vec<Texture>,
+}
+
+/// Checks `uvs` (float32 (T, 3, 2)) and `textures` (float32 (H, W, 3 or 4) each) and converts
+/// them; the core checks the rest (finiteness, lengths against the triangles).
+pub fn surfaces(
+    uvs: Option<&Bound<'_, PyAny>>,
+    textures: Option<Vec<Bound<'_, PyAny>>>,
+) -> PyResult<Surfaces> {
+    let uvs = match uvs {
+        None => None,
+        Some(u) => {
+            let a = array::<f32>(u, "uvs", &[Dim::Any, Dim::Is(3), Dim::Is(2)], "float32")?;
+            let corners = slice(&a, "uvs")?
+                .chunks_exact(6)
+                .map(|c| {
+                    [
+                        Vec2::new(c[0], c[1]),
+                        Vec2::new(c[2], c[3]),
+                        Vec2::new(c[4], c[5]),
+                    ]
+                })
+                .collect();
+            Some(corners)
+        }
+    };
+    let mut out = Vec::new();
+    for (i, t) in textures.unwrap_or_default().iter().enumerate() {
+        let name = format!("textures[{i}]");
+        let a = array::<f32>(t, &name, &[Dim::Any, Dim::Any, Dim::Any], "float32")?;
+        let shape = a.shape().to_vec();
+        if shape[2] != 3 && shape[2] != 4 {
+            return Err(input_error(format!(
+                "{name} must have shape (H, W, 3) or (H, W, 4), got {shape:?}"
+            )));
+        }
+        let texture = Texture::new(&name, shape[1], shape[0], shape[2], slice(&a, &name)?)
+            .map_err(crate::errors::to_py)?;
+        out.push(texture);
+    }
+    Ok(Surfaces { uvs, textures: out })
+}
+
+/// The core materials: `albedo` (M x RGB) with the optional per-material `base_textures`,
+/// `texture_tint` (float32 (M, 3)) and `alpha_tests` (each a list of M entries, None for
+/// none).
+pub fn materials(
+    albedo: Vec<Vec3>,
+    base_textures: Option<Vec<Option<Bound<'_, PyTextureMap>>>>,
+    texture_tint: Option<&Bound<'_, PyAny>>,
+    alpha_tests: Option<Vec<Option<Bound<'_, PyAlphaTest>>>>,
+) -> PyResult<Vec<Material>> {
+    let m = albedo.len();
+    let check_len = |name: &str, len: usize| {
+        if len == m {
+            Ok(())
+        } else {
+            Err(input_error(format!(
+                "{name} must have one entry per material ({m}, the rows of albedo), got {len}"
+            )))
+        }
+    };
+    let tint: Vec<Vec3> = match texture_tint {
+        None => vec![Vec3::ONE; m],
+        Some(t) => {
+            let a = array::<f32>(t, "texture_tint", &[Dim::Is(m), Dim::Is(3)], "float32")?;
+            slice(&a, "texture_tint")?
+                .chunks_exact(3)
+                .map(Vec3::from_slice)
+                .collect()
+        }
+    };
+    let maps = base_textures.unwrap_or_else(|| vec![None; m]);
+    check_len("base_textures", maps.len())?;
+    let alphas = alpha_tests.unwrap_or_else(|| vec![None; m]);
+    check_len("alpha_tests", alphas.len())?;
+    Ok(albedo
+        .into_iter()
+        .zip(maps)
+        .zip(alphas)
+        .zip(tint)
+        .map(|(((a, map), alpha), tint)| Material {
+            texture: map.map(|t| t.get().inner),
+            texture_tint: tint,
+            alpha_test: alpha.map(|t| t.get().inner),
+            ..Material::diffuse(a)
+        })
+        .collect())
+}
+
+/// Registers this file's classes.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyTextureMap>()?;
+    m.add_class::<PyAlphaTest>()?;
+    Ok(())
+}
