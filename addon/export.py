@@ -1,13 +1,33 @@
-"""Scene export: the evaluated depsgraph as numpy arrays (DESIGN: Scene export).
+"""Scene export: the scene as Cycles renders it, as numpy arrays (DESIGN: Scene export).
 
-Triangles in world space with a material id each; materials reduced to what the core shades
-(diffuse albedo = base colour x (1 - metallic), the mean texture colour where the base colour is
-textured; roughness; metallic; emission: an Emission shader's or the Principled BSDF's colour x
-strength, radiance from both sides); lights with their effective RGB power and every parameter
-Cycles renders them with (point and spot radius and soft falloff, spot size and blend, area
-shape, sizes and spread, sun angle); the world's light (``world.py``: a colour, an environment
-image with its rotation, or a baked node setup); the camera. The VPLs that vplace wrote itself
-(objects marked ``vplace_vpl``) are never exported.
+Triangles in world space with a material id each, and per triangle corner the UVs its
+material's textures read; materials reduced to what the core shades by the material rule of
+:mod:`.materials` (the diffuse albedo, a base-colour texture, an alpha cut-out; roughness;
+metallic; emission: an Emission shader's or the Principled BSDF's colour x strength, radiance
+from both sides); the images the materials read, each read once; lights with their effective
+RGB power and every parameter Cycles renders them with (point and spot radius and soft
+falloff, spot size and blend, area shape, sizes and spread, sun angle); the world's light
+(``world.py``: a colour, an environment image with its rotation, or a baked node setup); the
+camera. The VPLs that vplace wrote itself (objects marked ``vplace_vpl``) are
+never exported.
+
+**Which objects take part: the render-visibility rule.** Export and capture use one rule, the
+one Cycles renders by: the depsgraph evaluated *for rendering* the view layer that
+:func:`render_view_layer` names (collections excluded from the view layer or disabled in renders
+and objects disabled in renders are out; objects hidden only in the viewport are in; modifiers
+at their render levels, geometry nodes' render branch, particle and collection instances). It
+comes from a render with a minimal internal engine (:func:`with_render_depsgraph`: a few
+milliseconds, nothing drawn, every setting restored). Per object, Cycles' ray visibility
+decides the rest: an object invisible to both diffuse and shadow rays takes no part in the
+light transport vplace models and is left out; one invisible to diffuse rays reflects nothing
+(albedo 0) but still casts shadows; one invisible to shadow rays only still blocks them in
+vplace (a warning says so).
+
+**Unsupported things** are left out with one warning naming the object, and the rest is
+exported: volume objects and volume-only materials, hair curves, point clouds and hair
+particles. A material with true displacement keeps its undisplaced surface (with a warning),
+which is nearer to what Cycles renders than leaving the object out. Warnings are collected in
+``ExportedScene.warnings``.
 """
 
 from __future__ import annotations
@@ -15,14 +35,16 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 import bpy
 import numpy as np
 
+from . import materials as mat_rule
 from .errors import ExportError
+from .settings import override
 from .world import WorldInfo, world_info
 
 __all__ = [
@@ -32,7 +54,11 @@ __all__ = [
     "export_scene",
     "light_info",
     "material_info",
+    "render_view_layer",
+    "with_render_depsgraph",
 ]
+
+T = TypeVar("T")
 
 #: Custom property that marks the objects and the collection vplace writes.
 VPL_MARKER = "vplace_vpl"
@@ -41,15 +67,47 @@ DEFAULT_ALBEDO = (0.8, 0.8, 0.8)
 
 
 @dataclass
+class TextureInfo:
+    """How a material reads one of the exported textures."""
+
+    index: int  # into ExportedScene.textures
+    uv_map: str  # "" = the active render UV map
+    uv_scale: tuple[float, float] = (1.0, 1.0)
+    uv_offset: tuple[float, float] = (0.0, 0.0)
+    wrap: str = "repeat"
+
+
+@dataclass
+class AlphaInfo:
+    """An alpha cut-out: rays pass where ``offset + scale * value < cutoff`` (``value`` the
+    texture's alpha channel or luminance, see ``source``)."""
+
+    offset: float
+    scale: float = 0.0
+    texture: TextureInfo | None = None
+    source: str = "alpha"
+    cutoff: float = 0.5
+
+
+@dataclass
 class MaterialInfo:
     """What the core needs of a material."""
 
     name: str
-    albedo: tuple[float, float, float]
+    albedo: tuple[float, float, float]  # the diffuse albedo's mean (the texture's mean colour)
     roughness: float = 0.5
     metallic: float = 0.0
     emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
     textured: bool = False
+    #: The albedo at a hit is ``albedo_offset + texture_tint * rgb(texture)``.
+    texture: TextureInfo | None = None
+    albedo_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    texture_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    alpha: AlphaInfo | None = None
+    #: Only a volume (left out); true displacement (exported undisplaced).
+    volume_only: bool = False
+    displaced: bool = False
+    warnings: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -98,12 +156,18 @@ class ExportedScene:
     objects: list[str] = field(default_factory=list)
     #: The world's light (None without a world).
     world: WorldInfo | None = None
-    #: What the export approximated, in words (a baked world, an unreadable image, ...).
+    #: (T, 3, 2) float32 UV of each triangle corner, as its material's textures read them;
+    #: None when no material reads a texture.
+    uvs: np.ndarray | None = None
+    #: (H, W, 4) float32 linear RGBA images, row 0 at the top; ``texture_names`` their images.
+    textures: list[np.ndarray] = field(default_factory=list)
+    texture_names: list[str] = field(default_factory=list)
+    #: What was left out or approximated, one line each (naming the object or material).
     warnings: list[str] = field(default_factory=list)
 
     @property
     def albedo(self) -> np.ndarray:
-        """(M, 3) float32 diffuse albedo per material."""
+        """(M, 3) float32 diffuse albedo per material (a textured material's mean)."""
         return np.array([m.albedo for m in self.materials], dtype=np.float32).reshape(-1, 3)
 
     @property
@@ -125,6 +189,11 @@ class ExportedScene:
         h = hashlib.sha256()
         for arr in (self.vertices, self.triangles, self.material_ids):
             h.update(np.ascontiguousarray(arr).tobytes())
+        if self.uvs is not None:
+            h.update(np.ascontiguousarray(self.uvs).tobytes())
+        for tex in self.textures:
+            h.update(repr(tex.shape).encode())
+            h.update(np.ascontiguousarray(tex).tobytes())
         h.update(repr([vars(m) for m in self.materials]).encode())
         h.update(repr([vars(light) for light in self.lights]).encode())
         h.update(repr(self.world_color).encode())
@@ -174,10 +243,29 @@ def _input_float(node: bpy.types.Node, name: str, default: float) -> float:
     return float(sock.default_value) if sock is not None else default
 
 
-def material_info(mat: bpy.types.Material | None) -> MaterialInfo:
-    """Reduces a material to albedo, roughness, metallic and emission."""
+def material_info(
+    mat: bpy.types.Material | None,
+    images: mat_rule.ImageCache | None = None,
+    texture_index: Callable[[str], int] | None = None,
+) -> MaterialInfo:
+    """Reduces a material to its diffuse surface (the material rule of :mod:`.materials`),
+    roughness, metallic and emission.
+
+    ``images`` shares image reads between materials; ``texture_index`` gives the index of an
+    image (``Image.name_full``) among the exported textures. Without it a texture's mean colour
+    stands in for it (``textured`` says so).
+    """
+    images = images if images is not None else mat_rule.ImageCache()
     if mat is None:
-        return MaterialInfo("<none>", DEFAULT_ALBEDO)
+        info = MaterialInfo("<none>", DEFAULT_ALBEDO)
+    else:
+        info = _shading_info(mat)
+    _apply_surface(info, mat_rule.surface_of(mat, images), images, texture_index)
+    return info
+
+
+def _shading_info(mat: bpy.types.Material) -> MaterialInfo:
+    """Roughness, metallic and emission of a material (its albedo is :func:`_apply_surface`'s)."""
     base = tuple(mat.diffuse_color[:3])
     info = MaterialInfo(mat.name, (base[0], base[1], base[2]), mat.roughness, mat.metallic)
     tree = mat.node_tree
@@ -188,30 +276,67 @@ def material_info(mat: bpy.types.Material | None) -> MaterialInfo:
         return info
     shader = out.inputs["Surface"].links[0].from_node
     if shader.type == "BSDF_PRINCIPLED":
-        color, textured = _input_color(shader, "Base Color")
         metallic = _input_float(shader, "Metallic", 0.0)
         strength = _input_float(shader, "Emission Strength", 0.0)
         emit, _ = _input_color(shader, "Emission Color")
         info = MaterialInfo(
             mat.name,
-            tuple(c * (1.0 - metallic) for c in color),  # type: ignore[arg-type]
+            info.albedo,
             _input_float(shader, "Roughness", 0.5),
             metallic,
             (emit[0] * strength, emit[1] * strength, emit[2] * strength),
-            textured,
         )
     elif shader.type == "BSDF_DIFFUSE":
-        color, textured = _input_color(shader, "Color")
-        info = MaterialInfo(mat.name, color, 1.0, 0.0, textured=textured)
+        info = MaterialInfo(mat.name, info.albedo, 1.0, 0.0)
     elif shader.type == "EMISSION":
         emit, _ = _input_color(shader, "Color")
         s = _input_float(shader, "Strength", 1.0)
         info = MaterialInfo(
             mat.name, (0.0, 0.0, 0.0), emission=(emit[0] * s, emit[1] * s, emit[2] * s)
         )
-    a = np.clip(np.array(info.albedo, dtype=np.float64), 0.0, 1.0)
-    info.albedo = (float(a[0]), float(a[1]), float(a[2]))
     return info
+
+
+def _rgb(v: np.ndarray) -> tuple[float, float, float]:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+def _apply_surface(
+    info: MaterialInfo,
+    surface: mat_rule.Surface,
+    images: mat_rule.ImageCache,
+    texture_index: Callable[[str], int] | None,
+) -> None:
+    """Sets ``info``'s albedo, texture and alpha from the material rule's ``surface``."""
+    info.albedo = _rgb(np.clip(surface.albedo.mean(images), 0.0, 1.0))
+    info.textured = surface.albedo.tex is not None
+    info.volume_only, info.displaced = surface.volume_only, surface.displaced
+    info.warnings = list(surface.warnings)
+
+    def texture(use: mat_rule.TextureUse) -> TextureInfo | None:
+        if texture_index is None:
+            return None
+        return TextureInfo(
+            texture_index(use.image), use.uv_map, use.uv_scale, use.uv_offset, use.wrap
+        )
+
+    alb = surface.albedo
+    if alb.tex is not None and alb.coef.any():
+        info.texture = texture(alb.tex)
+        if info.texture is not None:
+            info.albedo_offset = _rgb(np.clip(alb.const, 0.0, 1.0))
+            info.texture_tint = _rgb(np.maximum(alb.coef, 0.0))
+    if surface.alpha_tested:
+        a = surface.alpha
+        tex = texture(a.tex) if a.tex is not None and a.coef.any() else None
+        if tex is None:
+            info.alpha = AlphaInfo(float(a.mean(images)[0]), cutoff=surface.cutoff)
+        else:
+            assert a.tex is not None
+            source = "alpha" if a.tex.channel == "alpha" else "luminance"
+            info.alpha = AlphaInfo(float(a.const[0]), float(a.coef[0]), tex, source, surface.cutoff)
+        if info.alpha.texture is None and info.alpha.offset >= info.alpha.cutoff:
+            info.alpha = None  # a constant alpha that never cuts
 
 
 def light_info(name: str, light: bpy.types.Light, matrix: Any) -> LightInfo:
@@ -273,7 +398,325 @@ def _is_vpl(obj: bpy.types.Object) -> bool:
     return bool(original.get(VPL_MARKER, False))
 
 
-GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES"}
+#: Object types exported as triangles (through ``to_mesh``).
+GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
+#: Object types Cycles renders that vplace cannot turn into triangles.
+UNSUPPORTED_TYPES = {"VOLUME": "a volume", "CURVES": "hair curves", "POINTCLOUD": "a point cloud"}
+
+
+def render_view_layer(scene: bpy.types.Scene) -> bpy.types.ViewLayer:
+    """The view layer a capture renders and an export reads: the context's view layer when
+    ``scene`` is the context's scene, else the scene's first view layer enabled for rendering
+    (else its first)."""
+    if bpy.context.scene == scene and bpy.context.view_layer is not None:
+        return bpy.context.view_layer
+    return next((v for v in scene.view_layers if v.use), scene.view_layers[0])
+
+
+class _RenderDepsgraphEngine(bpy.types.RenderEngine):
+    """A render engine that draws nothing: its ``render`` hands the render depsgraph to the
+    call of :func:`with_render_depsgraph` in progress. Registered only during that call."""
+
+    bl_idname = "VPLACE_RENDER_DEPSGRAPH"
+    bl_label = "vplace (export)"
+    bl_use_postprocess = False
+
+    #: The call in progress: (view layer name, function, [result], [error]).
+    call: tuple[str, Callable[[bpy.types.Depsgraph], Any], list[Any], list[BaseException]] | None
+    call = None
+
+    def render(self, depsgraph: bpy.types.Depsgraph) -> None:
+        call = type(self).call
+        if call is None or depsgraph.view_layer_eval.name != call[0] or call[2] or call[3]:
+            return
+        try:
+            call[2].append(call[1](depsgraph))
+        except BaseException as exc:  # handed to the caller, raised there
+            call[3].append(exc)
+
+
+def with_render_depsgraph(
+    scene: bpy.types.Scene,
+    view_layer: bpy.types.ViewLayer,
+    fn: Callable[[bpy.types.Depsgraph], T],
+) -> T:
+    """Calls ``fn`` with the depsgraph Cycles would render ``view_layer`` of ``scene`` with
+    (mode ``RENDER``: render visibility, render modifier levels and instancing) and returns its
+    result; ``fn``'s exceptions propagate. The depsgraph lives only during the call.
+
+    It comes from a render with an internal engine that draws nothing (registered for the call
+    only); the scene's engine, compositing and sequencer settings are restored after.
+    """
+    engine = _RenderDepsgraphEngine
+    if engine.call is not None:
+        raise ExportError("a render-depsgraph export is already running")
+    result: list[Any] = []
+    errors: list[BaseException] = []
+    registered = False
+    try:
+        bpy.utils.register_class(engine)
+        registered = True
+        engine.call = (view_layer.name, fn, result, errors)
+        with override() as g:
+            r = scene.render
+            g.set(r, "engine", engine.bl_idname)
+            g.set(r, "use_compositing", False)
+            g.set(r, "use_sequencer", False)
+            g.set(r, "use_single_layer", True)
+            g.set(view_layer, "use", True)
+            bpy.ops.render.render(write_still=False, scene=scene.name, layer=view_layer.name)
+    finally:
+        engine.call = None
+        if registered:
+            bpy.utils.unregister_class(engine)
+    if errors:
+        raise errors[0]
+    if not result:
+        raise ExportError(
+            f"Blender did not evaluate view layer {view_layer.name!r} of scene {scene.name!r} "
+            "for rendering"
+        )
+    return result[0]
+
+
+@dataclass
+class _Part:
+    """One exported object instance: world-space vertices, triangles, material ids, UVs."""
+
+    vertices: np.ndarray  # (V, 3) float32
+    triangles: np.ndarray  # (T, 3) int64, local indices
+    material_ids: np.ndarray  # (T,) int64
+    uvs: np.ndarray | None  # (T, 3, 2) float32
+
+
+class _Exporter:
+    """Walks a render depsgraph's instances by the render-visibility rule (module docs)."""
+
+    def __init__(self, include_vpls: bool) -> None:
+        self.include_vpls = include_vpls
+        self.images = mat_rule.ImageCache()
+        self.materials: list[MaterialInfo] = []
+        self.mat_index: dict[tuple[str, bool], int] = {}
+        self.texture_keys: dict[str, int] = {}
+        self.parts: list[_Part] = []
+        self.lights: list[LightInfo] = []
+        self.names: list[str] = []
+        self.warnings: list[str] = []
+        self._warned: set[str] = set()
+
+    def warn(self, text: str) -> None:
+        if text not in self._warned:
+            self._warned.add(text)
+            self.warnings.append(text)
+
+    def texture_index(self, image: str) -> int:
+        if image not in self.texture_keys:
+            self.texture_keys[image] = len(self.texture_keys)
+        return self.texture_keys[image]
+
+    def mat_id(self, mat: bpy.types.Material | None, reflects: bool) -> int:
+        mat = mat.original if mat is not None and mat.original is not None else mat
+        key = (mat.name_full if mat is not None else "", reflects)
+        if key not in self.mat_index:
+            info = material_info(mat, self.images, self.texture_index)
+            for w in info.warnings:
+                self.warn(w)
+            if not reflects:  # invisible to diffuse rays: it only blocks light
+                info.name += " (not diffuse-visible)"
+                info.albedo = (0.0, 0.0, 0.0)
+                info.texture, info.albedo_offset = None, (0.0, 0.0, 0.0)
+            self.mat_index[key] = len(self.materials)
+            self.materials.append(info)
+        return self.mat_index[key]
+
+    def visit(self, inst: bpy.types.DepsgraphObjectInstance) -> None:
+        obj = inst.object
+        original = obj.original if obj.original is not None else obj
+        if _is_vpl(obj) and not self.include_vpls:
+            return
+        if not inst.is_instance and not inst.show_self:
+            return  # an emitter whose particle settings hide it
+        if obj.type == "LIGHT":
+            self.lights.append(light_info(original.name, obj.data, inst.matrix_world))
+            return
+        if obj.type in UNSUPPORTED_TYPES:
+            self.warn(
+                f"object {original.name!r} is {UNSUPPORTED_TYPES[obj.type]}, which vplace "
+                "cannot export: it is left out"
+            )
+            return
+        if obj.type not in GEOMETRY_TYPES:
+            return
+        if not inst.is_instance:
+            self._check_particles(obj, original.name)
+        if not (obj.visible_diffuse or obj.visible_shadow):
+            return  # only the camera (or glossy rays) see it: no part in diffuse transport
+        if not obj.visible_shadow:
+            self.warn(
+                f"object {original.name!r} casts no shadows in Cycles (ray visibility) but "
+                "blocks vplace's shadow rays"
+            )
+        part = self._mesh(obj, original.name, inst.matrix_world, obj.visible_diffuse)
+        if part is not None:
+            self.parts.append(part)
+            self.names.append(original.name)
+
+    def _check_particles(self, obj: bpy.types.Object, name: str) -> None:
+        for ps in getattr(obj, "particle_systems", ()):
+            settings = ps.settings
+            if settings.type == "HAIR" and settings.render_type == "PATH":
+                self.warn(
+                    f"object {name!r} has hair particles ({ps.name!r}), which vplace cannot "
+                    "export: they are left out"
+                )
+
+    def _mesh(self, obj: bpy.types.Object, name: str, matrix: Any, reflects: bool) -> _Part | None:
+        with evaluated_mesh(obj) as mesh:
+            if mesh is None or len(mesh.polygons) == 0:
+                return None
+            mesh.calc_loop_triangles()
+            nv, nt = len(mesh.vertices), len(mesh.loop_triangles)
+            co = np.empty(nv * 3, dtype=np.float32)
+            mesh.vertices.foreach_get("co", co)
+            idx = np.empty(nt * 3, dtype=np.int32)
+            mesh.loop_triangles.foreach_get("vertices", idx)
+            mi = np.empty(nt, dtype=np.int32)
+            mesh.loop_triangles.foreach_get("material_index", mi)
+            slots = [s.material for s in obj.material_slots] or [None]
+            slot_ids = np.array([self.mat_id(m, reflects) for m in slots], dtype=np.int64)
+            mids = slot_ids[np.clip(mi, 0, len(slot_ids) - 1)]
+            uvs = self._uvs(mesh, name, mids)
+        co64 = co.reshape(-1, 3).astype(np.float64)
+        if not np.isfinite(co64).all():
+            raise ExportError(
+                f"object {name!r} has vertices with NaN or infinite coordinates; "
+                "fix or hide the mesh"
+            )
+        tris = idx.reshape(-1, 3).astype(np.int64)
+        keep = self._surfaces(name, mids)
+        if keep is not None:
+            tris, mids = tris[keep], mids[keep]
+            uvs = uvs[keep] if uvs is not None else None
+            if len(tris) == 0:
+                return None
+        m = np.array(matrix, dtype=np.float64)
+        world = co64 @ m[:3, :3].T + m[:3, 3]
+        return _Part(world.astype(np.float32), tris, mids, uvs)
+
+    def _surfaces(self, name: str, mids: np.ndarray) -> np.ndarray | None:
+        """Warnings for volume-only and displaced materials; the triangles to keep (None: all)."""
+        used = np.unique(mids)
+        drop = [int(m) for m in used if self.materials[m].volume_only]
+        for m in used:
+            info = self.materials[int(m)]
+            if info.volume_only:
+                self.warn(
+                    f"object {name!r}: material {info.name!r} is a volume, which vplace cannot "
+                    "export: its faces are left out"
+                )
+            if info.displaced:
+                self.warn(
+                    f"object {name!r}: material {info.name!r} displaces the surface, which "
+                    "vplace cannot reproduce: the undisplaced surface is exported"
+                )
+        return ~np.isin(mids, drop) if drop else None
+
+    def _uvs(self, mesh: bpy.types.Mesh, name: str, mids: np.ndarray) -> np.ndarray | None:
+        """(T, 3, 2) UVs of each triangle corner from the map its material's textures read;
+        None when no material of the object reads a texture."""
+        wanted: dict[int, str] = {}
+        for m in np.unique(mids):
+            info = self.materials[int(m)]
+            maps = [t.uv_map for t in (info.texture, info.alpha and info.alpha.texture) if t]
+            if maps:
+                if len(set(maps)) > 1:
+                    self.warn(
+                        f"material {info.name!r} reads two UV maps ({maps[0]!r}, {maps[1]!r}): "
+                        f"vplace reads both textures through {maps[0]!r}"
+                    )
+                wanted[int(m)] = maps[0]
+        if not wanted:
+            return None
+        nt = len(mesh.loop_triangles)
+        loops = np.empty(nt * 3, dtype=np.int32)
+        mesh.loop_triangles.foreach_get("loops", loops)
+        layers = mesh.uv_layers
+        active = next((la for la in layers if la.active_render), None)
+        out = np.zeros((nt, 3, 2), dtype=np.float32)
+        cache: dict[str, np.ndarray] = {}
+        for layer_name in sorted(set(wanted.values())):
+            layer = active if layer_name == "" else layers.get(layer_name)
+            if layer is None:
+                what = "no UV map" if layer_name == "" else f"no UV map {layer_name!r}"
+                self.warn(
+                    f"object {name!r} has {what}: its textures are read at UV (0, 0), as "
+                    "Cycles does"
+                )
+                continue
+            if layer.name not in cache:
+                uv = np.empty(len(mesh.loops) * 2, dtype=np.float32)
+                layer.uv.foreach_get("vector", uv)
+                cache[layer.name] = uv.reshape(-1, 2)[loops].reshape(nt, 3, 2)
+            rows = np.isin(mids, [m for m, n in wanted.items() if n == layer_name])
+            out[rows] = cache[layer.name][rows]
+        return out
+
+    def result(self, scene: bpy.types.Scene) -> ExportedScene:
+        if not self.parts:
+            raise ExportError("the scene has no visible mesh geometry to export")
+        offsets = np.cumsum([0] + [len(p.vertices) for p in self.parts[:-1]])
+        tris = np.concatenate([p.triangles + o for p, o in zip(self.parts, offsets, strict=True)])
+        any_uvs = any(p.uvs is not None for p in self.parts)
+        uvs = None
+        if any_uvs:
+            uvs = np.concatenate(
+                [
+                    p.uvs if p.uvs is not None else np.zeros((len(p.triangles), 3, 2), np.float32)
+                    for p in self.parts
+                ]
+            )
+        textures, names = [], []
+        for key in self.texture_keys:  # in index order
+            data = self.images.get(key)
+            if data is None:  # missing image: one magenta texel, as Cycles renders it
+                px = np.array([[[*mat_rule.MISSING_IMAGE, 1.0]]], dtype=np.float32)
+            else:
+                px = data.pixels
+            textures.append(px)
+            names.append(key)
+        for w in self.images.warnings:
+            self.warn(w)
+        cam = scene.camera
+        camera = None
+        if cam is not None and cam.type == "CAMERA":
+            r = scene.render
+            scale = r.resolution_percentage / 100.0
+            camera = CameraInfo(
+                cam.name,
+                np.array(cam.matrix_world, dtype=np.float64),
+                cam.data.lens,
+                cam.data.sensor_width,
+                (int(r.resolution_x * scale), int(r.resolution_y * scale)),
+            )
+        world = world_info(scene.world)
+        if world is not None:
+            for w in world.warnings:
+                self.warn(w)
+        return ExportedScene(
+            np.concatenate([p.vertices for p in self.parts]).astype(np.float32, copy=False),
+            tris.astype(np.uint32),
+            np.concatenate([p.material_ids for p in self.parts]).astype(np.uint32),
+            self.materials,
+            self.lights,
+            camera,
+            world.mean_color if world is not None else (0.0, 0.0, 0.0),
+            self.names,
+            world=world,
+            uvs=uvs,
+            textures=textures,
+            texture_names=names,
+            warnings=self.warnings,
+        )
 
 
 def export_scene(
@@ -282,91 +725,22 @@ def export_scene(
     *,
     include_vpls: bool = False,
 ) -> ExportedScene:
-    """Exports the render-visible geometry, materials, lights and camera of ``scene``.
+    """Exports the geometry, materials, textures, lights and camera of ``scene`` that Cycles
+    renders (the render-visibility rule of the module docs).
 
-    The lights vplace wrote are left out unless ``include_vpls`` (a capture's cache key needs
-    them: they change the render).
+    ``depsgraph`` defaults to the render depsgraph of :func:`render_view_layer` (through
+    :func:`with_render_depsgraph`); a given one is used as it is. The lights vplace wrote are
+    left out unless ``include_vpls`` (a capture's cache key needs them: they change the render).
+    Unsupported objects are left out and named in ``ExportedScene.warnings``.
     """
-    if depsgraph is None:
-        depsgraph = bpy.context.evaluated_depsgraph_get()
-    verts: list[np.ndarray] = []
-    tris: list[np.ndarray] = []
-    mids: list[np.ndarray] = []
-    materials: list[MaterialInfo] = []
-    mat_index: dict[str, int] = {}
-    lights: list[LightInfo] = []
-    names: list[str] = []
-    offset = 0
+    exporter = _Exporter(include_vpls)
 
-    def mat_id(mat: bpy.types.Material | None) -> int:
-        key = mat.name_full if mat is not None else ""
-        if key not in mat_index:
-            mat_index[key] = len(materials)
-            materials.append(material_info(mat))
-        return mat_index[key]
+    def walk(dg: bpy.types.Depsgraph) -> None:
+        for inst in dg.object_instances:
+            exporter.visit(inst)
 
-    for inst in depsgraph.object_instances:
-        obj = inst.object
-        original = obj.original if obj.original is not None else obj
-        if original.hide_render or (_is_vpl(obj) and not include_vpls):
-            continue
-        if obj.type == "LIGHT":
-            lights.append(light_info(original.name, obj.data, inst.matrix_world))
-            continue
-        if obj.type not in GEOMETRY_TYPES:
-            continue
-        with evaluated_mesh(obj) as mesh:
-            if mesh is None or len(mesh.polygons) == 0:
-                continue
-            mesh.calc_loop_triangles()
-            nv, nt = len(mesh.vertices), len(mesh.loop_triangles)
-            co = np.empty(nv * 3, dtype=np.float32)
-            mesh.vertices.foreach_get("co", co)
-            idx = np.empty(nt * 3, dtype=np.int64)
-            mesh.loop_triangles.foreach_get("vertices", idx)
-            mi = np.empty(nt, dtype=np.int64)
-            mesh.loop_triangles.foreach_get("material_index", mi)
-            slots = [s.material for s in obj.material_slots] or [None]
-        co = co.reshape(-1, 3).astype(np.float64)
-        if not np.isfinite(co).all():
-            raise ExportError(
-                f"object {original.name!r} has vertices with NaN or infinite coordinates; "
-                "fix or hide the mesh"
-            )
-        m = np.array(inst.matrix_world, dtype=np.float64)
-        world = co @ m[:3, :3].T + m[:3, 3]
-        slot_ids = np.array([mat_id(s) for s in slots], dtype=np.int64)
-        verts.append(world.astype(np.float32))
-        tris.append(idx.reshape(-1, 3) + offset)
-        mids.append(slot_ids[np.clip(mi, 0, len(slot_ids) - 1)])
-        offset += nv
-        names.append(original.name)
-
-    if not tris:
-        raise ExportError("the scene has no visible mesh geometry to export")
-    cam = scene.camera
-    camera = None
-    if cam is not None and cam.type == "CAMERA":
-        r = scene.render
-        scale = r.resolution_percentage / 100.0
-        camera = CameraInfo(
-            cam.name,
-            np.array(cam.matrix_world, dtype=np.float64),
-            cam.data.lens,
-            cam.data.sensor_width,
-            (int(r.resolution_x * scale), int(r.resolution_y * scale)),
-        )
-    world = world_info(scene.world)
-    world_color = world.mean_color if world is not None else (0.0, 0.0, 0.0)
-    return ExportedScene(
-        np.concatenate(verts).astype(np.float32),
-        np.concatenate(tris).astype(np.uint32),
-        np.concatenate(mids).astype(np.uint32),
-        materials,
-        lights,
-        camera,
-        world_color,
-        names,
-        world,
-        list(world.warnings) if world is not None else [],
-    )
+    if depsgraph is not None:
+        walk(depsgraph)
+    else:
+        with_render_depsgraph(scene, render_view_layer(scene), walk)
+    return exporter.result(scene)

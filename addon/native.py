@@ -10,12 +10,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import numpy as np
 import vplace
 import vplace.bench_par2d as bench_par2d
 
 if TYPE_CHECKING:
     from .capture import Capture
-    from .export import ExportedScene, LightInfo, WorldInfo
+    from .export import AlphaInfo, ExportedScene, LightInfo, TextureInfo, WorldInfo
 
 __all__ = ["bench_par2d", "build_scene", "native_light", "native_world", "view_of", "vplace"]
 
@@ -62,19 +63,55 @@ def native_world(info: WorldInfo) -> vplace.Light:
     )
 
 
+def _texture_map(info: TextureInfo) -> vplace.TextureMap:
+    return vplace.TextureMap(
+        info.index, uv_scale=info.uv_scale, uv_offset=info.uv_offset, wrap=info.wrap
+    )
+
+
+def _alpha_test(info: AlphaInfo | None) -> vplace.AlphaTest | None:
+    if info is None:
+        return None
+    texture = _texture_map(info.texture) if info.texture is not None else None
+    return vplace.AlphaTest(
+        info.offset, info.scale, texture, source=info.source, cutoff=info.cutoff
+    )
+
+
 def build_scene(exported: ExportedScene) -> vplace.Scene:
     """A ``vplace.Scene`` (with its BVH) from an exported Blender scene: its lights, its world
-    when that sends light, its materials' emission."""
+    when that sends light, its materials' emission; per material its albedo, or its base-colour
+    texture (``albedo_offset + texture_tint * rgb``) and alpha cut-out, read through the
+    exported UVs."""
     lights = [native_light(light) for light in exported.lights]
     if exported.world is not None and exported.world.emits:
         lights.append(native_world(exported.world))
+    mats = exported.materials
+    textured = any(m.texture is not None or m.alpha is not None for m in mats)
+    if not textured:
+        return vplace.Scene(
+            exported.vertices,
+            exported.triangles,
+            exported.material_ids,
+            exported.albedo,
+            lights,
+            emission=exported.emission,
+        )
+    albedo = np.array(
+        [m.albedo_offset if m.texture is not None else m.albedo for m in mats], dtype=np.float32
+    ).reshape(-1, 3)
     return vplace.Scene(
         exported.vertices,
         exported.triangles,
         exported.material_ids,
-        exported.albedo,
+        albedo,
         lights,
         emission=exported.emission,
+        uvs=exported.uvs,
+        textures=exported.textures,
+        base_textures=[_texture_map(m.texture) if m.texture is not None else None for m in mats],
+        texture_tint=np.array([m.texture_tint for m in mats], dtype=np.float32).reshape(-1, 3),
+        alpha_tests=[_alpha_test(m.alpha) for m in mats],
     )
 
 

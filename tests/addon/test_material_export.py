@@ -1,0 +1,152 @@
+"""The material rule (``materials.py``) as export applies it: the diffuse albedo of node trees,
+base-colour textures looked up per hit through the exported UVs, alpha cut-outs that rays pass,
+and the viewport colour with a warning for what the rule does not read."""
+
+import bpy
+import numpy as np
+import pytest
+from blender_util import empty_file
+
+from addon import export
+from addon.native import build_scene
+
+#: A 2 x 2 texture (Blender rows bottom first): red, green / blue, white; alpha 0 on the left.
+TEXELS = np.array(
+    [[[1, 0, 0, 0], [0, 1, 0, 1]], [[0, 0, 1, 0], [1, 1, 1, 1]]],
+    dtype=np.float32,
+)
+
+
+@pytest.fixture
+def scene():
+    empty_file()
+    sc = bpy.context.scene
+    cam = bpy.data.objects.new("cam", bpy.data.cameras.new("cam"))
+    sc.collection.objects.link(cam)
+    sc.camera = cam
+    sun = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
+    sc.collection.objects.link(sun)
+    return sc
+
+
+def quad(scene, mat, z=0.0):
+    """A unit quad at height ``z`` with UVs = (x, y), so UV (u, v) is the point (u, v, z)."""
+    mesh = bpy.data.meshes.new("quad")
+    mesh.from_pydata([(0, 0, z), (1, 0, z), (1, 1, z), (0, 1, z)], [], [(0, 1, 2, 3)])
+    uv = mesh.uv_layers.new(name="UVMap")
+    for loop in mesh.loops:
+        co = mesh.vertices[loop.vertex_index].co
+        uv.data[loop.index].uv = (co.x, co.y)
+    mesh.materials.append(mat)
+    obj = bpy.data.objects.new("quad", mesh)
+    scene.collection.objects.link(obj)
+    bpy.context.view_layer.update()
+    return obj
+
+
+def principled(name, **inputs):
+    mat = bpy.data.materials.new(name)
+    p = mat.node_tree.nodes["Principled BSDF"]
+    for key, value in inputs.items():
+        p.inputs[key].default_value = value
+    return mat, p
+
+
+def image():
+    img = bpy.data.images.new("tex", 2, 2, alpha=True, float_buffer=True)
+    img.pixels.foreach_set(TEXELS.ravel())
+    img.pack()
+    return img
+
+
+def only_material(ex, name):
+    (m,) = [m for m in ex.materials if m.name == name]
+    return m
+
+
+def test_metal_and_glass_are_not_diffuse_bounce_sources(scene):
+    metal, _ = principled("metal", **{"Base Color": (0.8, 0.4, 0.2, 1), "Metallic": 0.75})
+    glass, _ = principled("glass", **{"Transmission Weight": 1.0})
+    quad(scene, metal)
+    quad(scene, glass, z=1.0)
+    ex = export.export_scene(scene)
+    np.testing.assert_allclose(only_material(ex, "metal").albedo, (0.2, 0.1, 0.05), rtol=1e-5)
+    np.testing.assert_allclose(only_material(ex, "glass").albedo, (0, 0, 0), atol=1e-6)
+
+
+def test_image_base_colour_is_looked_up_per_hit(scene):
+    mat, p = principled("textured")
+    tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image = image()
+    mat.node_tree.links.new(tex.outputs["Color"], p.inputs["Base Color"])
+    quad(scene, mat)
+    ex = export.export_scene(scene)
+    m = only_material(ex, "textured")
+    assert m.texture is not None and m.textured
+    assert ex.uvs is not None and ex.uvs.shape == (2, 3, 2)
+    assert ex.textures[m.texture.index].shape == (2, 2, 4)
+    native = build_scene(ex)
+    assert native.texture_count == 1
+    # Rays straight down near each texel's centre (the lookup is bilinear), off the quad's
+    # diagonal: the albedo at each hit is that texel's colour.
+    centres = np.array([[0.26, 0.24], [0.74, 0.26], [0.24, 0.76], [0.76, 0.74]], np.float32)
+    origins = np.c_[centres, np.ones(4, np.float32)].astype(np.float32)
+    down = np.tile(np.array([[0, 0, -1]], np.float32), (4, 1))
+    _, tri, bary = native.intersect(origins, down)
+    assert np.all(tri >= 0)
+    got = native.albedo_at(tri.astype(np.uint32), bary)
+    want = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], np.float32)
+    np.testing.assert_allclose(got, want, atol=0.05)
+
+
+def test_alpha_cut_surfaces_let_rays_through(scene):
+    mat, p = principled("leaf")
+    tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image = image()
+    tex.interpolation = "Closest"
+    mat.node_tree.links.new(tex.outputs["Color"], p.inputs["Base Color"])
+    mat.node_tree.links.new(tex.outputs["Alpha"], p.inputs["Alpha"])
+    quad(scene, mat, z=1.0)
+    floor_mat, _ = principled("floor")
+    floor = quad(scene, floor_mat)
+    floor.scale = (3, 3, 1)
+    floor.location = (-1, -1, 0)
+    bpy.context.view_layer.update()
+    ex = export.export_scene(scene)
+    leaf = only_material(ex, "leaf")
+    assert leaf.alpha is not None and leaf.alpha.texture is not None
+    native = build_scene(ex)
+    assert native.has_alpha_tests
+    # Shadow rays from under the card up through its texels: cut on the left (alpha 0).
+    # Off the quad's diagonal (an edge of both triangles).
+    below = np.array([[0.2, 0.3, 0.5], [0.7, 0.2, 0.5], [0.3, 0.8, 0.5], [0.8, 0.7, 0.5]])
+    above = below + np.array([0, 0, 1.0])
+    blocked = native.occluded(below.astype(np.float32), above.astype(np.float32))
+    assert blocked.tolist() == [False, True, False, True]
+
+
+def test_mix_with_transparent_is_the_cut_out(scene):
+    mat = bpy.data.materials.new("fence")
+    nt = mat.node_tree
+    p = nt.nodes["Principled BSDF"]
+    p.inputs["Base Color"].default_value = (0.5, 0.5, 0.5, 1)
+    transparent = nt.nodes.new("ShaderNodeBsdfTransparent")
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.3  # 30 % Principled: alpha 0.3 < 0.5, cut away
+    nt.links.new(transparent.outputs[0], mix.inputs[1])
+    nt.links.new(p.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    quad(scene, mat)
+    m = only_material(export.export_scene(scene), "fence")
+    assert m.alpha is not None and m.alpha.texture is None and m.alpha.offset < m.alpha.cutoff
+
+
+def test_unread_node_trees_use_the_viewport_colour_with_a_warning(scene):
+    mat, p = principled("wavy")
+    mat.diffuse_color = (0.1, 0.6, 0.3, 1.0)
+    wave = mat.node_tree.nodes.new("ShaderNodeTexWave")
+    mat.node_tree.links.new(wave.outputs["Color"], p.inputs["Base Color"])
+    quad(scene, mat)
+    ex = export.export_scene(scene)
+    np.testing.assert_allclose(only_material(ex, "wavy").albedo, (0.1, 0.6, 0.3), rtol=1e-5)
+    assert any("wavy" in w for w in ex.warnings)
