@@ -28,7 +28,7 @@ build: $(NATIVE)
 
 demo: build
 	$(PY) -m addon.cli demo --scene cornell --out out/cornell
-	$(PY) -m addon.cli demo --scene sponza --out out/sponza --samples 128 --no-eevee
+	$(PY) -m addon.cli demo --scene sponza --out out/sponza --no-eevee
 
 lint: build
 	cargo fmt --all --check

@@ -38,7 +38,7 @@ def view_set(args: argparse.Namespace) -> ViewSet:
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
-    from .pipeline import FEATURE_MODES
+    from .pipeline import FEATURE_MODES, Job
 
     p = argparse.ArgumentParser(prog="vplace", description=__doc__)
     p.add_argument("--debug", action="store_true", help="print tracebacks of errors")
@@ -74,7 +74,9 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         help="lay out for COUNT views around the scene camera: turned about a pivot RADIUS m in "
         "front of it (0: the scene's centre) by up to ANGLE degrees",
     )
-    demo.add_argument("--samples", type=int, default=256, help="Cycles samples of the capture")
+    demo.add_argument(
+        "--samples", type=int, default=Job.samples, help="Cycles samples of each capture"
+    )
     demo.add_argument(
         "--truth-samples", type=int, default=None,
         help="score against a Cycles render of the scene camera at these samples (a ground "

@@ -81,7 +81,10 @@ class Job:
     size: int = 160
     #: An explicit capture size (W, H) instead of ``size`` (the report's presets).
     resolution: tuple[int, int] | None = None
-    samples: int = 256
+    #: Cycles samples of each view's capture. 16: in the report's capture-spp curve a layout
+    #: from 16 spp captures scored as well as one from 256 (Sponza fit views 0.826 against
+    #: 0.824, Cornell 0.980 against 0.980) at a sixteenth of the render time.
+    samples: int = 16
     seed: int = 0
     profile: str = "cosine"
     #: Near-field radius of the VPLs (m); None: the scene's (``NEAR_FIELD_FRACTION`` of its
