@@ -78,9 +78,9 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         "--samples", type=int, default=Job.samples, help="Cycles samples of each capture"
     )
     demo.add_argument(
-        "--truth-samples", type=int, default=None,
-        help="score against a Cycles render of the scene camera at these samples (a ground "
-        "truth); default: against the capture itself",
+        "--truth-samples", type=int, default=256,
+        help="score against a Cycles render of the scene camera at these samples (default 256; "
+        "0: against the first view's own capture, as noisy as it is)",
     )  # fmt: skip
     demo.add_argument("--seed", type=int, default=0)
     demo.add_argument("--cell-px", type=int, default=16, help="regression grid cell, pixels")
@@ -245,7 +245,7 @@ def run(args: argparse.Namespace) -> None:
         args.out,
         job=job,
         eevee=not args.no_eevee,
-        truth_samples=args.truth_samples,
+        truth_samples=args.truth_samples or None,
     )
     print(f"[vplace] results in {args.out}")
 

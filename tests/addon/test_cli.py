@@ -47,6 +47,8 @@ def test_python_m_vplace_runs_the_main_job(tmp_path):
     report = json.loads((out / "report.json").read_text())
     assert report["n_vpls"] == 8 and (out / "scene.blend").exists()
     assert "fitted model (cells of 8 px)" in r.stdout
+    # Scored against a 256 spp render of the scene camera, not the 4 spp capture.
+    assert report["reference"]["samples"] == 256 and "ground truth" in report["reference"]["label"]
 
 
 def test_cli_as_a_file_with_blender_style_arguments(tmp_path):
@@ -63,11 +65,15 @@ def test_cli_as_a_file_with_blender_style_arguments(tmp_path):
             "--out",
             str(out),
             *ARGS,
+            "--truth-samples",
+            "0",
         ],
         cwd=tmp_path,
     )
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     assert (out / "vpls.csv").exists()
+    # --truth-samples 0: scored against the capture itself, and said so.
+    assert json.loads((out / "report.json").read_text())["reference"]["samples"] == 4
 
 
 def test_bad_arguments_exit_with_a_message(tmp_path):
