@@ -312,6 +312,7 @@ def lay_out(
     if fitted is None:
         with timer.stage("fit regression"):
             fitted = fit(prepared, job, views)
+    stride = vplace.stride_for(views)  # the iteration's and the refit's pixels, bounded
     with timer.stage(f"layout (n={n}, alpha={job.alpha:g})"):
         laid = vplace.layout(
             scene,
@@ -323,6 +324,7 @@ def lay_out(
             iterate=job.iterations > 0,
             iterations=max(job.iterations, 1),
             seed=job.seed,
+            stride=stride,
             progress=progress,
             **kind,
         )
@@ -330,7 +332,7 @@ def lay_out(
     if job.method == "vplace+refit" and all(v.has_indirect for v in views):
         with timer.stage("refit VPL powers"):
             start = time.perf_counter()
-            out.refit = vplace.refit(scene, views, laid.vpls, progress=progress)
+            out.refit = vplace.refit(scene, views, laid.vpls, stride=stride, progress=progress)
             out.refit_seconds = time.perf_counter() - start
         out.vpls = out.refit.vpls
     return out

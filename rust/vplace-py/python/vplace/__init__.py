@@ -73,12 +73,14 @@ from vplace._native import (
     ssim,
     uniform_vpls,
 )
+from vplace.budget import PIXEL_BUDGET, stride_for
 
 __all__ = [
     "LUMINANCE",
     "MAX_BOUNCES",
     "MAX_DIRECT_SAMPLES",
     "NEAR_FIELD_FRACTION",
+    "PIXEL_BUDGET",
     "VPL_SURFACE_OFFSET",
     "AlphaTest",
     "CancelledError",
@@ -108,5 +110,6 @@ __all__ = [
     "rmse",
     "rsm_vpls",
     "ssim",
+    "stride_for",
     "uniform_vpls",
 ]

@@ -221,6 +221,21 @@ def views_of(scene: _native.Scene, caps: list[dict[str, Any]]) -> list[vplace.Vi
     return out
 
 
+def full_resolution_rmse(
+    scene: _native.Scene, views: list[vplace.View], vpls: vplace.VplSet
+) -> float:
+    """RMSE of the VPL indirect image against each view's indirect image over every covered
+    pixel of every view."""
+    sq, n = 0.0, 0
+    for view in views:
+        img, _ = vplace.evaluate(scene, view, vpls)
+        covered = view.covered
+        diff = (img - view.indirect)[covered]
+        sq += float((diff.astype(np.float64) ** 2).sum())
+        n += diff.size
+    return math.sqrt(sq / max(n, 1))
+
+
 def peak_memory_mb() -> float:
     """The process's peak resident memory so far, MB."""
     import resource
@@ -249,14 +264,16 @@ def main(argv: list[str] | None = None) -> None:
 
     t_fit, model = median_time(fit, args.repeat)
 
-    def lay_out() -> vplace.Layout:
+    stride = vplace.stride_for(views)  # as "Lay out and apply" samples these views
+
+    def lay_out(at: int = stride) -> vplace.Layout:
         return vplace.layout(
-            scene, views, fit=fit(), budget=args.budget, iterations=3, tolerance=0.0, stride=4
+            scene, views, fit=fit(), budget=args.budget, iterations=3, tolerance=0.0, stride=at
         )
 
-    def lay_out_and_refit() -> tuple[vplace.Layout, vplace.Refit]:
-        laid = lay_out()
-        return laid, vplace.refit(scene, views, laid.vpls, stride=4)
+    def lay_out_and_refit(at: int = stride) -> tuple[vplace.Layout, vplace.Refit]:
+        laid = lay_out(at)
+        return laid, vplace.refit(scene, views, laid.vpls, stride=at)
 
     t_alloc, _ = median_time(
         lambda: vplace.layout(scene, views, fit=model, budget=args.budget, iterate=False),
@@ -265,6 +282,10 @@ def main(argv: list[str] | None = None) -> None:
     t_whole, out = median_time(lay_out, args.repeat)
     t_both, (_, refitted) = median_time(lay_out_and_refit, args.repeat)
     peak = peak_memory_mb()
+    # What the pixel budget costs in quality: the full-resolution error of layout + refit at the
+    # budget's stride and at the finest stride, every view, in this run.
+    quality = {at: full_resolution_rmse(scene, views, lay_out_and_refit(at)[1].vpls)
+               for at in sorted({stride, vplace.budget.MIN_STRIDE})}  # fmt: skip
 
     vpls = vplace.uniform_vpls(scene, args.budget, seed=3)
     t_refit, fitted = median_time(lambda: vplace.refit(scene, views, vpls, stride=4), args.repeat)
@@ -294,7 +315,7 @@ def main(argv: list[str] | None = None) -> None:
     print(f"{'step':<56} {'seconds':>10}")
     print(f"{'features + one fit over every view (vplace.fit)':<56} {t_fit:>10.3f}")
     print(f"{'predict + strata + allocation (no iteration)':<56} {t_alloc:>10.3f}")
-    print(f"{'whole layout (fit + allocation + 3 iterations @ 1/4)':<56} {t_whole:>10.3f}")
+    print(f"{f'whole layout (fit + allocation + 3 iterations @ 1/{stride})':<56} {t_whole:>10.3f}")
     print(
         f"  iteration errors (RMSE): {', '.join(f'{e:.4g}' for e in out.errors)}; best {out.best}"
     )
@@ -306,6 +327,11 @@ def main(argv: list[str] | None = None) -> None:
     print(
         f"  refit: {refitted.pixels} pixels, RMSE {refitted.error_before:.4g} -> "
         f"{refitted.error_after:.4g}"
+    )
+    print(
+        "  full-resolution RMSE of layout + refit, every view: "
+        + ", ".join(f"stride {at}: {e:.4g}" for at, e in quality.items())
+        + f" (stride {stride}: the pixel budget of {vplace.PIXEL_BUDGET} over all views)"
     )
     print(f"{f'refit of {args.budget} uniform VPLs (NNLS @ 1/4)':<56} {t_refit:>10.3f}")
     print(
