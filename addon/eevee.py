@@ -77,8 +77,9 @@ class Setup:
         e = scene.eevee
         # Every EEVEE set-up lets the user's lamps reach across the scene (Cycles never fades
         # them): the comparison is about bounce light, not a threshold a user would fix anyway.
-        if eevee_setup.faded_lamps(scene):
-            g.set(e, "light_threshold", eevee_setup.threshold_for(scene))
+        threshold = eevee_setup.threshold_for(scene)
+        if threshold != e.light_threshold:
+            g.set(e, "light_threshold", threshold)
         g.set(e, "use_raytracing", self.raytracing)
         g.set(e, "use_fast_gi", self.fast_gi)
         if self.raytracing:

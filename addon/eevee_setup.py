@@ -88,14 +88,19 @@ def lamp_reach(light: bpy.types.Light, threshold: float) -> float:
     return math.sqrt(max(power, 0.0) / (100.0 * threshold))
 
 
-def faded_lamps(scene: bpy.types.Scene) -> list[tuple[str, float]]:
-    """The user's lamps (not vplace's) that EEVEE fades out inside the scene at its current
-    ``light_threshold``, with the distance each reaches."""
+def _reach_needed(scene: bpy.types.Scene) -> float | None:
+    """How far every lamp must reach: :data:`LAMP_REACH_DIAGONALS` scene diagonals (None
+    without a visible mesh)."""
     try:
         lo, hi = scene_bounds(scene)
     except AddonError:
+        return None
+    return LAMP_REACH_DIAGONALS * (hi - lo).length
+
+
+def _faded(scene: bpy.types.Scene, need: float | None) -> list[tuple[str, float]]:
+    if need is None:
         return []
-    need = LAMP_REACH_DIAGONALS * (hi - lo).length
     threshold = scene.eevee.light_threshold
     out = []
     for obj in scene.objects:
@@ -109,19 +114,23 @@ def faded_lamps(scene: bpy.types.Scene) -> list[tuple[str, float]]:
     return out
 
 
+def faded_lamps(scene: bpy.types.Scene) -> list[tuple[str, float]]:
+    """The user's lamps (not vplace's) that EEVEE fades out inside the scene at its current
+    ``light_threshold``, with the distance each reaches."""
+    return _faded(scene, _reach_needed(scene))
+
+
 def threshold_for(scene: bpy.types.Scene) -> float:
     """The largest ``light_threshold`` at which every lamp of ``scene`` reaches
-    :data:`LAMP_REACH_DIAGONALS` scene diagonals (the current one when none falls short)."""
+    :data:`LAMP_REACH_DIAGONALS` scene diagonals (the current one when none falls short).
+    A lamp's reach goes as ``1 / sqrt(threshold)``, so the shortest reach sets it."""
     threshold = scene.eevee.light_threshold
-    faded = faded_lamps(scene)
-    if not faded:
+    need = _reach_needed(scene)
+    faded = _faded(scene, need)
+    if need is None or not faded:
         return threshold
-    lo, hi = scene_bounds(scene)
-    need = LAMP_REACH_DIAGONALS * (hi - lo).length
-    powers = [
-        scene.objects[name].data.energy * max(scene.objects[name].data.color) for name, _ in faded
-    ]
-    return min(threshold, 0.99 * min(powers) / (100.0 * need * need))  # 0.5 % beyond
+    shortest = min(reach for _, reach in faded)
+    return 0.99 * threshold * (shortest / need) ** 2  # 0.5 % beyond
 
 
 def shadow_pages(scene: bpy.types.Scene) -> int:
@@ -347,6 +356,20 @@ def temporary_volume(
             bpy.data.lightprobes.remove(data)
 
 
+@contextmanager
+def world_volume_for_render(
+    scene: bpy.types.Scene, *, probes: int = VOLUME_PROBES
+) -> Iterator[float]:
+    """For a render of the VPLs as :func:`set_up` would leave the scene: when the world emits
+    and vplace has baked no volume, a temporary one without indirect light (the world's light,
+    occluded) for the block. Yields its bake seconds (0.0 when none is needed)."""
+    if world_emits(scene) and vplace_volume(scene) is None:
+        with temporary_volume(scene, probes=probes, capture_indirect=False) as seconds:
+            yield seconds
+    else:
+        yield 0.0
+
+
 def _probe_collection(scene: bpy.types.Scene) -> bpy.types.Collection:
     """A fresh, empty probe collection of vplace's, linked to ``scene``."""
     old = bpy.data.collections.get(PROBE_COLLECTION)
@@ -381,8 +404,7 @@ def set_up(scene: bpy.types.Scene, *, bake_volume: bool = True) -> list[str]:
             changed.append(f"{label} = {value!r}")
 
     put(e, "use_shadows", True, "scene.eevee.use_shadows")
-    if faded_lamps(scene):
-        put(e, "light_threshold", threshold_for(scene), "scene.eevee.light_threshold")
+    put(e, "light_threshold", threshold_for(scene), "scene.eevee.light_threshold")
     mb = pool_for(shadow_pages(scene))
     if int(e.shadow_pool_size) < mb:
         put(e, "shadow_pool_size", str(mb), "scene.eevee.shadow_pool_size")

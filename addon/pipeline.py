@@ -549,12 +549,7 @@ def score_eevee(
     from . import eevee
 
     cap = reference.capture
-    with contextlib.ExitStack() as stack:
-        bake = 0.0
-        if eevee_setup.world_emits(bl_scene) and eevee_setup.vplace_volume(bl_scene) is None:
-            bake = stack.enter_context(
-                eevee_setup.temporary_volume(bl_scene, capture_indirect=False)
-            )
+    with eevee_setup.world_volume_for_render(bl_scene) as bake:
         img = eevee.render(
             bl_scene,
             resolution=(cap.width, cap.height),

@@ -639,13 +639,11 @@ def eevee_rows(
 
     with contextlib.ExitStack() as stack:
         world_bake = 0.0
-        if chosen and eevee_setup.world_emits(bl_scene):
-            # The world's light, occluded, as eevee_setup.set_up bakes it (no indirect light).
+        if chosen:  # the world's light, occluded, as eevee_setup.set_up bakes it
             world_bake = stack.enter_context(
-                eevee_setup.temporary_volume(
-                    bl_scene, probes=config.volume_resolution, capture_indirect=False
-                )
+                eevee_setup.world_volume_for_render(bl_scene, probes=config.volume_resolution)
             )
+        if world_bake:
             log(f"[vplace] the world's light probe volume baked in {world_bake:.1f} s")
         for method, s in chosen.items():
             vpl_rows(method, s, world_bake)
