@@ -28,17 +28,17 @@ from . import export
 from .native import build_scene
 
 
-def textured_terrain(n: int, tex: int) -> bpy.types.Scene:
-    """A fresh file with an ``n`` x ``n`` vertex terrain (UV-mapped, image-textured), a sun
-    and a camera looking at it."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    xs = np.linspace(-10.0, 10.0, n)
+def grid_mesh(
+    name: str, xs: np.ndarray, height: Callable[[np.ndarray, np.ndarray], np.ndarray]
+) -> tuple[bpy.types.Mesh, np.ndarray, np.ndarray]:
+    """A mesh of ``len(xs)^2`` vertices over the grid ``xs x xs`` at ``z = height(x, y)``, one
+    quad per grid cell: the mesh, its (V, 3) vertices and (Q, 4) quads."""
+    n = len(xs)
     gx, gy = np.meshgrid(xs, xs)
-    verts = np.stack([gx.ravel(), gy.ravel(), 0.3 * np.sin(gx.ravel()) * np.cos(gy.ravel())], 1)
+    verts = np.stack([gx.ravel(), gy.ravel(), height(gx.ravel(), gy.ravel())], 1)
     idx = np.arange(n * n).reshape(n, n)
     quads = np.stack([idx[:-1, :-1], idx[:-1, 1:], idx[1:, 1:], idx[1:, :-1]], -1).reshape(-1, 4)
-    mesh = bpy.data.meshes.new("terrain")
+    mesh = bpy.data.meshes.new(name)
     mesh.vertices.add(len(verts))
     mesh.vertices.foreach_set("co", verts.astype(np.float32).ravel())
     mesh.loops.add(quads.size)
@@ -46,9 +46,19 @@ def textured_terrain(n: int, tex: int) -> bpy.types.Scene:
     mesh.polygons.add(len(quads))
     mesh.polygons.foreach_set("loop_start", np.arange(0, quads.size, 4, dtype=np.int32))
     mesh.update()
+    return mesh, verts, quads
+
+
+def textured_terrain(n: int, tex: int) -> bpy.types.Scene:
+    """A fresh file with an ``n`` x ``n`` vertex terrain (UV-mapped, image-textured), a sun
+    and a camera looking at it."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    mesh, verts, quads = grid_mesh(
+        "terrain", np.linspace(-10.0, 10.0, n), lambda x, y: 0.3 * np.sin(x) * np.cos(y)
+    )
     uv = mesh.uv_layers.new(name="UVMap")
-    corner = quads.ravel()
-    uvs = np.stack([gx.ravel()[corner], gy.ravel()[corner]], 1) / 20.0 + 0.5
+    uvs = verts[quads.ravel(), :2] / 20.0 + 0.5
     uv.data.foreach_set("uv", uvs.astype(np.float32).ravel())
     image = bpy.data.images.new("bench texture", tex, tex, float_buffer=False)
     rng = np.random.default_rng(0)

@@ -42,6 +42,26 @@ VOLATILE = {
 }
 
 
+def add_lamp(
+    scene: bpy.types.Scene,
+    kind: str,
+    location: tuple[float, float, float],
+    energy: float,
+    rotation: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    **props: Any,
+) -> bpy.types.Object:
+    """A lamp of Blender type ``kind`` (its data's ``props`` set) linked to ``scene``."""
+    light = bpy.data.lights.new(kind, kind)
+    light.energy = energy
+    for k, v in props.items():
+        setattr(light, k, v)
+    obj = bpy.data.objects.new(kind, light)
+    obj.location = location
+    obj.rotation_euler = rotation
+    scene.collection.objects.link(obj)
+    return obj
+
+
 def empty_file() -> None:
     bpy.ops.wm.read_factory_settings(use_empty=True)
 

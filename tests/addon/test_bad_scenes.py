@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from blender_util import addon_cornell, data_snapshot, diff
 
-from addon import apply
+from addon import apply, bench_export
 
 
 @pytest.fixture
@@ -128,20 +128,9 @@ def test_linked_library_object(scene, tmp_path):
 @pytest.mark.slow
 def test_a_million_triangles_works(scene):
     n = 709  # (n - 1)^2 * 2 = 1,002,528 triangles
-    xs = np.linspace(-0.9, 0.9, n)
-    gx, gy = np.meshgrid(xs, xs)
-    verts = np.stack([gx.ravel(), gy.ravel(), 0.3 + 0.02 * np.sin(9 * gx.ravel())], axis=1)
-    idx = np.arange(n * n).reshape(n, n)
-    a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, 1:], idx[1:, :-1]
-    quads = np.stack([a, b, c, d], axis=-1).reshape(-1, 4)
-    mesh = bpy.data.meshes.new("terrain")
-    mesh.vertices.add(len(verts))
-    mesh.vertices.foreach_set("co", verts.astype(np.float32).ravel())
-    mesh.loops.add(quads.size)
-    mesh.loops.foreach_set("vertex_index", quads.astype(np.int32).ravel())
-    mesh.polygons.add(len(quads))
-    mesh.polygons.foreach_set("loop_start", np.arange(0, quads.size, 4, dtype=np.int32))
-    mesh.update()
+    mesh, _, _ = bench_export.grid_mesh(
+        "terrain", np.linspace(-0.9, 0.9, n), lambda x, _y: 0.3 + 0.02 * np.sin(9 * x)
+    )
     scene.collection.objects.link(bpy.data.objects.new("terrain", mesh))
     bpy.context.view_layer.update()
     assert bpy.ops.vplace.apply() == {"FINISHED"}

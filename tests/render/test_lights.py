@@ -26,7 +26,7 @@ import math
 import bpy
 import numpy as np
 import pytest
-from blender_util import empty_file
+from blender_util import add_lamp, empty_file
 
 from addon import capture, export
 from addon.native import build_scene, view_of, vplace
@@ -111,18 +111,6 @@ def stage(*, room: bool = False) -> bpy.types.Scene:
     return scene
 
 
-def lamp(scene, kind, location, energy, rotation=(0.0, 0.0, 0.0), **props) -> bpy.types.Object:
-    light = bpy.data.lights.new(kind, kind)
-    light.energy = energy
-    for k, v in props.items():
-        setattr(light, k, v)
-    obj = bpy.data.objects.new(kind, light)
-    obj.location = location
-    obj.rotation_euler = rotation
-    scene.collection.objects.link(obj)
-    return obj
-
-
 def sky_image(w=64, h=32) -> bpy.types.Image:
     """A float equirectangular sky: a blue-to-white gradient and a bright patch (a sun)."""
     img = bpy.data.images.new("sky", w, h, float_buffer=True)
@@ -196,19 +184,19 @@ def _down(pitch_deg: float, yaw_deg: float = 0.0) -> tuple[float, float, float]:
 
 #: kind -> (set-up, Cycles samples per render). Lamps sit at 2-3 m over the 4 m floor.
 KINDS = {
-    "point": (lambda s: lamp(s, "POINT", (0.8, -0.6, 2.4), 400.0, shadow_soft_size=0.0), 256),
+    "point": (lambda s: add_lamp(s, "POINT", (0.8, -0.6, 2.4), 400.0, shadow_soft_size=0.0), 256),
     "point radius (soft falloff)": (
-        lambda s: lamp(s, "POINT", (0.8, -0.6, 2.0), 400.0, shadow_soft_size=0.5),
+        lambda s: add_lamp(s, "POINT", (0.8, -0.6, 2.0), 400.0, shadow_soft_size=0.5),
         512,
     ),
     "point radius (sphere)": (
-        lambda s: lamp(
+        lambda s: add_lamp(
             s, "POINT", (0.8, -0.6, 2.0), 400.0, shadow_soft_size=0.5, use_soft_falloff=False
         ),
         512,
     ),
     "spot blend radius": (
-        lambda s: lamp(
+        lambda s: add_lamp(
             s,
             "SPOT",
             (-0.6, -1.2, 2.6),
@@ -220,9 +208,9 @@ KINDS = {
         ),
         512,
     ),
-    "area square": (lambda s: lamp(s, "AREA", (0.3, -0.4, 2.4), 500.0, size=1.0), 512),
+    "area square": (lambda s: add_lamp(s, "AREA", (0.3, -0.4, 2.4), 500.0, size=1.0), 512),
     "area rectangle": (
-        lambda s: lamp(
+        lambda s: add_lamp(
             s,
             "AREA",
             (0.3, -0.4, 2.4),
@@ -235,11 +223,11 @@ KINDS = {
         512,
     ),
     "area disk": (
-        lambda s: lamp(s, "AREA", (0.3, -0.4, 2.4), 500.0, shape="DISK", size=1.0),
+        lambda s: add_lamp(s, "AREA", (0.3, -0.4, 2.4), 500.0, shape="DISK", size=1.0),
         512,
     ),
     "area ellipse": (
-        lambda s: lamp(
+        lambda s: add_lamp(
             s,
             "AREA",
             (0.3, -0.4, 2.4),
@@ -252,7 +240,7 @@ KINDS = {
         512,
     ),
     "area spread": (
-        lambda s: lamp(
+        lambda s: add_lamp(
             s,
             "AREA",
             (0.0, -0.6, 2.2),
@@ -265,9 +253,9 @@ KINDS = {
         ),
         1024,
     ),
-    "sun": (lambda s: lamp(s, "SUN", (0, 0, 5), 3.0, (0.6, 0.3, 0.4), angle=0.0), 128),
+    "sun": (lambda s: add_lamp(s, "SUN", (0, 0, 5), 3.0, (0.6, 0.3, 0.4), angle=0.0), 128),
     "sun angle": (
-        lambda s: lamp(s, "SUN", (0, 0, 5), 3.0, (0.6, 0.3, 0.4), angle=math.radians(15)),
+        lambda s: add_lamp(s, "SUN", (0, 0, 5), 3.0, (0.6, 0.3, 0.4), angle=math.radians(15)),
         512,
     ),
     "world color": (lambda s: set_world(s, (0.6, 0.7, 1.0), 1.5), 512),

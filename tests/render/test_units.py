@@ -5,7 +5,7 @@ import math
 
 import bpy
 import numpy as np
-from blender_util import empty_file
+from blender_util import add_lamp, empty_file
 
 from addon import capture
 
@@ -37,16 +37,6 @@ def plane_scene():
     return scene
 
 
-def add_light(scene, kind, location, energy, **props):
-    light = bpy.data.lights.new(kind, kind)
-    light.energy = energy
-    for k, v in props.items():
-        setattr(light, k, v)
-    obj = bpy.data.objects.new(kind, light)
-    obj.location = location
-    scene.collection.objects.link(obj)
-
-
 POINTS = [(24, 24), (10, 30), (36, 12), (30, 40), (5, 5), (40, 22)]
 
 
@@ -65,7 +55,7 @@ def check(cap, expected_fn):
 def test_point_light_radiance():
     scene = plane_scene()
     y = np.array([0.3, -0.2, 1.0])
-    add_light(scene, "POINT", tuple(y), 100.0, shadow_soft_size=0.0)
+    add_lamp(scene, "POINT", tuple(y), 100.0, shadow_soft_size=0.0)
     cap = capture.capture(scene, resolution=(48, 48), samples=16)
 
     def expected(x):
@@ -80,7 +70,7 @@ def test_point_light_radiance():
 def test_disk_area_light_radiance():
     scene = plane_scene()
     y = np.array([0.0, 0.2, 1.5])
-    add_light(scene, "AREA", tuple(y), 100.0, shape="DISK", size=0.05)
+    add_lamp(scene, "AREA", tuple(y), 100.0, shape="DISK", size=0.05)
     cap = capture.capture(scene, resolution=(48, 48), samples=64)
 
     def expected(x):
