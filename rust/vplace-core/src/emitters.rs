@@ -207,6 +207,24 @@ fn select(cdf: &[f32], u: f32) -> (usize, f32) {
     (k, rest)
 }
 
+/// Writes the `n + 1` entries of the CDF of `weights` (`n` of them) into `cdf`: from 0 to
+/// exactly 1, uniform where the weights sum to 0. Returns their sum (added in order).
+fn fill_cdf(weights: &[f64], cdf: &mut [f32]) -> f64 {
+    let n = weights.len();
+    let total: f64 = weights.iter().sum();
+    let mut run = 0.0f64;
+    for (j, w) in weights.iter().enumerate() {
+        cdf[j] = if total > 0.0 {
+            (run / total) as f32
+        } else {
+            j as f32 / n as f32
+        };
+        run += w;
+    }
+    cdf[n] = 1.0;
+    total
+}
+
 impl EnvironmentMap {
     /// Builds the map from `rgb` (`height x width x 3`, row 0 at the top, linear, `>= 0`) and
     /// the `rotation` taking world directions to image directions (identity: Blender's default
@@ -264,41 +282,20 @@ impl EnvironmentMap {
         let mut integral = [0.0f64; 3];
         let mut weights = vec![0.0f64; width * height];
         for i in 0..height {
-            let mut acc = 0.0f64;
             for j in 0..width {
                 let p = pixels[i * width + j];
                 for (s, c) in integral.iter_mut().zip(p.to_array()) {
                     *s += f64::from(c) * pixel_solid_angle[i];
                 }
-                let w = f64::from(luminance(p)) * pixel_solid_angle[i];
-                weights[i * width + j] = w;
-                acc += w;
+                weights[i * width + j] = f64::from(luminance(p)) * pixel_solid_angle[i];
             }
-            row_weight[i] = acc;
-            let cdf = &mut columns[i * (width + 1)..(i + 1) * (width + 1)];
-            let mut run = 0.0f64;
-            for j in 0..width {
-                cdf[j] = if acc > 0.0 {
-                    (run / acc) as f32
-                } else {
-                    j as f32 / width as f32
-                };
-                run += weights[i * width + j];
-            }
-            cdf[width] = 1.0;
+            row_weight[i] = fill_cdf(
+                &weights[i * width..(i + 1) * width],
+                &mut columns[i * (width + 1)..(i + 1) * (width + 1)],
+            );
         }
-        let total: f64 = row_weight.iter().sum();
         let mut rows = vec![0.0f32; height + 1];
-        let mut run = 0.0f64;
-        for i in 0..height {
-            rows[i] = if total > 0.0 {
-                (run / total) as f32
-            } else {
-                i as f32 / height as f32
-            };
-            run += row_weight[i];
-        }
-        rows[height] = 1.0;
+        let total = fill_cdf(&row_weight, &mut rows);
         let mass = weights
             .iter()
             .map(|&w| if total > 0.0 { (w / total) as f32 } else { 0.0 })
@@ -486,14 +483,8 @@ impl EmissiveMesh {
                 radiance,
             });
         }
-        let total: f64 = weights.iter().sum();
-        let mut cdf = Vec::with_capacity(out.len() + 1);
-        let mut run = 0.0f64;
-        for w in &weights {
-            cdf.push((run / total) as f32);
-            run += w;
-        }
-        cdf.push(1.0);
+        let mut cdf = vec![0.0f32; weights.len() + 1];
+        let total = fill_cdf(&weights, &mut cdf);
         let prob = weights.iter().map(|w| (w / total) as f32).collect();
         let radiance_area = out.iter().map(|t| t.radiance * t.area).sum();
         Ok(Self {
