@@ -17,10 +17,10 @@ import math
 import bpy
 import numpy as np
 import pytest
+from blender_util import add_lamp
 from test_lights import (
     OURS_SAMPLES,
     RES,
-    lamp,
     point_pixels,  # noqa: F401 (a fixture)
     relative_rmse,
     silhouettes,
@@ -100,7 +100,7 @@ def mask(cap: capture.Capture) -> np.ndarray:
 @pytest.mark.slow
 def test_textured_albedo_per_hit_matches_cycles(point_pixels):  # noqa: F811
     scene = stage()
-    lamp(scene, "SUN", (0, 0, 5), 3.0, (0.6, 0.3, 0.4))
+    add_lamp(scene, "SUN", (0, 0, 5), 3.0, (0.6, 0.3, 0.4))
     textured_floor(scene)
     bpy.context.view_layer.update()
     exported = export.export_scene(scene)
@@ -127,7 +127,7 @@ def test_textured_albedo_per_hit_matches_cycles(point_pixels):  # noqa: F811
 @pytest.mark.slow
 def test_alpha_cut_shadow_matches_cycles(point_pixels):  # noqa: F811
     scene = stage()
-    lamp(scene, "SUN", (0, 0, 5), 3.0, (math.radians(20), 0.0, math.radians(30)))
+    add_lamp(scene, "SUN", (0, 0, 5), 3.0, (math.radians(20), 0.0, math.radians(30)))
     mat = textured("leaf", checker("leaf checker", alpha=True), 1.0, cut=True)
     corners = [(-1.5, -1.6, 1.2), (0.2, -1.6, 1.2), (0.2, 0.0, 1.2), (-1.5, 0.0, 1.2)]
     uv_quad(scene, "card", corners, mat)
