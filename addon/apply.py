@@ -8,9 +8,10 @@ ones the evaluator renders (``vplace.VplSet`` carries profile and near-field rad
   ``vplace_core::shading``, so EEVEE and Cycles show no hot spot the evaluator did not compute.
   Omni profile: a POINT light of radius 0, power ``2 Phi``, a point on both sides (its near
   field is singular in Blender and in the evaluator alike; see ``shading.rs``).
-- ``diffuse_factor`` 1, ``specular_factor``, ``transmission_factor`` and ``volume_factor`` 0:
-  the evaluator models the diffuse bounce only; a VPL's small bright disk would otherwise show
-  as a highlight on glossy surfaces.
+- ``diffuse_factor`` 1, ``transmission_factor`` and ``volume_factor`` 0. ``specular_factor``
+  is 1 when the scene has rough glossy layers (``export.ROUGH_GLOSS``: the evaluator counts
+  the VPLs' light on them, and so must EEVEE), else 0: a VPL's small bright disk would only
+  show as a highlight on sharp glossy surfaces, whose reflections EEVEE's ray tracing makes.
 - EEVEE culls a light whose intensity falls below ``scene.eevee.light_threshold`` and, with a
   custom distance, fades it as ``(1 - (d / cutoff)^4)^2`` (``light_influence_attenuation`` in
   EEVEE's source). Each VPL light gets a custom cutoff of :data:`CUTOFF_DIAGONALS` scene
@@ -129,6 +130,7 @@ def _new_vpl_object(
     cutoff: float,
     shadows: bool,
     texel: float,
+    specular: float,
 ) -> bpy.types.Object:
     """VPL ``i`` as a new light object in ``coll`` (see the module docs)."""
     energy = float(power.max())
@@ -139,7 +141,7 @@ def _new_vpl_object(
     light.cutoff_distance = cutoff
     light.use_shadow = shadows
     light.diffuse_factor = 1.0
-    light.specular_factor = 0.0
+    light.specular_factor = specular
     light.transmission_factor = 0.0
     light.volume_factor = 0.0
     for attr, value in SHADOW_SETTINGS.items():
@@ -168,11 +170,13 @@ def write_vpls(
     *,
     shadows: bool = True,
     scene_diagonal: float = 10.0,
+    specular: float = 0.0,
     name: str = COLLECTION_NAME,
 ) -> bpy.types.Collection:
     """Writes the VPLs of ``vpls`` that carry power as lights (by its profile and near-field
     radius) in a fresh VPL collection linked to ``scene``; with ``shadows``, the
-    :data:`MAX_SHADOWED_VPLS` brightest cast shadows. See the module docs."""
+    :data:`MAX_SHADOWED_VPLS` brightest cast shadows; ``specular`` is their specular factor
+    (``Prepared.vpl_specular``). See the module docs."""
     n = len(vpls)
     if n > MAX_VPLS:
         raise WriteBackError(
@@ -202,6 +206,7 @@ def write_vpls(
                 CUTOFF_DIAGONALS * scene_diagonal,
                 shadows and int(i) in shadowed,
                 SHADOW_TEXEL_DIAGONALS * scene_diagonal,
+                specular,
             )
     except BaseException:
         _remove_collection(coll)

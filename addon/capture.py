@@ -123,6 +123,22 @@ class Capture:
         glossy and transmitted indirect light, which no diffuse VPL produces.)"""
         return (self.diffuse_indirect * self.diffuse_color).astype(np.float32)
 
+    def reflectance(self, gloss: np.ndarray | None = None) -> np.ndarray:
+        """What a receiver reflects of the light the VPLs give it: the diffuse albedo, plus the
+        Glossy Color pass where ``gloss`` (an (H, W) weight, ``native.gloss_mask``) says its
+        glossy layer is modelled."""
+        if gloss is None:
+            return self.albedo
+        return (self.albedo + gloss[..., None] * self.glossy_color).astype(np.float32)
+
+    def modelled_indirect(self, gloss: np.ndarray | None = None) -> np.ndarray:
+        """The indirect light vplace models: :attr:`indirect`, plus the glossy indirect light
+        ``GlossInd * GlossCol`` where ``gloss`` says so (see :meth:`reflectance`)."""
+        if gloss is None:
+            return self.indirect
+        extra = gloss[..., None] * self.glossy_indirect * self.glossy_color
+        return (self.indirect + extra).astype(np.float32)
+
     def save(self, path: Path) -> None:
         """Writes the capture as an uncompressed ``.npz``."""
         arrays = {f.name: getattr(self, f.name) for f in fields(self)}

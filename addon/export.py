@@ -104,10 +104,22 @@ class MaterialInfo:
     albedo_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     texture_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
     alpha: AlphaInfo | None = None
+    #: The roughness of its glossy layer (None: none; :mod:`.materials`).
+    gloss_roughness: float | None = None
     #: Only a volume (left out); true displacement (exported undisplaced).
     volume_only: bool = False
     displaced: bool = False
     warnings: list[str] = field(default_factory=list)
+
+
+#: A glossy layer at least this rough is modelled by vplace as a broad lobe: the light it gets
+#: from the VPLs is counted like diffuse light, with the Glossy Color pass as its reflectance
+#: (the normalized Blinn-Phong lobe ``(s + 8) / (8 pi) (n . h)^s`` at the exponent
+#: ``s = 2 / a^2 - 2`` of a roughness-1 layer, ``a = 1``: ``s = 0``, a constant ``1 / pi``),
+#: and the written VPLs light it through their specular factor. 0.5 is EEVEE's default
+#: ray-tracing maximum roughness: sharper layers are the ones EEVEE's ray tracing reflects,
+#: and vplace leaves their glossy light to it.
+ROUGH_GLOSS = 0.5
 
 
 @dataclass
@@ -175,6 +187,18 @@ class ExportedScene:
         """(M, 3) float32 emitted radiance per material (W/(m^2 sr), both sides)."""
         e = np.array([m.emission for m in self.materials], dtype=np.float32).reshape(-1, 3)
         return np.ascontiguousarray(np.maximum(e, 0.0))
+
+    @property
+    def rough_gloss(self) -> np.ndarray:
+        """(M,) bool: the materials whose glossy layer vplace models (:data:`ROUGH_GLOSS`)."""
+        r = [m.gloss_roughness for m in self.materials]
+        return np.array([g is not None and g >= ROUGH_GLOSS for g in r], dtype=bool)
+
+    @property
+    def sharp_gloss(self) -> np.ndarray:
+        """(M,) bool: the materials whose glossy layer is left to EEVEE's ray tracing."""
+        r = [m.gloss_roughness for m in self.materials]
+        return np.array([g is not None and g < ROUGH_GLOSS for g in r], dtype=bool)
 
     def emitters(self) -> list[str]:
         """What sends light, in words: lights with power, the world, emissive materials."""
@@ -311,6 +335,7 @@ def _apply_surface(
     info.albedo = _rgb(np.clip(surface.albedo.mean(images), 0.0, 1.0))
     info.textured = surface.albedo.tex is not None
     info.volume_only, info.displaced = surface.volume_only, surface.displaced
+    info.gloss_roughness = surface.gloss_roughness
     info.warnings = list(surface.warnings)
 
     def texture(use: mat_rule.TextureUse) -> TextureInfo | None:

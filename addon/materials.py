@@ -39,6 +39,11 @@ material output's Surface input:
 - **Alpha**: where it is below the cutoff, rays pass through the surface. (Cycles lets a
   fraction ``1 - alpha`` of the light through; the test rounds that to all or nothing, exact for
   the binary masks of leaves and fences.)
+- **The glossy layer**: a Principled BSDF with a specular level or metallic above 0, a Glossy,
+  Anisotropic or Metallic BSDF has one, of its Roughness (the mean when a texture drives it);
+  mixed or added shaders keep the sharpest of their sides'. Where it is rough (see
+  ``export.ROUGH_GLOSS``) vplace models its light as a broad lobe; a sharp one is left to
+  EEVEE's ray tracing.
 - **Anything else** (other shader nodes, procedural colour nodes, vertex colours): the
   material's viewport colour (Viewport Display > Color) with a warning naming the material; a
   float input fed by an unsupported node keeps its own value, with a warning.
@@ -79,6 +84,8 @@ NON_DIFFUSE = {
     "BSDF_REFRACTION",
     "HOLDOUT",
 }
+#: Shader nodes whose only layer is glossy (their Roughness input is the layer's).
+GLOSSY = {"BSDF_GLOSSY", "BSDF_ANISOTROPIC", "BSDF_METALLIC"}
 #: Image Texture extension -> the core's wrap mode (Clip reads like Extend inside [0, 1]).
 WRAP = {"REPEAT": "repeat", "EXTEND": "extend", "CLIP": "extend", "MIRROR": "mirror"}
 #: Colour spaces of 8-bit images stored as linear values.
@@ -279,6 +286,9 @@ class Surface:
     displaced: bool = False
     #: The whole surface fell back to the viewport colour.
     fallback: bool = False
+    #: The roughness of its glossy layer (the sharpest when there are several); None without
+    #: one (see :data:`export.ROUGH_GLOSS`).
+    gloss_roughness: float | None = None
     warnings: list[str] = field(default_factory=list)
 
     @property
@@ -587,11 +597,18 @@ class _Evaluator:
             )
             k = w * (1.0 - min(max(metallic, 0.0), 1.0)) * (1.0 - min(max(trans, 0.0), 1.0))
             alpha, cutoff = self.alpha(node.inputs.get("Alpha"))
-            return Surface(base.scaled(k), alpha, cutoff)
+            level = self.mean_value(node.inputs.get("Specular IOR Level"), 0.5, "Specular")
+            gloss = None
+            if w > 0.0 and (level > 0.0 or metallic > 0.0):
+                gloss = self.mean_value(node.inputs.get("Roughness"), 0.5, "Roughness")
+            return Surface(base.scaled(k), alpha, cutoff, gloss_roughness=gloss)
         if kind in {"BSDF_DIFFUSE", "SUBSURFACE_SCATTERING"}:
             return Surface(self.color(node.inputs["Color"], stack).scaled(w), Lin.constant(1.0))
         if kind in NON_DIFFUSE:
-            return Surface(Lin.constant(0.0), Lin.constant(1.0))
+            gloss = None
+            if kind in GLOSSY and w > 0.0:
+                gloss = self.mean_value(node.inputs.get("Roughness"), 0.5, "Roughness")
+            return Surface(Lin.constant(0.0), Lin.constant(1.0), gloss_roughness=gloss)
         if kind == "BSDF_TRANSPARENT":
             return Surface(Lin.constant(0.0), Lin.constant(0.0), transparent=True)
         if kind == "MIX_SHADER":
@@ -605,6 +622,7 @@ class _Evaluator:
                     Lin.constant(-1.0), self.images, self.warnings
                 ),
                 min(a.cutoff, b.cutoff),
+                gloss_roughness=_sharpest(a, b),
             )
         raise Unsupported(f"shader node {node.name!r} ({kind})")
 
@@ -633,13 +651,20 @@ class _Evaluator:
                 alpha = share.scaled(keep.alpha.const)
             else:
                 alpha = keep.alpha.times(share, self.images, self.warnings)
-            return Surface(keep.albedo, alpha, keep.cutoff)
+            return Surface(keep.albedo, alpha, keep.cutoff, gloss_roughness=keep.gloss_roughness)
         f = min(max(float(fac.mean(self.images)[0]), 0.0), 1.0)
         return Surface(
             a.albedo.scaled(1.0 - f).plus(b.albedo.scaled(f), self.images, self.warnings),
             a.alpha.scaled(1.0 - f).plus(b.alpha.scaled(f), self.images, self.warnings),
             min(a.cutoff, b.cutoff),
+            gloss_roughness=_sharpest(a if f < 1.0 else None, b if f > 0.0 else None),
         )
+
+
+def _sharpest(*sides: Surface | None) -> float | None:
+    """The lowest glossy roughness of the sides that have a glossy layer (None: no side has)."""
+    found = [s.gloss_roughness for s in sides if s is not None and s.gloss_roughness is not None]
+    return min(found) if found else None
 
 
 def surface_of(mat: bpy.types.Material | None, images: ImageCache) -> Surface:

@@ -176,7 +176,12 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
 
     def finish(self, context: bpy.types.Context, result: Any) -> set[str]:
         scene, computed = context.scene, result
-        apply.write_vpls(scene, computed.vpls, scene_diagonal=self.prepared.scene.diagonal)
+        apply.write_vpls(
+            scene,
+            computed.vpls,
+            scene_diagonal=self.prepared.scene.diagonal,
+            specular=self.prepared.vpl_specular,
+        )
         summary = pipeline.summary(scene, self.job, self.prepared, computed, self.timer)
         scene.vplace.last_report = json.dumps(summary)
         if computed.fit is not None:

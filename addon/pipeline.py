@@ -28,7 +28,7 @@ import numpy as np
 
 from . import apply, capture, eevee_setup, export, images
 from .errors import AddonError, CaptureError, ExportError
-from .native import build_scene, view_of, vplace
+from .native import build_scene, gloss_mask, view_of, vplace
 from .settings import override
 from .views import ViewSet, ViewSpec, capture_resolution
 from .views import specs as view_specs
@@ -154,11 +154,19 @@ class Prepared:
     views: list[vplace.View]
     #: Views left out, with the reason (a camera that sees nothing, a duplicate view).
     skipped: dict[str, str] = field(default_factory=dict)
+    #: Per capture, where its rough glossy layers are modelled (``native.gloss_mask``).
+    gloss: list[np.ndarray | None] = field(default_factory=list)
 
     @property
     def capture(self) -> capture.Capture:
         """The first (main) view's capture."""
         return self.captures[0]
+
+    @property
+    def vpl_specular(self) -> float:
+        """The written VPLs' specular factor: 1 when some material has a rough glossy layer
+        (the evaluator counts the VPLs' light on it), else 0 (``apply``'s module docs)."""
+        return 1.0 if self.exported.rough_gloss.any() else 0.0
 
     def radius(self, job: Job) -> float:
         """The job's near-field radius in this scene."""
@@ -255,7 +263,9 @@ def prepare(
             + "; ".join(skipped.values())
             + "): aim the camera at the scene"
         )
-    return Prepared(scene, exported, captures, [view_of(c) for c in captures], skipped)
+    gloss = [gloss_mask(scene, exported, c) for c in captures]
+    native_views = [view_of(c, gloss=g) for c, g in zip(captures, gloss, strict=True)]
+    return Prepared(scene, exported, captures, native_views, skipped, gloss)
 
 
 def fit(prepared: Prepared, job: Job, views: Sequence[vplace.View] | None = None) -> vplace.Fit:
@@ -362,6 +372,8 @@ class Reference:
     capture: capture.Capture
     view: vplace.View
     label: str
+    #: Where its rough glossy layers are modelled (``native.gloss_mask``).
+    gloss: np.ndarray | None = None
 
 
 def capture_reference(prepared: Prepared, job: Job) -> Reference:
@@ -370,6 +382,7 @@ def capture_reference(prepared: Prepared, job: Job) -> Reference:
         prepared.capture,
         prepared.views[0],
         f"its own capture ({job.samples} spp; the capture's noise lowers every score)",
+        prepared.gloss[0] if prepared.gloss else None,
     )
 
 
@@ -414,7 +427,7 @@ def compute(
     metrics = {
         **ours,
         **{f"{k}_direct_only": v for k, v in base.items()},
-        "rmse_indirect": vplace.rmse(indirect, cap.indirect),
+        "rmse_indirect": vplace.rmse(indirect, cap.modelled_indirect(ref.gloss)),
     }
     return Computed(laid, indirect, stats, metrics, fitted)
 
@@ -531,8 +544,12 @@ def main_reference(
         if truth_samples
         else "as noisy as the capture: give truth samples for a ground truth"
     )
+    gloss = gloss_mask(prepared.scene, prepared.exported, ref)
     return Reference(
-        ref, view_of(ref, held_out=True), f"Cycles at {samples} spp of {cam.name} ({kind})"
+        ref,
+        view_of(ref, held_out=True, gloss=gloss),
+        f"Cycles at {samples} spp of {cam.name} ({kind})",
+        gloss,
     )
 
 
@@ -608,7 +625,12 @@ def run_main_job(
     problems: list[str] = []
     if write_back:
         with timer.stage("write back"):
-            apply.write_vpls(bl_scene, computed.vpls, scene_diagonal=prepared.scene.diagonal)
+            apply.write_vpls(
+                bl_scene,
+                computed.vpls,
+                scene_diagonal=prepared.scene.diagonal,
+                specular=prepared.vpl_specular,
+            )
             bpy.ops.wm.save_as_mainfile(filepath=str(out_dir / "scene.blend"), copy=True)
         problems = [str(p) for p in eevee_setup.problems(bl_scene)]
         for problem in problems:

@@ -315,6 +315,8 @@ def scene_signature(
         h.update(repr(_settings(layer.cycles, frozenset())).encode())
     else:
         h.update(repr(_settings(scene.eevee, _OVERRIDDEN["eevee"])).encode())
+        # A nested struct of its own: the ray tracing's maximum roughness, denoising, ...
+        h.update(repr(_settings(scene.eevee.ray_tracing_options, frozenset())).encode())
     h.update(engine.encode())
     return h.hexdigest()
 

@@ -48,7 +48,7 @@ import numpy as np
 
 from . import apply, capture, default_scene, eevee, eevee_setup, pipeline
 from .errors import ReportError
-from .native import bench_par2d, view_of, vplace
+from .native import bench_par2d, gloss_mask, view_of, vplace
 from .settings import override
 from .views import ViewSpec
 
@@ -305,7 +305,10 @@ def load_scene(
                 seed=TRUTH_SEED,
                 cache_dir=cache_dir,
             )
-        views.append(ViewData(name, role, cams[name], truth, view_of(truth, held_out=True)))
+        gloss = gloss_mask(prepared.scene, prepared.exported, truth)
+        views.append(
+            ViewData(name, role, cams[name], truth, view_of(truth, held_out=True, gloss=gloss))
+        )
     seconds = sum(c.render_seconds for c in prepared.captures)
     return SceneData(prepared, job, views, resolution, seconds)
 
@@ -615,7 +618,9 @@ def eevee_rows(
     }
 
     def vpl_rows(method: str, s: LaidSet, world_bake: float) -> None:
-        apply.write_vpls(bl_scene, s.vpls, scene_diagonal=diagonal)
+        apply.write_vpls(
+            bl_scene, s.vpls, scene_diagonal=diagonal, specular=data.prepared.vpl_specular
+        )
         try:
             names = ["vpl"] + (
                 ["vpl+rt"] if method == "vplace+refit" and "vpl+rt" in config.alternatives else []

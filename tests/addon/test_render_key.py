@@ -65,6 +65,21 @@ def test_what_the_render_reads_changes_the_key(change):
     assert key(scene) != before, change
 
 
+@pytest.mark.parametrize(
+    "change", ["eevee shadow rays", "eevee ray tracing max roughness", "eevee denoise"]
+)
+def test_what_eevee_reads_changes_its_key(change):
+    scene = cornell()
+    before = render_key.scene_signature(scene, "BLENDER_EEVEE")
+    if change == "eevee shadow rays":
+        scene.eevee.shadow_ray_count = 3
+    elif change == "eevee ray tracing max roughness":
+        scene.eevee.ray_tracing_options.trace_max_roughness = 0.9
+    else:
+        scene.eevee.ray_tracing_options.use_denoise = False
+    assert render_key.scene_signature(scene, "BLENDER_EEVEE") != before, change
+
+
 def test_what_vplace_sets_itself_or_only_moves_a_node_keeps_the_key():
     scene = cornell()
     before = key(scene)

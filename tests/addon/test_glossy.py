@@ -1,0 +1,170 @@
+"""Glossy layers (``export.ROUGH_GLOSS``): which materials have one and how rough, where a view
+sees the rough ones, the reflectance and indirect light vplace models there, and the written
+VPLs' specular factor."""
+
+import bpy
+import numpy as np
+import pytest
+from blender_util import empty_file
+
+from addon import apply, export
+from addon.capture import Capture
+from addon.native import build_scene, gloss_mask, vplace
+
+
+@pytest.fixture
+def scene():
+    empty_file()
+    sc = bpy.context.scene
+    sun = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
+    sc.collection.objects.link(sun)
+    return sc
+
+
+def principled(name, **inputs):
+    mat = bpy.data.materials.new(name)
+    p = mat.node_tree.nodes["Principled BSDF"]
+    for key, value in inputs.items():
+        p.inputs[key].default_value = value
+    return mat
+
+
+def shader_material(name, kind, **inputs):
+    """A material whose surface is one shader node of ``kind``."""
+    mat = bpy.data.materials.new(name)
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    nodes.remove(nodes["Principled BSDF"])
+    node = nodes.new(kind)
+    for key, value in inputs.items():
+        node.inputs[key].default_value = value
+    links.new(node.outputs[0], nodes["Material Output"].inputs["Surface"])
+    return mat
+
+
+def mixed(name, a, b, fac=0.5):
+    """A Mix Shader of the surfaces of materials ``a`` and ``b`` (their nodes copied over)."""
+    mat = bpy.data.materials.new(name)
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    nodes.remove(nodes["Principled BSDF"])
+    mix = nodes.new("ShaderNodeMixShader")
+    mix.inputs[0].default_value = fac
+    for slot, (kind, inputs) in zip((1, 2), (a, b), strict=True):
+        node = nodes.new(kind)
+        for key, value in inputs.items():
+            node.inputs[key].default_value = value
+        links.new(node.outputs[0], mix.inputs[slot])
+    links.new(mix.outputs[0], nodes["Material Output"].inputs["Surface"])
+    return mat
+
+
+def test_each_shader_says_whether_it_has_a_glossy_layer_and_how_rough(scene):
+    cases = {
+        principled("default"): 0.5,
+        principled("rough", Roughness=0.9): 0.9,
+        principled("no specular", **{"Specular IOR Level": 0.0}): None,
+        principled("metal", Roughness=0.2, Metallic=1.0, **{"Specular IOR Level": 0.0}): 0.2,
+        shader_material("diffuse", "ShaderNodeBsdfDiffuse"): None,
+        shader_material("glossy", "ShaderNodeBsdfAnisotropic", Roughness=0.3): 0.3,
+        shader_material("emission", "ShaderNodeEmission"): None,
+        mixed(
+            "diffuse + glossy",
+            ("ShaderNodeBsdfDiffuse", {}),
+            ("ShaderNodeBsdfAnisotropic", {"Roughness": 0.7}),
+        ): 0.7,
+        mixed(
+            "diffuse only in the mix",
+            ("ShaderNodeBsdfDiffuse", {}),
+            ("ShaderNodeBsdfAnisotropic", {"Roughness": 0.1}),
+            fac=0.0,
+        ): None,
+    }
+    for mat, expected in cases.items():
+        got = export.material_info(mat).gloss_roughness
+        assert got == pytest.approx(expected) if expected is not None else got is None, mat.name
+
+
+def quad(scene, mat, x0):
+    """A unit quad at z = 0 from x = ``x0`` to ``x0 + 1``, facing +Z."""
+    mesh = bpy.data.meshes.new(mat.name)
+    mesh.from_pydata([(x0, 0, 0), (x0 + 1, 0, 0), (x0 + 1, 1, 0), (x0, 1, 0)], [], [(0, 1, 2, 3)])
+    mesh.materials.append(mat)
+    obj = bpy.data.objects.new(mat.name, mesh)
+    scene.collection.objects.link(obj)
+    bpy.context.view_layer.update()
+
+
+def fake_capture(position, covered, camera):
+    """A capture with the given G-buffer positions (H, W, 3) and coverage; other passes 0."""
+    h, w = covered.shape
+    rgb = np.zeros((h, w, 3), np.float32)
+    depth = np.where(covered, 1.0, 1e10).astype(np.float32)
+    return Capture(
+        combined=rgb,
+        depth=depth,
+        normal=rgb,
+        position=position.astype(np.float32),
+        diffuse_direct=rgb,
+        diffuse_indirect=np.full_like(rgb, 0.5),
+        diffuse_color=np.full_like(rgb, 0.4),
+        glossy_direct=rgb,
+        glossy_indirect=np.full_like(rgb, 0.25),
+        glossy_color=np.full_like(rgb, 0.2),
+        emission=rgb,
+        environment=rgb,
+        samples=1,
+        render_seconds=0.0,
+        key="k",
+        view="v",
+        camera="v",
+        camera_position=np.asarray(camera, np.float32),
+        world_to_clip=np.eye(4, dtype=np.float32),
+    )
+
+
+def test_the_mask_finds_the_rough_surface_each_pixel_sees(scene):
+    quad(scene, principled("rough", Roughness=0.8), 0.0)
+    quad(scene, principled("sharp", Roughness=0.1), 1.0)
+    quad(scene, shader_material("matte", "ShaderNodeBsdfDiffuse"), 2.0)
+    exported = export.export_scene(scene)
+    assert exported.rough_gloss.sum() == 1 and exported.sharp_gloss.sum() == 1
+    native = build_scene(exported)
+    # One row of pixels over the three quads' centres and one pixel that sees nothing.
+    position = np.array([[[0.5, 0.5, 0.0], [1.5, 0.5, 0.0], [2.5, 0.5, 0.0], [0.0, 0.0, 0.0]]])
+    covered = np.array([[True, True, True, False]])
+    mask = gloss_mask(native, exported, fake_capture(position, covered, (1.5, 0.5, 3.0)))
+    assert mask is not None
+    np.testing.assert_array_equal(mask, [[1.0, 0.0, 1.0, 0.0]])
+
+
+def test_without_sharp_layers_every_covered_pixel_counts_and_without_rough_none(scene):
+    quad(scene, principled("rough", Roughness=0.8), 0.0)
+    exported = export.export_scene(scene)
+    native = build_scene(exported)
+    position = np.zeros((1, 2, 3))
+    covered = np.array([[True, False]])
+    cap = fake_capture(position, covered, (0.5, 0.5, 3.0))
+    np.testing.assert_array_equal(gloss_mask(native, exported, cap), [[1.0, 0.0]])
+    scene.objects["rough"].data.materials[0] = shader_material("matte", "ShaderNodeBsdfDiffuse")
+    exported = export.export_scene(scene)
+    assert gloss_mask(build_scene(exported), exported, cap) is None
+
+
+def test_the_modelled_reflectance_and_indirect_light_add_the_glossy_layer_where_masked():
+    covered = np.array([[True, True]])
+    cap = fake_capture(np.zeros((1, 2, 3)), covered, (0.0, 0.0, 1.0))
+    gloss = np.array([[1.0, 0.0]], np.float32)
+    np.testing.assert_allclose(cap.reflectance(gloss)[0, :, 0], [0.6, 0.4])
+    np.testing.assert_allclose(cap.modelled_indirect(gloss)[0, :, 0], [0.25, 0.2])
+    np.testing.assert_allclose(cap.reflectance(None), cap.albedo)
+    np.testing.assert_allclose(cap.modelled_indirect(None), cap.indirect)
+
+
+@pytest.mark.parametrize("specular", [0.0, 1.0])
+def test_the_written_vpls_take_the_specular_factor(scene, specular):
+    vpls = vplace.VplSet(
+        np.array([[0.0, 0.0, 1.0]], np.float32),
+        np.array([[0.0, 0.0, 1.0]], np.float32),
+        np.ones((1, 3), np.float32),
+    )
+    coll = apply.write_vpls(scene, vpls, scene_diagonal=3.0, specular=specular)
+    assert [o.data.specular_factor for o in coll.objects] == [specular]
