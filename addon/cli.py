@@ -38,14 +38,18 @@ def view_set(args: argparse.Namespace) -> ViewSet:
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
+    from .default_scene import BUILTIN
     from .pipeline import FEATURE_MODES, Job
+    from .report import PRESETS, ReportConfig
 
     p = argparse.ArgumentParser(prog="vplace", description=__doc__)
     p.add_argument("--debug", action="store_true", help="print tracebacks of errors")
     sub = p.add_subparsers(dest="command", required=True)
     demo = sub.add_parser("demo", help="run the main job on a scene (default: the Cornell box)")
     demo.add_argument(
-        "--scene", default="cornell", help="cornell (default), sponza, or a .blend file"
+        "--scene",
+        default="cornell",
+        help=f"a built-in scene ({', '.join(BUILTIN)}; default cornell) or a .blend file",
     )
     demo.add_argument("--out", type=Path, default=Path("out/cornell"))
     demo.add_argument("--vpls", type=int, default=128, help="VPL budget")
@@ -109,7 +113,10 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         "report",
         help="speed against error: scenes x views x methods x VPL budgets, with Cycles",
     )
-    rep.add_argument("--scenes", nargs="+", default=["cornell", "sponza"])
+    rep.add_argument(
+        "--scenes", nargs="+", default=list(ReportConfig.scenes),
+        help=f"built-in scenes, of {', '.join(PRESETS)} (default: all)",
+    )  # fmt: skip
     rep.add_argument("--blend", type=Path, default=None, help="any .blend instead of --scenes")
     rep.add_argument(
         "--fit-cameras", nargs="+", default=[], metavar="NAME",

@@ -1,5 +1,7 @@
 """The built-in scenes and their registry (:func:`builtin_scene`): the Cornell box (the default;
-Williams College OBJ, public domain) and Sponza (glTF, CC BY 3.0).
+Williams College OBJ, public domain), Sponza (glTF, CC BY 3.0), and two rooms built from code
+alone (:mod:`.builtin_rooms`: ``skyroom``, lit by a sky through windows, and ``panelroom``, lit
+by emissive panels and a screen).
 
 Geometry and materials come from ``CornellBox-Original.obj`` / ``.mtl`` (OBJ Y-up is turned into
 Blender Z-up: ``(x, y, z) -> (x, -z, y)``; the OBJ unit is taken as the metre). The emissive
@@ -17,6 +19,7 @@ from pathlib import Path
 import bpy
 import numpy as np
 
+from . import builtin_rooms
 from .errors import AddonError
 
 REPO = Path(__file__).resolve().parent.parent
@@ -334,6 +337,16 @@ BUILTIN: dict[str, tuple[Path, list[Path], Callable[[], Path]]] = {
         SPONZA_BLEND,
         [SPONZA_GLTF, Path(__file__)],
         lambda: write_sponza_blend(SPONZA_GLTF, SPONZA_BLEND),
+    ),
+    "skyroom": (
+        builtin_rooms.SKYROOM_BLEND,
+        [Path(builtin_rooms.__file__)],
+        lambda: builtin_rooms.write_skyroom_blend(builtin_rooms.SKYROOM_BLEND),
+    ),
+    "panelroom": (
+        builtin_rooms.PANELROOM_BLEND,
+        [Path(builtin_rooms.__file__)],
+        lambda: builtin_rooms.write_panelroom_blend(builtin_rooms.PANELROOM_BLEND),
     ),
 }
 

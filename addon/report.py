@@ -46,7 +46,7 @@ from typing import Any
 import bpy
 import numpy as np
 
-from . import apply, capture, default_scene, eevee, eevee_setup, pipeline
+from . import apply, builtin_rooms, capture, default_scene, eevee, eevee_setup, pipeline
 from .errors import ReportError
 from .native import bench_par2d, gloss_mask, view_of, vplace
 from .settings import override
@@ -107,6 +107,22 @@ PRESETS = {
         128,
         1024,
     ),
+    "skyroom": ScenePreset(
+        "skyroom",
+        tuple(builtin_rooms.SKYROOM_FIT),
+        tuple(builtin_rooms.SKYROOM_HELD_OUT),
+        (256, 144),
+        16,
+        1024,
+    ),
+    "panelroom": ScenePreset(
+        "panelroom",
+        tuple(builtin_rooms.PANELROOM_FIT),
+        tuple(builtin_rooms.PANELROOM_HELD_OUT),
+        (256, 144),
+        16,
+        1024,
+    ),
 }
 
 
@@ -114,7 +130,7 @@ PRESETS = {
 class ReportConfig:
     """What the report runs. ``None`` fields take the scene preset's value."""
 
-    scenes: Sequence[str] = ("cornell", "sponza")
+    scenes: Sequence[str] = ("cornell", "sponza", "skyroom", "panelroom")
     #: Any .blend instead of the built-in scenes, with its cameras.
     blend: Path | None = None
     fit_cameras: Sequence[str] = ()
