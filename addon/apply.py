@@ -27,16 +27,22 @@ ones the evaluator renders (``vplace.VplSet`` carries profile and near-field rad
   jitter is off (the evaluator's shadow ray leaves the light's centre; jitter re-renders the
   maps at every sample). Only the :data:`MAX_SHADOWED_VPLS` brightest VPLs are shadowed: the
   largest pool holds no more.
+- Emissive meshes: EEVEE does not light with them, so the lights of
+  :mod:`.emitter_lights` (one AREA light per open side of each emissive polygon) are written
+  into the same collection, shadowed, specular 1, custom cutoff as the VPLs.
 - VPLs whose refitted power is zero are not written (a light that gives nothing still costs
   EEVEE a shadow map); each light keeps its VPL's index as ``vplace_index``.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import bpy
 import numpy as np
-from mathutils import Vector
+from mathutils import Matrix, Vector
 
+from .emitter_lights import EmitterLight
 from .errors import WriteBackError
 from .export import VPL_MARKER
 from .native import vplace
@@ -164,6 +170,34 @@ def _new_vpl_object(
     return obj
 
 
+def _new_emitter_object(
+    coll: bpy.types.Collection, i: int, e: EmitterLight, cutoff: float, shadows: bool
+) -> bpy.types.Object:
+    """Emitter light ``i`` (``emitter_lights``' module docs) as a new AREA light in ``coll``."""
+    energy = max(e.power)
+    light = bpy.data.lights.new(f"vplace emitter {i:03d} ({e.material})", "AREA")
+    light.energy = energy
+    light.color = tuple(c / energy for c in e.power)
+    light.shape = e.shape
+    light.size = e.size
+    if e.shape == "RECTANGLE":
+        light.size_y = e.size_y
+    light.use_custom_distance = True
+    light.cutoff_distance = cutoff
+    light.use_shadow = shadows
+    obj = bpy.data.objects.new(light.name, light)
+    obj.location = e.position
+    n, x = Vector(e.normal), Vector(e.tangent)
+    z = -n
+    y = z.cross(x)
+    obj.rotation_mode = "QUATERNION"
+    obj.rotation_quaternion = Matrix((x, y, z)).transposed().to_quaternion()
+    obj[VPL_MARKER] = True
+    obj["vplace_emitter"] = e.material
+    coll.objects.link(obj)
+    return obj
+
+
 def write_vpls(
     scene: bpy.types.Scene,
     vpls: vplace.VplSet,
@@ -171,12 +205,14 @@ def write_vpls(
     shadows: bool = True,
     scene_diagonal: float = 10.0,
     specular: float = 0.0,
+    emitters: Sequence[EmitterLight] = (),
     name: str = COLLECTION_NAME,
 ) -> bpy.types.Collection:
     """Writes the VPLs of ``vpls`` that carry power as lights (by its profile and near-field
     radius) in a fresh VPL collection linked to ``scene``; with ``shadows``, the
     :data:`MAX_SHADOWED_VPLS` brightest cast shadows; ``specular`` is their specular factor
-    (``Prepared.vpl_specular``). See the module docs."""
+    (``Prepared.vpl_specular``); ``emitters`` are written beside them, lights that stand in
+    for emissive meshes EEVEE does not light with (``emitter_lights``). See the module docs."""
     n = len(vpls)
     if n > MAX_VPLS:
         raise WriteBackError(
@@ -208,6 +244,8 @@ def write_vpls(
                 SHADOW_TEXEL_DIAGONALS * scene_diagonal,
                 specular,
             )
+        for j, e in enumerate(emitters):
+            _new_emitter_object(coll, j, e, CUTOFF_DIAGONALS * scene_diagonal, shadows)
     except BaseException:
         _remove_collection(coll)
         raise

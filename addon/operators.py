@@ -181,12 +181,15 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
             computed.vpls,
             scene_diagonal=self.prepared.scene.diagonal,
             specular=self.prepared.vpl_specular,
+            emitters=self.prepared.emitter_lights,
         )
         summary = pipeline.summary(scene, self.job, self.prepared, computed, self.timer)
         scene.vplace.last_report = json.dumps(summary)
         if computed.fit is not None:
             _store_fit(scene, computed.fit, self.key)
-        self.report({"INFO"}, f"wrote {summary['lights_written']} VPL lights")
+        emitters = summary["emitter_lights_written"]
+        extra = f" and {emitters} lights for emissive meshes" if emitters else ""
+        self.report({"INFO"}, f"wrote {summary['lights_written']} VPL lights{extra}")
         for problem in eevee_setup.problems(scene):
             self.report({"WARNING"}, f"EEVEE: {problem} (Set up EEVEE for vplace fixes it)")
         return {"FINISHED"}

@@ -15,6 +15,7 @@ Every stage is timed and announced through a :class:`StageTimer`.
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -27,6 +28,7 @@ import bpy
 import numpy as np
 
 from . import apply, capture, eevee_setup, export, images
+from .emitter_lights import EmitterLight, emitter_lights
 from .errors import AddonError, CaptureError, ExportError
 from .native import build_scene, gloss_mask, view_of, vplace
 from .settings import override
@@ -161,6 +163,11 @@ class Prepared:
     def capture(self) -> capture.Capture:
         """The first (main) view's capture."""
         return self.captures[0]
+
+    @functools.cached_property
+    def emitter_lights(self) -> list[EmitterLight]:
+        """Lights that stand in for the scene's emissive meshes in EEVEE (``emitter_lights``)."""
+        return emitter_lights(self.exported, self.scene)
 
     @property
     def vpl_specular(self) -> float:
@@ -497,6 +504,7 @@ def summary(
         "capture_render_seconds": sum(c.render_seconds for c in prepared.captures),
         "n_vpls": job.n_vpls,
         "lights_written": int((computed.vpls.blender_power.max(axis=1) > 0).sum()),
+        "emitter_lights_written": len(prepared.emitter_lights),
         "method": job.method,
         "alpha": job.alpha,
         "iterations": job.iterations,
@@ -630,6 +638,7 @@ def run_main_job(
                 computed.vpls,
                 scene_diagonal=prepared.scene.diagonal,
                 specular=prepared.vpl_specular,
+                emitters=prepared.emitter_lights,
             )
             bpy.ops.wm.save_as_mainfile(filepath=str(out_dir / "scene.blend"), copy=True)
         problems = [str(p) for p in eevee_setup.problems(bl_scene)]

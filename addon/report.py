@@ -635,7 +635,11 @@ def eevee_rows(
 
     def vpl_rows(method: str, s: LaidSet, world_bake: float) -> None:
         apply.write_vpls(
-            bl_scene, s.vpls, scene_diagonal=diagonal, specular=data.prepared.vpl_specular
+            bl_scene,
+            s.vpls,
+            scene_diagonal=diagonal,
+            specular=data.prepared.vpl_specular,
+            emitters=data.prepared.emitter_lights,
         )
         try:
             names = ["vpl"] + (

@@ -88,8 +88,11 @@ def test_lit_without_light_objects(scene, light_by):
     bpy.context.view_layer.update()
     assert bpy.ops.vplace.apply() == {"FINISHED"}
     report = scene.vplace.report()
-    assert len(apply.find_collection().objects) == report["lights_written"] > 0
+    written = report["lights_written"] + report["emitter_lights_written"]
+    assert len(apply.find_collection().objects) == written > 0
     assert report["metrics"]["rmse"] > 0
+    # An emissive mesh gets lights that stand in for it in EEVEE; the world gets none.
+    assert (report["emitter_lights_written"] > 0) == (light_by is light_by_emissive_mesh_only)
 
 
 def test_zero_area_faces_are_harmless(scene):

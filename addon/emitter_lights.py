@@ -1,0 +1,204 @@
+"""Lights that stand in for emissive meshes in EEVEE (DESIGN: Write-back).
+
+Cycles lights a scene with every emissive surface; EEVEE does not: an emissive mesh shows on
+screen, but lights other surfaces only through its ray tracing (what is on screen) and baked
+light probes. The evaluator's image takes its direct light from Cycles' capture, so without
+help EEVEE with vplace's lights misses a room's panel and screen light altogether (the report's
+"EEVEE" rows on ``panelroom``). The write-back therefore adds, beside the VPLs and in their
+collection, one AREA light per side of each emissive polygon of the exported scene:
+
+- two triangles that make a rectangle (a quad's two halves, as Blender triangulates it) become
+  one RECTANGLE light of the same centre, sides and orientation, exactly the emitter: an AREA
+  light of power ``P`` is a Lambertian emitter of radiance ``P / (pi A)``, so ``P = pi A L``
+  per channel, as the Cornell box's ceiling light was converted;
+- any other triangle becomes a DISK of the same area at its centroid (the far field is the
+  same; within about its size of the emitter the light is spread differently);
+- both sides, as Cycles' emission shader emits from both; a side whose light cannot leave (a
+  panel's back inside its fixture: every one of a few probe rays hits something within the
+  emitter's own size) is left out, as it would only cost EEVEE a shadow map;
+- at most :data:`MAX_EMITTER_LIGHTS`: when a scene has more emissive polygons, that many are
+  drawn by power and each carries ``1 / count`` of the total power in expectation (a large
+  emissive mesh becomes a power-sampled set of disks, like the core's emitter sampling).
+
+The lights are shadowed with EEVEE's default shadow resolution (they are direct light, whose
+shadows the user sees) and have specular factor 1 (Cycles' emitters give glossy direct light).
+An emitter's texture is read as its material's constant emission (the export's rule).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .native import vplace
+
+if TYPE_CHECKING:
+    from .export import ExportedScene
+
+__all__ = ["MAX_EMITTER_LIGHTS", "EmitterLight", "emitter_lights"]
+
+#: The most emitter lights written (sides counted): more are drawn by power.
+MAX_EMITTER_LIGHTS = 64
+#: Probe rays per side that decide whether its light can leave.
+PROBE_RAYS = 8
+#: Relative tolerance of the rectangle test (right angle, parallelogram, coplanar).
+RECT_TOLERANCE = 1e-4
+
+
+@dataclass(frozen=True)
+class EmitterLight:
+    """One side of an emissive polygon as a Blender AREA light."""
+
+    #: Centre, unit emission direction, unit first side direction (world).
+    position: tuple[float, float, float]
+    normal: tuple[float, float, float]
+    tangent: tuple[float, float, float]
+    #: "RECTANGLE" (``size`` x ``size_y``) or "DISK" (diameter ``size``).
+    shape: str
+    size: float
+    size_y: float
+    #: Power per channel (W): ``pi * area * radiance``.
+    power: tuple[float, float, float]
+    #: The emissive material's name.
+    material: str
+
+
+def _rectangle(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Corner, first and second side vectors when the 4 points ``pts`` are a rectangle."""
+    p0 = pts[0]
+    far = int(np.argmax(((pts - p0) ** 2).sum(axis=1)))
+    rest = [i for i in range(1, 4) if i != far]
+    a, b = pts[rest[0]] - p0, pts[rest[1]] - p0
+    la, lb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
+    if la <= 0.0 or lb <= 0.0:
+        return None
+    scale = max(la, lb)
+    if abs(float(a @ b)) > RECT_TOLERANCE * scale * scale:
+        return None
+    if float(np.linalg.norm(p0 + a + b - pts[far])) > RECT_TOLERANCE * scale:
+        return None
+    return p0, a, b
+
+
+def _shapes(
+    exported: ExportedScene, emissive: np.ndarray
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, str, float, float, float, int]]:
+    """(centre, normal, tangent, shape, size, size_y, area, material) per emissive polygon:
+    consecutive triangle pairs that form a rectangle are merged."""
+    v, tris, mats = exported.vertices, exported.triangles, exported.material_ids
+    out = []
+    i, n = 0, len(emissive)
+    while i < n:
+        t = int(emissive[i])
+        corners = v[tris[t]].astype(np.float64)
+        e1, e2 = corners[1] - corners[0], corners[2] - corners[0]
+        cross = np.cross(e1, e2)
+        area = 0.5 * float(np.linalg.norm(cross))
+        if area <= 0.0:
+            i += 1
+            continue
+        normal = cross / (2.0 * area)
+        if i + 1 < n and int(emissive[i + 1]) == t + 1 and mats[t + 1] == mats[t]:
+            both = v[np.concatenate([tris[t], tris[t + 1]])].astype(np.float64)
+            pts = np.unique(np.round(both, 7), axis=0)
+            rect = _rectangle(pts) if len(pts) == 4 else None
+            flat = float(np.abs((pts - pts[0]) @ normal).max()) if rect is not None else 1.0
+            if rect is not None and flat <= RECT_TOLERANCE * max(np.ptp(pts, axis=0).max(), 1e-30):
+                p0, a, b = rect
+                la, lb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
+                out.append(
+                    (p0 + 0.5 * (a + b), normal, a / la, "RECTANGLE", la, lb, la * lb, int(mats[t]))
+                )
+                i += 2
+                continue
+        tangent = e1 / max(float(np.linalg.norm(e1)), 1e-30)
+        diameter = 2.0 * np.sqrt(area / np.pi)
+        out.append(
+            (corners.mean(axis=0), normal, tangent, "DISK", diameter, diameter, area, int(mats[t]))
+        )
+        i += 1
+    return out
+
+
+def _open_sides(
+    scene: vplace.Scene, centres: np.ndarray, normals: np.ndarray, reach: np.ndarray, offset: float
+) -> np.ndarray:
+    """True for each (centre, normal) side whose light can leave: some probe ray gets farther
+    than ``reach`` (the emitter's size)."""
+    rng = np.random.default_rng(0)
+    k = len(centres)
+    u = rng.random((PROBE_RAYS, 2))
+    r, phi = np.sqrt(u[:, 0]), 2.0 * np.pi * u[:, 1]
+    local = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1.0 - u[:, 0])], axis=1)
+    helper = np.where(np.abs(normals[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    tx = np.cross(normals, helper)
+    tx /= np.linalg.norm(tx, axis=1, keepdims=True)
+    ty = np.cross(normals, tx)
+    dirs = (
+        local[None, :, 0:1] * tx[:, None]
+        + local[None, :, 1:2] * ty[:, None]
+        + local[None, :, 2:3] * normals[:, None]
+    ).reshape(-1, 3)
+    origins = np.repeat(centres + offset * normals, PROBE_RAYS, axis=0)
+    t, _, _ = scene.intersect(
+        np.ascontiguousarray(origins, dtype=np.float32),
+        np.ascontiguousarray(dirs, dtype=np.float32),
+    )
+    far = (t.reshape(k, PROBE_RAYS) > reach[:, None]).any(axis=1)
+    return far
+
+
+def emitter_lights(
+    exported: ExportedScene, scene: vplace.Scene, *, seed: int = 0
+) -> list[EmitterLight]:
+    """The AREA lights that stand in for the emissive polygons of ``exported`` (module docs);
+    ``scene`` is its native scene (for the probe rays)."""
+    emission = exported.emission
+    if len(emission) == 0 or not (emission.max(axis=1) > 0.0).any():
+        return []
+    emits = emission.max(axis=1) > 0.0
+    emissive = np.flatnonzero(emits[exported.material_ids])
+    shapes = _shapes(exported, emissive)
+    if not shapes:
+        return []
+    centres = np.array([s[0] for s in shapes])
+    normals = np.array([s[1] for s in shapes])
+    sizes = np.array([max(s[4], s[5]) for s in shapes])
+    offset = 1e-3 * scene.diagonal
+    sides = []
+    for sign in (1.0, -1.0):
+        open_ = _open_sides(scene, centres, sign * normals, sizes, 1e-2 * offset)
+        sides += [(k, sign) for k in np.flatnonzero(open_)]
+    lum = np.asarray(vplace.LUMINANCE, dtype=np.float64)
+    power = np.array(
+        [np.pi * shapes[k][6] * emission[shapes[k][7]].astype(np.float64) for k, _ in sides]
+    ).reshape(-1, 3)
+    chosen = np.arange(len(sides))
+    scale = np.ones(len(sides))
+    if len(sides) > MAX_EMITTER_LIGHTS:
+        weight = np.maximum(power @ lum, 0.0)
+        p = weight / weight.sum()
+        draws = np.random.default_rng(seed).choice(len(sides), MAX_EMITTER_LIGHTS, p=p)
+        chosen, counts = np.unique(draws, return_counts=True)
+        scale = np.zeros(len(sides))
+        scale[chosen] = counts / (MAX_EMITTER_LIGHTS * p[chosen])
+    out = []
+    for j in chosen:
+        k, sign = sides[j]
+        c, nrm, tan, shape, sx, sy, _, mat = shapes[k]
+        n = sign * nrm
+        out.append(
+            EmitterLight(
+                tuple(float(x) for x in c + offset * n),
+                tuple(float(x) for x in n),
+                tuple(float(x) for x in tan),
+                shape,
+                float(sx),
+                float(sy),
+                tuple(float(x) for x in power[j] * scale[j]),
+                exported.materials[mat].name,
+            )
+        )
+    return out

@@ -1,0 +1,131 @@
+"""Lights that stand in for emissive meshes in EEVEE (``emitter_lights``): a rectangle per quad,
+a disk per other triangle, of power ``pi A L`` per open side, at most ``MAX_EMITTER_LIGHTS``,
+written into the VPL collection facing the way the surface emits."""
+
+import math
+
+import bpy
+import numpy as np
+import pytest
+from blender_util import empty_file
+from mathutils import Vector
+
+from addon import apply, emitter_lights, export
+from addon.native import build_scene, vplace
+
+RADIANCE = (2.0, 1.0, 0.5)
+
+
+@pytest.fixture
+def scene():
+    empty_file()
+    return bpy.context.scene
+
+
+def emissive(name, strength=1.0):
+    mat = bpy.data.materials.new(name)
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    nodes.remove(nodes["Principled BSDF"])
+    em = nodes.new("ShaderNodeEmission")
+    em.inputs["Color"].default_value = (*RADIANCE, 1.0)
+    em.inputs["Strength"].default_value = strength
+    links.new(em.outputs[0], nodes["Material Output"].inputs["Surface"])
+    return mat
+
+
+def mesh(scene, name, verts, faces, mat):
+    me = bpy.data.meshes.new(name)
+    me.from_pydata(verts, [], faces)
+    me.materials.append(mat)
+    obj = bpy.data.objects.new(name, me)
+    scene.collection.objects.link(obj)
+    bpy.context.view_layer.update()
+    return obj
+
+
+def lights_of(scene):
+    exported = export.export_scene(scene)
+    return emitter_lights.emitter_lights(exported, build_scene(exported)), exported
+
+
+def test_a_quad_is_one_rectangle_per_side_of_power_pi_a_l(scene):
+    # 2 x 0.5 m, tilted about X by 30 degrees, alone in space: both sides open.
+    c, s = math.cos(math.radians(30)), math.sin(math.radians(30))
+    verts = [(x, y * c, y * s) for x, y in ((0, 0), (2, 0), (2, 0.5), (0, 0.5))]
+    mesh(scene, "panel", verts, [(0, 1, 2, 3)], emissive("panel"))
+    lights, _ = lights_of(scene)
+    assert [e.shape for e in lights] == ["RECTANGLE", "RECTANGLE"]
+    normal = np.array([0.0, -s, c])
+    for e, sign in zip(lights, (1.0, -1.0), strict=True):
+        assert sorted([e.size, e.size_y]) == pytest.approx([0.5, 2.0])
+        np.testing.assert_allclose(e.normal, sign * normal, atol=1e-6)
+        np.testing.assert_allclose(e.power, np.pi * 1.0 * np.array(RADIANCE), rtol=1e-5)
+        centre = np.array([1.0, 0.25 * c, 0.25 * s])
+        assert np.linalg.norm(np.array(e.position) - centre) < 0.01
+
+
+def test_a_triangle_is_a_disk_of_its_area_and_a_closed_back_is_left_out(scene):
+    mesh(scene, "tri", [(0, 0, 1), (1, 0, 1), (0, 1, 1)], [(0, 1, 2)], emissive("tri"))
+    # A floor 1 cm under the triangle: its downward side cannot send light out.
+    floor = bpy.data.materials.new("floor")
+    mesh(
+        scene,
+        "floor",
+        [(-5, -5, 0.99), (5, -5, 0.99), (5, 5, 0.99), (-5, 5, 0.99)],
+        [(0, 1, 2, 3)],
+        floor,
+    )
+    lights, _ = lights_of(scene)
+    assert len(lights) == 1
+    (e,) = lights
+    assert e.shape == "DISK"
+    assert math.pi * (e.size / 2) ** 2 == pytest.approx(0.5)
+    np.testing.assert_allclose(e.normal, (0, 0, 1), atol=1e-6)
+    np.testing.assert_allclose(e.power, np.pi * 0.5 * np.array(RADIANCE), rtol=1e-5)
+
+
+def test_many_emitters_are_drawn_by_power_and_keep_the_total(scene):
+    faces, verts = [], []
+    for k in range(100):  # 100 small triangles, far apart, all open on both sides
+        x = 3.0 * k
+        verts += [(x, 0, 0), (x + 0.1, 0, 0), (x, 0.1, 0)]
+        faces.append((3 * k, 3 * k + 1, 3 * k + 2))
+    mesh(scene, "sparks", verts, faces, emissive("sparks"))
+    lights, _ = lights_of(scene)
+    assert len(lights) <= emitter_lights.MAX_EMITTER_LIGHTS
+    total = sum(np.array(e.power) for e in lights)
+    np.testing.assert_allclose(total, 200 * np.pi * 0.005 * np.array(RADIANCE), rtol=1e-4)
+
+
+def test_no_emission_no_lights(scene):
+    mesh(scene, "grey", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [(0, 1, 2)], bpy.data.materials.new("g"))
+    assert lights_of(scene)[0] == []
+
+
+def test_written_emitter_lights_face_the_way_the_surface_emits(scene):
+    verts = [(0, 0, 2), (1, 0, 2), (1, 0.5, 2), (0, 0.5, 2)]
+    mesh(scene, "panel", verts, [(0, 1, 2, 3)], emissive("panel", strength=3.0))
+    lights, _ = lights_of(scene)
+    none = vplace.VplSet(
+        np.zeros((1, 3), np.float32),
+        np.array([[0, 0, 1]], np.float32),
+        np.zeros((1, 3), np.float32),
+    )
+    coll = apply.write_vpls(scene, none, scene_diagonal=3.0, emitters=lights)
+    bpy.context.view_layer.update()
+    objs = sorted(coll.objects, key=lambda o: o.name)
+    assert len(objs) == 2 and all(
+        o.data.type == "AREA" and o.data.shape == "RECTANGLE" for o in objs
+    )
+    for obj, e in zip(objs, lights, strict=True):
+        emits = obj.matrix_world.to_3x3() @ Vector((0, 0, -1))
+        np.testing.assert_allclose(tuple(emits), e.normal, atol=1e-6)
+        side = obj.matrix_world.to_3x3() @ Vector((1, 0, 0))
+        assert abs(side.dot(Vector(e.tangent))) == pytest.approx(1.0, abs=1e-6)
+        assert (obj.data.size, obj.data.size_y) == pytest.approx((e.size, e.size_y))
+        assert obj.data.energy * max(obj.data.color) == pytest.approx(max(e.power), rel=1e-5)
+        assert obj.get(export.VPL_MARKER)
+    # vplace's own lights are never exported as part of the scene.
+    again = export.export_scene(scene)
+    assert not again.lights
+    assert apply.clear_vpls() == 2
