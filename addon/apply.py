@@ -30,6 +30,12 @@ ones the evaluator renders (``vplace.VplSet`` carries profile and near-field rad
 - Emissive meshes: EEVEE does not light with them, so the lights of
   :mod:`.emitter_lights` (one AREA light per open side of each emissive polygon) are written
   into the same collection, shadowed, specular 1, custom cutoff as the VPLs.
+- The world's sun (a compact lobe of a world image far brighter than the rest of the sky,
+  ``emitter_lights.world_sun``): EEVEE lights a room through its windows with the world's
+  probes only, without the sun's patches (the sky-lit room: 0.09x Cycles' direct light with the
+  world's volume), so a SUN light of the sun's direction, irradiance and angle is written too,
+  shadowed; EEVEE must then not extract the sun from the world itself (its sun threshold 0,
+  what "Set up EEVEE for vplace" and the scored renders set).
 - VPLs whose refitted power is zero are not written (a light that gives nothing still costs
   EEVEE a shadow map); each light keeps its VPL's index as ``vplace_index``.
 """
@@ -42,7 +48,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Vector
 
-from .emitter_lights import EmitterLight
+from .emitter_lights import EmitterLight, SunLight
 from .errors import WriteBackError
 from .export import VPL_MARKER
 from .native import vplace
@@ -198,6 +204,35 @@ def _new_emitter_object(
     return obj
 
 
+#: The name of the SUN light that stands in for the world's sun (``emitter_lights.world_sun``).
+SUN_NAME = "vplace sun (world)"
+
+
+def _new_sun_object(coll: bpy.types.Collection, sun: SunLight) -> bpy.types.Object:
+    """The world's sun as a SUN light in ``coll``, shining along ``-sun.direction``."""
+    strength = max(sun.irradiance)
+    light = bpy.data.lights.new(SUN_NAME, "SUN")
+    light.energy = strength
+    light.color = tuple(c / strength for c in sun.irradiance)
+    light.angle = sun.angle
+    light.use_shadow = True
+    obj = bpy.data.objects.new(SUN_NAME, light)
+    obj.rotation_mode = "QUATERNION"
+    obj.rotation_quaternion = Vector((0.0, 0.0, 1.0)).rotation_difference(Vector(sun.direction))
+    obj[VPL_MARKER] = True
+    obj["vplace_world_sun"] = True
+    coll.objects.link(obj)
+    return obj
+
+
+def world_sun_light(scene: bpy.types.Scene) -> bpy.types.Object | None:
+    """The SUN light vplace wrote for the world's sun, if any."""
+    coll = find_collection()
+    if coll is None:
+        return None
+    return next((o for o in coll.objects if o.get("vplace_world_sun", False)), None)
+
+
 def write_vpls(
     scene: bpy.types.Scene,
     vpls: vplace.VplSet,
@@ -206,13 +241,15 @@ def write_vpls(
     scene_diagonal: float = 10.0,
     specular: float = 0.0,
     emitters: Sequence[EmitterLight] = (),
+    sun: SunLight | None = None,
     name: str = COLLECTION_NAME,
 ) -> bpy.types.Collection:
     """Writes the VPLs of ``vpls`` that carry power as lights (by its profile and near-field
     radius) in a fresh VPL collection linked to ``scene``; with ``shadows``, the
     :data:`MAX_SHADOWED_VPLS` brightest cast shadows; ``specular`` is their specular factor
     (``Prepared.vpl_specular``); ``emitters`` are written beside them, lights that stand in
-    for emissive meshes EEVEE does not light with (``emitter_lights``). See the module docs."""
+    for emissive meshes EEVEE does not light with (``emitter_lights``), and ``sun``, a SUN light
+    for the world's sun (``emitter_lights.world_sun``). See the module docs."""
     n = len(vpls)
     if n > MAX_VPLS:
         raise WriteBackError(
@@ -246,6 +283,8 @@ def write_vpls(
             )
         for j, e in enumerate(emitters):
             _new_emitter_object(coll, j, e, CUTOFF_DIAGONALS * scene_diagonal, shadows)
+        if sun is not None:
+            _new_sun_object(coll, sun)
     except BaseException:
         _remove_collection(coll)
         raise

@@ -39,7 +39,7 @@ import bpy
 import numpy as np
 import OpenEXR
 
-from . import eevee_setup, render_key
+from . import apply, eevee_setup, render_key
 from .capture import IMAGE_SETTINGS, hide_vpls, vpl_objects
 from .errors import AddonError
 from .settings import SettingsGuard, override, standard_view
@@ -93,6 +93,10 @@ class Setup:
                 g.set(e, "shadow_pool_size", str(mb))
             if self.raytracing:
                 g.set(e, "fast_gi_method", "AMBIENT_OCCLUSION_ONLY")
+            # vplace wrote the world's sun as a lamp: EEVEE must not extract it a second time.
+            world = scene.world
+            if world is not None and world.sun_threshold > 0.0 and apply.world_sun_light(scene):
+                g.set(world, "sun_threshold", 0.0)
 
 
 SETUPS = {

@@ -267,6 +267,16 @@ def problems(scene: bpy.types.Scene) -> list[Problem]:
                     "(counted twice): turn Capture Indirect off and bake again",
                 )
             )
+    world = scene.world
+    if world is not None and world.sun_threshold > 0.0 and apply.world_sun_light(scene):
+        found.append(
+            Problem(
+                "world.sun_threshold",
+                "vplace wrote the world's sun as a lamp, and EEVEE extracts the sun from the "
+                f"world too above its sun threshold ({world.sun_threshold:g}): the sun would "
+                "count twice; set the threshold to 0",
+            )
+        )
     if world_emits(scene) and vplace_volume(scene) is None:
         found.append(
             Problem(
@@ -411,6 +421,8 @@ def set_up(scene: bpy.types.Scene, *, bake_volume: bool = True) -> list[str]:
     put(e, "use_raytracing", True, "scene.eevee.use_raytracing")
     put(e, "use_fast_gi", True, "scene.eevee.use_fast_gi")
     put(e, "fast_gi_method", "AMBIENT_OCCLUSION_ONLY", "scene.eevee.fast_gi_method")
+    if scene.world is not None and apply.world_sun_light(scene):
+        put(scene.world, "sun_threshold", 0.0, "world.sun_threshold")
     if world_emits(scene):
         coll = _probe_collection(scene)
         volume = new_volume(scene, coll, margin=VOLUME_MARGIN, capture_indirect=False)

@@ -27,6 +27,7 @@ An emitter's texture is read as its material's constant emission (the export's r
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -36,6 +37,7 @@ from .native import vplace
 
 if TYPE_CHECKING:
     from .export import ExportedScene
+    from .world import WorldInfo
 
 __all__ = ["MAX_EMITTER_LIGHTS", "EmitterLight", "emitter_lights"]
 
@@ -202,3 +204,59 @@ def emitter_lights(
             )
         )
     return out
+
+
+#: A world's sun: the pixels within :data:`SUN_CONE` (radians) of the world's brightest
+#: direction that are brighter than :data:`SUN_CONTRAST` times the brightest radiance outside
+#: that cone; a world whose brightest pixel is not that bright has no sun.
+SUN_CONE = math.radians(10.0)
+SUN_CONTRAST = 20.0
+
+
+@dataclass(frozen=True)
+class SunLight:
+    """A world's sun as a Blender SUN light."""
+
+    #: Unit direction toward the sun (world).
+    direction: tuple[float, float, float]
+    #: Irradiance per channel on a surface facing it (W/m^2, Blender's sun strength).
+    irradiance: tuple[float, float, float]
+    #: The sun's apparent diameter (radians).
+    angle: float
+
+
+def world_sun(info: WorldInfo | None) -> SunLight | None:
+    """The sun of a world image (module docs of ``world_sun``'s constants), or None."""
+    if info is None or info.image is None or not info.emits:
+        return None
+    img = info.image.astype(np.float64) * np.asarray(info.color, dtype=np.float64)
+    h, w = img.shape[:2]
+    theta = (np.arange(h) + 0.5) / h * np.pi
+    phi = (0.5 - (np.arange(w) + 0.5) / w) * 2.0 * np.pi
+    st = np.sin(theta)[:, None]
+    dirs = np.stack(
+        [st * np.cos(phi)[None, :], st * np.sin(phi)[None, :], np.cos(theta)[:, None] + 0 * phi],
+        axis=-1,
+    )
+    if info.rotation is not None:  # image directions back to world directions
+        dirs = dirs @ np.asarray(info.rotation, dtype=np.float64)
+    lum = img @ np.asarray(vplace.LUMINANCE, dtype=np.float64)
+    top = np.unravel_index(int(np.argmax(lum)), lum.shape)
+    if lum[top] <= 0.0:
+        return None
+    cos_cone = math.cos(SUN_CONE)
+    near = dirs @ dirs[top] >= cos_cone
+    rest = float(lum[~near].max()) if (~near).any() else 0.0
+    sun = near & (lum > SUN_CONTRAST * rest)
+    if not sun[top]:
+        return None
+    d_omega = (2.0 * np.pi / w) * (np.pi / h) * np.broadcast_to(st, (h, w))
+    weight = (lum * d_omega)[sun]
+    direction = (dirs[sun] * weight[:, None]).sum(axis=0)
+    direction /= np.linalg.norm(direction)
+    irradiance = (img[sun] * d_omega[sun][:, None]).sum(axis=0)
+    spread = float(np.arccos(np.clip(dirs[sun] @ direction, -1.0, 1.0)).max())
+    angle = 2.0 * (spread + 0.5 * np.pi / h)
+    return SunLight(
+        tuple(float(x) for x in direction), tuple(float(x) for x in irradiance), float(angle)
+    )

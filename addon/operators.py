@@ -182,6 +182,7 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
             scene_diagonal=self.prepared.scene.diagonal,
             specular=self.prepared.vpl_specular,
             emitters=self.prepared.emitter_lights,
+            sun=self.prepared.world_sun,
         )
         summary = pipeline.summary(scene, self.job, self.prepared, computed, self.timer)
         scene.vplace.last_report = json.dumps(summary)

@@ -28,7 +28,7 @@ import bpy
 import numpy as np
 
 from . import apply, capture, eevee_setup, export, images
-from .emitter_lights import EmitterLight, emitter_lights
+from .emitter_lights import EmitterLight, SunLight, emitter_lights, world_sun
 from .errors import AddonError, CaptureError, ExportError
 from .native import build_scene, gloss_mask, view_of, vplace
 from .settings import override
@@ -168,6 +168,11 @@ class Prepared:
     def emitter_lights(self) -> list[EmitterLight]:
         """Lights that stand in for the scene's emissive meshes in EEVEE (``emitter_lights``)."""
         return emitter_lights(self.exported, self.scene)
+
+    @functools.cached_property
+    def world_sun(self) -> SunLight | None:
+        """The world's sun as a SUN light for EEVEE (``emitter_lights.world_sun``)."""
+        return world_sun(self.exported.world)
 
     @property
     def vpl_specular(self) -> float:
@@ -639,6 +644,7 @@ def run_main_job(
                 scene_diagonal=prepared.scene.diagonal,
                 specular=prepared.vpl_specular,
                 emitters=prepared.emitter_lights,
+                sun=prepared.world_sun,
             )
             bpy.ops.wm.save_as_mainfile(filepath=str(out_dir / "scene.blend"), copy=True)
         problems = [str(p) for p in eevee_setup.problems(bl_scene)]

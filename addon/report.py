@@ -640,6 +640,7 @@ def eevee_rows(
             scene_diagonal=diagonal,
             specular=data.prepared.vpl_specular,
             emitters=data.prepared.emitter_lights,
+            sun=data.prepared.world_sun,
         )
         try:
             names = ["vpl"] + (

@@ -129,3 +129,64 @@ def test_written_emitter_lights_face_the_way_the_surface_emits(scene):
     again = export.export_scene(scene)
     assert not again.lights
     assert apply.clear_vpls() == 2
+
+
+def world_image(h=64, w=128, sky=0.2, sun=None):
+    """A WorldInfo with an equirectangular image: a uniform sky and one sun pixel ``sun``
+    (row, column, radiance)."""
+    from addon.world import WorldInfo
+
+    img = np.full((h, w, 3), sky, np.float32)
+    if sun is not None:
+        i, j, value = sun
+        img[i, j] = value
+    return WorldInfo("w", (1.0, 1.0, 1.0), image=img, source="image")
+
+
+def test_a_world_sun_is_its_compact_bright_lobe_with_its_irradiance():
+    h, w = 64, 128
+    i, j = 20, 40
+    sun = emitter_lights.world_sun(world_image(h, w, sun=(i, j, 5000.0)))
+    assert sun is not None
+    theta = (i + 0.5) / h * np.pi
+    phi = (0.5 - (j + 0.5) / w) * 2 * np.pi
+    expected = (np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta))
+    np.testing.assert_allclose(sun.direction, expected, atol=1e-9)
+    d_omega = (2 * np.pi / w) * (np.pi / h) * np.sin(theta)
+    np.testing.assert_allclose(sun.irradiance, [5000.0 * d_omega] * 3, rtol=1e-9)
+    assert 0.0 < sun.angle < np.radians(5.0)
+
+
+def test_a_sky_without_an_outstanding_sun_has_none():
+    assert emitter_lights.world_sun(world_image()) is None
+    assert emitter_lights.world_sun(world_image(sun=(20, 40, 2.0))) is None  # 10x, not 20x
+    from addon.world import WorldInfo
+
+    assert emitter_lights.world_sun(WorldInfo("c", (1.0, 1.0, 1.0))) is None
+
+
+def test_the_written_sun_shines_from_the_suns_direction_and_eevee_must_not_extract_it(scene):
+    from addon import eevee_setup
+
+    sun = emitter_lights.world_sun(world_image(sun=(20, 40, 5000.0)))
+    world = bpy.data.worlds.new("sky")
+    scene.world = world
+    world.sun_threshold = 10.0
+    floor = bpy.data.materials.new("floor")
+    mesh(scene, "floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [(0, 1, 2, 3)], floor)
+    none = vplace.VplSet(
+        np.zeros((1, 3), np.float32),
+        np.array([[0, 0, 1]], np.float32),
+        np.zeros((1, 3), np.float32),
+    )
+    coll = apply.write_vpls(scene, none, scene_diagonal=3.0, sun=sun)
+    bpy.context.view_layer.update()
+    (obj,) = coll.objects
+    assert obj.data.type == "SUN" and obj.data.use_shadow
+    assert obj.data.energy * max(obj.data.color) == pytest.approx(max(sun.irradiance), rel=1e-5)
+    travels = obj.matrix_world.to_3x3() @ Vector((0, 0, -1))
+    np.testing.assert_allclose(tuple(travels), -np.array(sun.direction), atol=1e-6)
+    assert apply.world_sun_light(scene) == obj
+    assert any(p.setting == "world.sun_threshold" for p in eevee_setup.problems(scene))
+    eevee_setup.set_up(scene, bake_volume=False)
+    assert world.sun_threshold == 0.0

@@ -49,3 +49,34 @@ def test_eevee_with_emitter_lights_gives_cycles_direct_light_of_emissive_panels(
     assert 0.9 < with_lights["brightness"] < 1.1, with_lights
     assert without["brightness"] < 0.8, without
     assert with_lights["ssim"] > without["ssim"] + 0.3, (with_lights, without)
+
+
+def test_eevee_with_the_world_sun_lamp_gives_cycles_direct_light_through_windows():
+    bpy.ops.wm.open_mainfile(filepath=str(default_scene.builtin_scene("skyroom")))
+    scene = bpy.context.scene
+    exported = export.export_scene(scene)
+    sun = emitter_lights.world_sun(exported.world)
+    assert sun is not None, "the Sky Texture's sun is found"
+    cam = bpy.data.objects["Skyroom camera"]
+    truth = capture.capture(scene, camera=cam, resolution=RES, samples=128, seed=0).direct
+    none = vplace.VplSet(
+        np.zeros((1, 3), np.float32),
+        np.array([[0, 0, 1]], np.float32),
+        np.zeros((1, 3), np.float32),
+    )
+    with eevee_setup.world_volume_for_render(scene):
+        without = eevee.render(
+            scene, resolution=RES, camera=cam, samples=4, setup=eevee.SETUPS["vpl"]
+        )
+        apply.write_vpls(scene, none, scene_diagonal=8.0, sun=sun)
+        try:
+            ours = eevee.render(
+                scene, resolution=RES, camera=cam, samples=4, setup=eevee.SETUPS["vpl"]
+            )
+        finally:
+            apply.clear_vpls()
+    with_sun = pipeline.score(ours.image, truth)
+    no_sun = pipeline.score(without.image, truth)
+    assert 0.85 < with_sun["brightness"] < 1.15, with_sun
+    assert no_sun["brightness"] < 0.5, no_sun
+    assert with_sun["ssim"] > no_sun["ssim"] + 0.1, (with_sun, no_sun)
