@@ -198,3 +198,14 @@ def diff(a: dict[str, Any], b: dict[str, Any], path: str = "") -> list[str]:
     elif a != b:
         out.append(f"{path}: {a!r} -> {b!r}")
     return out
+
+
+def no_vpls() -> Any:
+    """A VPL set of one powerless VPL: ``apply.write_vpls`` then writes only the stand-in lights
+    (emitters, a world's sun) it is given."""
+    import numpy as np
+
+    from addon.native import vplace
+
+    up = np.array([[0.0, 0.0, 1.0]], np.float32)
+    return vplace.VplSet(np.zeros((1, 3), np.float32), up, np.zeros((1, 3), np.float32))

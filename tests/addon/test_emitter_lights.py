@@ -7,11 +7,11 @@ import math
 import bpy
 import numpy as np
 import pytest
-from blender_util import empty_file
+from blender_util import empty_file, no_vpls
 from mathutils import Vector
 
 from addon import apply, emitter_lights, export
-from addon.native import build_scene, vplace
+from addon.native import build_scene
 
 RADIANCE = (2.0, 1.0, 0.5)
 
@@ -106,11 +106,7 @@ def test_written_emitter_lights_face_the_way_the_surface_emits(scene):
     verts = [(0, 0, 2), (1, 0, 2), (1, 0.5, 2), (0, 0.5, 2)]
     mesh(scene, "panel", verts, [(0, 1, 2, 3)], emissive("panel", strength=3.0))
     lights, _ = lights_of(scene)
-    none = vplace.VplSet(
-        np.zeros((1, 3), np.float32),
-        np.array([[0, 0, 1]], np.float32),
-        np.zeros((1, 3), np.float32),
-    )
+    none = no_vpls()
     coll = apply.write_vpls(scene, none, scene_diagonal=3.0, emitters=lights)
     bpy.context.view_layer.update()
     objs = sorted(coll.objects, key=lambda o: o.name)
@@ -174,11 +170,7 @@ def test_the_written_sun_shines_from_the_suns_direction_and_eevee_must_not_extra
     world.sun_threshold = 10.0
     floor = bpy.data.materials.new("floor")
     mesh(scene, "floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [(0, 1, 2, 3)], floor)
-    none = vplace.VplSet(
-        np.zeros((1, 3), np.float32),
-        np.array([[0, 0, 1]], np.float32),
-        np.zeros((1, 3), np.float32),
-    )
+    none = no_vpls()
     coll = apply.write_vpls(scene, none, scene_diagonal=3.0, sun=sun)
     bpy.context.view_layer.update()
     (obj,) = coll.objects

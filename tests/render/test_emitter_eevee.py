@@ -2,8 +2,8 @@
 direct light matches Cycles' (``emitter_lights``); without them EEVEE leaves the room dark."""
 
 import bpy
-import numpy as np
 import pytest
+from blender_util import no_vpls
 
 from addon import (
     apply,
@@ -15,7 +15,7 @@ from addon import (
     export,
     pipeline,
 )
-from addon.native import build_scene, vplace
+from addon.native import build_scene
 
 pytestmark = pytest.mark.slow
 
@@ -30,11 +30,7 @@ def test_eevee_with_emitter_lights_gives_cycles_direct_light_of_emissive_panels(
     assert lights, "the panels give emitter lights"
     cam = bpy.data.objects["Panelroom camera"]
     truth = capture.capture(scene, camera=cam, resolution=RES, samples=128, seed=0).direct
-    none = vplace.VplSet(
-        np.zeros((1, 3), np.float32),
-        np.array([[0, 0, 1]], np.float32),
-        np.zeros((1, 3), np.float32),
-    )
+    none = no_vpls()
     apply.write_vpls(scene, none, scene_diagonal=8.0, emitters=lights)
     try:
         with eevee_setup.world_volume_for_render(scene):
@@ -59,11 +55,7 @@ def test_eevee_with_the_world_sun_lamp_gives_cycles_direct_light_through_windows
     assert sun is not None, "the Sky Texture's sun is found"
     cam = bpy.data.objects["Skyroom camera"]
     truth = capture.capture(scene, camera=cam, resolution=RES, samples=128, seed=0).direct
-    none = vplace.VplSet(
-        np.zeros((1, 3), np.float32),
-        np.array([[0, 0, 1]], np.float32),
-        np.zeros((1, 3), np.float32),
-    )
+    none = no_vpls()
     with eevee_setup.world_volume_for_render(scene):
         without = eevee.render(
             scene, resolution=RES, camera=cam, samples=4, setup=eevee.SETUPS["vpl"]
