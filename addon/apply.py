@@ -33,8 +33,9 @@ ones the evaluator renders (``vplace.VplSet`` carries profile and near-field rad
 - The world's sun (a compact lobe of a world image far brighter than the rest of the sky,
   ``emitter_lights.world_sun``): EEVEE lights a room through its windows with the world's
   probes only, without the sun's patches (the sky-lit room: 0.09x Cycles' direct light with the
-  world's volume), so a SUN light of the sun's direction, irradiance and angle is written too,
-  shadowed; EEVEE must then not extract the sun from the world itself (its sun threshold 0,
+  world's volume), so a SUN light of the sun's direction, irradiance and angle is written too
+  (when it lights at least 0.1 % of some captured view: else it only adds EEVEE's shadow
+  leaks), shadowed; EEVEE must then not extract the sun from the world itself (its sun threshold 0,
   what "Set up EEVEE for vplace" and the scored renders set).
 - VPLs whose refitted power is zero are not written (a light that gives nothing still costs
   EEVEE a shadow map); each light keeps its VPL's index as ``vplace_index``.

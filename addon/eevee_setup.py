@@ -230,7 +230,7 @@ def problems(scene: bpy.types.Scene) -> list[Problem]:
                 "light leaks through walls",
             )
         )
-    uncut = [o.name for o in vpls if not o.data.use_custom_distance]
+    uncut = [o.name for o in vpls if o.data.type != "SUN" and not o.data.use_custom_distance]
     if uncut and e.light_threshold > 0:
         found.append(
             Problem(

@@ -211,6 +211,13 @@ def emitter_lights(
 #: that cone; a world whose brightest pixel is not that bright has no sun.
 SUN_CONE = math.radians(10.0)
 SUN_CONTRAST = 20.0
+#: The sun is written only when it lights at least this fraction of the covered pixels of some
+#: captured view: a SUN light whose light cannot reach what the views see adds nothing but
+#: EEVEE's shadow leaks (a closed room the sun cannot enter, ``/work/runs/userblend`` studio:
+#: 2 % of the unshadowed sun leaked at the walls' joints, twice the room's direct light).
+SUN_MIN_LIT = 1e-3
+#: Pixels tested per view (evenly strided).
+SUN_TEST_PIXELS = 20000
 
 
 @dataclass(frozen=True)
@@ -260,3 +267,30 @@ def world_sun(info: WorldInfo | None) -> SunLight | None:
     return SunLight(
         tuple(float(x) for x in direction), tuple(float(x) for x in irradiance), float(angle)
     )
+
+
+def sun_lit_fraction(
+    scene: vplace.Scene,
+    position: np.ndarray,
+    normal: np.ndarray,
+    covered: np.ndarray,
+    sun: SunLight,
+) -> float:
+    """The fraction of a view's covered pixels (G-buffer ``position``, ``normal``) that face
+    ``sun`` and see it unoccluded (tested on at most :data:`SUN_TEST_PIXELS` of them)."""
+    ys, xs = np.nonzero(covered)
+    if len(ys) == 0:
+        return 0.0
+    step = max(1, len(ys) // SUN_TEST_PIXELS)
+    ys, xs = ys[::step], xs[::step]
+    d = np.asarray(sun.direction, dtype=np.float32)
+    n = normal[ys, xs].astype(np.float32)
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+    facing = n @ d > 0.0
+    if not facing.any():
+        return 0.0
+    eps = np.float32(1e-4 * scene.diagonal)
+    origins = position[ys, xs][facing].astype(np.float32) + eps * n[facing]
+    targets = origins + np.float32(2.0 * scene.diagonal) * d
+    blocked = scene.occluded(np.ascontiguousarray(origins), np.ascontiguousarray(targets))
+    return float((~blocked).sum()) / len(ys)

@@ -28,7 +28,14 @@ import bpy
 import numpy as np
 
 from . import apply, capture, eevee_setup, export, images
-from .emitter_lights import EmitterLight, SunLight, emitter_lights, world_sun
+from .emitter_lights import (
+    SUN_MIN_LIT,
+    EmitterLight,
+    SunLight,
+    emitter_lights,
+    sun_lit_fraction,
+    world_sun,
+)
 from .errors import AddonError, CaptureError, ExportError
 from .native import build_scene, gloss_mask, view_of, vplace
 from .settings import override
@@ -171,8 +178,16 @@ class Prepared:
 
     @functools.cached_property
     def world_sun(self) -> SunLight | None:
-        """The world's sun as a SUN light for EEVEE (``emitter_lights.world_sun``)."""
-        return world_sun(self.exported.world)
+        """The world's sun as a SUN light for EEVEE (``emitter_lights.world_sun``), when it
+        lights some of what the captured views see (``SUN_MIN_LIT``)."""
+        sun = world_sun(self.exported.world)
+        if sun is None:
+            return None
+        lit = max(
+            sun_lit_fraction(self.scene, c.position, c.normal, c.covered, sun)
+            for c in self.captures
+        )
+        return sun if lit >= SUN_MIN_LIT else None
 
     @property
     def vpl_specular(self) -> float:

@@ -182,3 +182,38 @@ def test_the_written_sun_shines_from_the_suns_direction_and_eevee_must_not_extra
     assert any(p.setting == "world.sun_threshold" for p in eevee_setup.problems(scene))
     eevee_setup.set_up(scene, bake_volume=False)
     assert world.sun_threshold == 0.0
+
+
+def test_the_sun_counts_only_where_it_reaches_what_a_view_sees(scene):
+    mesh(
+        scene,
+        "floor",
+        [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)],
+        [(0, 1, 2, 3)],
+        bpy.data.materials.new("f"),
+    )
+    exported = export.export_scene(scene)
+    sun = emitter_lights.SunLight((0.0, 0.0, 1.0), (5.0, 5.0, 5.0), 0.01)
+    ys, xs = np.mgrid[0:8, 0:8]
+    position = np.stack([(xs - 3.5) / 5, (ys - 3.5) / 5, 0 * xs], axis=-1).astype(np.float32)
+    normal = np.zeros_like(position)
+    normal[..., 2] = 1.0
+    covered = np.ones((8, 8), bool)
+    lit = emitter_lights.sun_lit_fraction(build_scene(exported), position, normal, covered, sun)
+    assert lit == 1.0
+    # A roof over the floor: the sun reaches nothing the view sees.
+    roof = [
+        (-2.3, -1.9, 1),
+        (2.1, -1.9, 1),
+        (2.1, 2.2, 1),
+        (-2.3, 2.2, 1),
+    ]  # not on a pixel diagonal
+    mesh(scene, "roof", roof, [(0, 1, 2, 3)], bpy.data.materials.new("r"))
+    exported = export.export_scene(scene)
+    lit = emitter_lights.sun_lit_fraction(build_scene(exported), position, normal, covered, sun)
+    assert lit == 0.0
+    below = emitter_lights.SunLight((0.0, 0.0, -1.0), (5.0, 5.0, 5.0), 0.01)
+    assert (
+        emitter_lights.sun_lit_fraction(build_scene(exported), position, normal, covered, below)
+        == 0.0
+    )
