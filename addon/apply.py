@@ -227,11 +227,8 @@ def _new_sun_object(coll: bpy.types.Collection, sun: SunLight) -> bpy.types.Obje
 
 
 def world_sun_light(scene: bpy.types.Scene) -> bpy.types.Object | None:
-    """The SUN light vplace wrote for the world's sun, if any."""
-    coll = find_collection()
-    if coll is None:
-        return None
-    return next((o for o in coll.objects if o.get("vplace_world_sun", False)), None)
+    """The SUN light vplace wrote for the world's sun into ``scene``, if any."""
+    return next((o for o in scene.objects if o.get("vplace_world_sun", False)), None)
 
 
 def write_vpls(
