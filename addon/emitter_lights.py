@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -67,8 +67,21 @@ class EmitterLight:
     material: str
 
 
-def _rectangle(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """Corner, first and second side vectors when the 4 points ``pts`` are a rectangle."""
+class _Shape(NamedTuple):
+    """One emissive polygon as the AREA light shape that stands in for it."""
+
+    centre: np.ndarray
+    normal: np.ndarray
+    tangent: np.ndarray
+    shape: str  # "RECTANGLE" or "DISK"
+    size: float
+    size_y: float
+    area: float
+    material: int
+
+
+def _rectangle(pts: np.ndarray, normal: np.ndarray, material: int) -> _Shape | None:
+    """The RECTANGLE of the 4 points ``pts`` when they are one, flat across ``normal``."""
     p0 = pts[0]
     far = int(np.argmax(((pts - p0) ** 2).sum(axis=1)))
     rest = [i for i in range(1, 4) if i != far]
@@ -81,16 +94,17 @@ def _rectangle(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | N
         return None
     if float(np.linalg.norm(p0 + a + b - pts[far])) > RECT_TOLERANCE * scale:
         return None
-    return p0, a, b
+    flat = float(np.abs((pts - p0) @ normal).max())
+    if flat > RECT_TOLERANCE * max(float(np.ptp(pts, axis=0).max()), 1e-30):
+        return None
+    return _Shape(p0 + 0.5 * (a + b), normal, a / la, "RECTANGLE", la, lb, la * lb, material)
 
 
-def _shapes(
-    exported: ExportedScene, emissive: np.ndarray
-) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, str, float, float, float, int]]:
-    """(centre, normal, tangent, shape, size, size_y, area, material) per emissive polygon:
-    consecutive triangle pairs that form a rectangle are merged."""
+def _shapes(exported: ExportedScene, emissive: np.ndarray) -> list[_Shape]:
+    """The light shape of each emissive polygon: consecutive triangle pairs that form a
+    rectangle are merged, any other triangle is a disk of its area."""
     v, tris, mats = exported.vertices, exported.triangles, exported.material_ids
-    out = []
+    out: list[_Shape] = []
     i, n = 0, len(emissive)
     while i < n:
         t = int(emissive[i])
@@ -105,20 +119,24 @@ def _shapes(
         if i + 1 < n and int(emissive[i + 1]) == t + 1 and mats[t + 1] == mats[t]:
             both = v[np.concatenate([tris[t], tris[t + 1]])].astype(np.float64)
             pts = np.unique(np.round(both, 7), axis=0)
-            rect = _rectangle(pts) if len(pts) == 4 else None
-            flat = float(np.abs((pts - pts[0]) @ normal).max()) if rect is not None else 1.0
-            if rect is not None and flat <= RECT_TOLERANCE * max(np.ptp(pts, axis=0).max(), 1e-30):
-                p0, a, b = rect
-                la, lb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
-                out.append(
-                    (p0 + 0.5 * (a + b), normal, a / la, "RECTANGLE", la, lb, la * lb, int(mats[t]))
-                )
+            rect = _rectangle(pts, normal, int(mats[t])) if len(pts) == 4 else None
+            if rect is not None:
+                out.append(rect)
                 i += 2
                 continue
         tangent = e1 / max(float(np.linalg.norm(e1)), 1e-30)
         diameter = 2.0 * np.sqrt(area / np.pi)
         out.append(
-            (corners.mean(axis=0), normal, tangent, "DISK", diameter, diameter, area, int(mats[t]))
+            _Shape(
+                corners.mean(axis=0),
+                normal,
+                tangent,
+                "DISK",
+                diameter,
+                diameter,
+                area,
+                int(mats[t]),
+            )
         )
         i += 1
     return out
@@ -165,9 +183,9 @@ def emitter_lights(
     shapes = _shapes(exported, emissive)
     if not shapes:
         return []
-    centres = np.array([s[0] for s in shapes])
-    normals = np.array([s[1] for s in shapes])
-    sizes = np.array([max(s[4], s[5]) for s in shapes])
+    centres = np.array([s.centre for s in shapes])
+    normals = np.array([s.normal for s in shapes])
+    sizes = np.array([max(s.size, s.size_y) for s in shapes])
     offset = 1e-3 * scene.diagonal
     sides = []
     for sign in (1.0, -1.0):
@@ -175,7 +193,7 @@ def emitter_lights(
         sides += [(k, sign) for k in np.flatnonzero(open_)]
     lum = np.asarray(vplace.LUMINANCE, dtype=np.float64)
     power = np.array(
-        [np.pi * shapes[k][6] * emission[shapes[k][7]].astype(np.float64) for k, _ in sides]
+        [np.pi * shapes[k].area * emission[shapes[k].material].astype(np.float64) for k, _ in sides]
     ).reshape(-1, 3)
     chosen = np.arange(len(sides))
     scale = np.ones(len(sides))
@@ -189,18 +207,18 @@ def emitter_lights(
     out = []
     for j in chosen:
         k, sign = sides[j]
-        c, nrm, tan, shape, sx, sy, _, mat = shapes[k]
-        n = sign * nrm
+        sh = shapes[k]
+        n = sign * sh.normal
         out.append(
             EmitterLight(
-                tuple(float(x) for x in c + offset * n),
+                tuple(float(x) for x in sh.centre + offset * n),
                 tuple(float(x) for x in n),
-                tuple(float(x) for x in tan),
-                shape,
-                float(sx),
-                float(sy),
+                tuple(float(x) for x in sh.tangent),
+                sh.shape,
+                float(sh.size),
+                float(sh.size_y),
                 tuple(float(x) for x in power[j] * scale[j]),
-                exported.materials[mat].name,
+                exported.materials[sh.material].name,
             )
         )
     return out
