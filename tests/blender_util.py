@@ -209,3 +209,13 @@ def no_vpls() -> Any:
 
     up = np.array([[0.0, 0.0, 1.0]], np.float32)
     return vplace.VplSet(np.zeros((1, 3), np.float32), up, np.zeros((1, 3), np.float32))
+
+
+def principled(name: str, **inputs: Any) -> tuple[bpy.types.Material, bpy.types.Node]:
+    """A new material with its default Principled BSDF's ``inputs`` set; the material and the
+    node."""
+    mat = bpy.data.materials.new(name)
+    node = mat.node_tree.nodes["Principled BSDF"]
+    for key, value in inputs.items():
+        node.inputs[key].default_value = value
+    return mat, node

@@ -2,6 +2,7 @@
 sees the rough ones, the reflectance and indirect light vplace models there, and the written
 VPLs' specular factor."""
 
+import blender_util
 import bpy
 import numpy as np
 import pytest
@@ -22,11 +23,7 @@ def scene():
 
 
 def principled(name, **inputs):
-    mat = bpy.data.materials.new(name)
-    p = mat.node_tree.nodes["Principled BSDF"]
-    for key, value in inputs.items():
-        p.inputs[key].default_value = value
-    return mat
+    return blender_util.principled(name, **inputs)[0]
 
 
 def shader_material(name, kind, **inputs):

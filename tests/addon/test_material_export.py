@@ -5,7 +5,7 @@ and the viewport colour with a warning for what the rule does not read."""
 import bpy
 import numpy as np
 import pytest
-from blender_util import empty_file
+from blender_util import empty_file, principled
 
 from addon import export
 from addon.native import build_scene
@@ -42,14 +42,6 @@ def quad(scene, mat, z=0.0):
     scene.collection.objects.link(obj)
     bpy.context.view_layer.update()
     return obj
-
-
-def principled(name, **inputs):
-    mat = bpy.data.materials.new(name)
-    p = mat.node_tree.nodes["Principled BSDF"]
-    for key, value in inputs.items():
-        p.inputs[key].default_value = value
-    return mat, p
 
 
 def image():
