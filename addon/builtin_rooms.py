@@ -635,6 +635,17 @@ def _render_settings(scene: bpy.types.Scene) -> None:
     scene.eevee.taa_render_samples = 16
 
 
+def _leaves() -> bpy.types.Material:
+    """The alpha-cut leaf material both rooms' plants use."""
+    return _principled(
+        "Leaves",
+        (0.06, 0.28, 0.04),
+        0.6,
+        image=packed_image("Leaf sprig", leaf_texture()),
+        alpha=True,
+    )
+
+
 def build_skyroom(scene: bpy.types.Scene | None = None) -> bpy.types.Scene:
     """Adds the sky-lit room (see the module docs) to ``scene``."""
     scene = scene or bpy.context.scene
@@ -676,13 +687,7 @@ def build_skyroom(scene: bpy.types.Scene | None = None) -> bpy.types.Scene:
         _principled("Cabinet white", (0.6, 0.6, 0.58), 0.4),
         coll,
     )
-    leaves = _principled(
-        "Leaves",
-        (0.06, 0.28, 0.04),
-        0.6,
-        image=packed_image("Leaf sprig", leaf_texture()),
-        alpha=True,
-    )
+    leaves = _leaves()
     plant("Plant", (1.2, -1.45), 1.6, _principled("Clay pot", (0.45, 0.15, 0.06)), leaves, coll)
 
     world = bpy.data.worlds.new("Sky")
@@ -748,13 +753,7 @@ def build_panelroom(scene: bpy.types.Scene | None = None) -> bpy.types.Scene:
     table("Coffee table", (-0.2, 0.0), (1.1, 0.6, 0.42), wood, coll)
     bookcase(coll, (-1.6, 1.6, 0.0), (0.6, 2.0, 2.0), "-y")
     painting(coll, (-0.9, -2.0, 1.1), (0.5, -1.97, 1.9))
-    leaves = _principled(
-        "Leaves",
-        (0.06, 0.28, 0.04),
-        0.6,
-        image=packed_image("Leaf sprig", leaf_texture()),
-        alpha=True,
-    )
+    leaves = _leaves()
     plant("Plant", (-2.6, 1.3), 1.4, _principled("Clay pot", (0.45, 0.15, 0.06)), leaves, coll)
     # A lattice louvre 12 cm under the third panel: that panel lights the room only through
     # the holes the texture's alpha cuts.
