@@ -8,7 +8,7 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
-_MODULE_NAMES = ("properties", "operators", "ui")
+_MODULE_NAMES = ("ui.properties", "ui.operators", "ui.panels")
 
 
 def _modules() -> list[ModuleType]:

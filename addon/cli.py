@@ -17,14 +17,14 @@ from typing import TYPE_CHECKING
 import bpy
 
 if TYPE_CHECKING:
-    from .views import ViewSet
+    from .capture.views import ViewSet
 
 REPO = Path(__file__).resolve().parent.parent
 
 
 def view_set(args: argparse.Namespace) -> ViewSet:
     """The views of the ``demo`` options (default: the scene camera)."""
-    from .views import ViewSet
+    from .capture.views import ViewSet
 
     if args.cameras:
         return ViewSet(mode="cameras", cameras=tuple(args.cameras))
@@ -38,9 +38,9 @@ def view_set(args: argparse.Namespace) -> ViewSet:
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
-    from .default_scene import BUILTIN
-    from .pipeline import FEATURE_MODES, Job
-    from .report import PRESETS, ReportConfig
+    from .job import FEATURE_MODES, Job
+    from .report.runs import PRESETS, ReportConfig
+    from .scenes.registry import BUILTIN
 
     p = argparse.ArgumentParser(prog="vplace", description=__doc__)
     p.add_argument("--debug", action="store_true", help="print tracebacks of errors")
@@ -171,8 +171,9 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
 
 def run_par2d_demo(out: Path, size: int, method: str) -> None:
     """Builds the PAR demo scene, bakes its light map, renders it with EEVEE, saves both."""
-    from . import default_scene, par2d_bake
-    from .pipeline import render_eevee_preview
+    from .job import render_eevee_preview
+    from .scenes import registry as default_scene
+    from .writeback import par2d_bake
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
@@ -194,7 +195,7 @@ def run(args: argparse.Namespace) -> None:
         run_par2d_demo(args.out, args.size, args.method)
         return
     if args.command == "report":
-        from .report import ReportConfig, run_report
+        from .report.runs import ReportConfig, run_report
 
         config = ReportConfig(
             scenes=args.scenes,
@@ -222,9 +223,9 @@ def run(args: argparse.Namespace) -> None:
             config.eevee_samples = args.eevee_samples
         run_report(config, args.out)
         return
-    from .default_scene import builtin_scene
     from .errors import AddonError
-    from .pipeline import Job, method_name, run_main_job
+    from .job import Job, method_name, run_main_job
+    from .scenes.registry import builtin_scene
 
     if args.scene.endswith(".blend"):
         blend = Path(args.scene)

@@ -10,9 +10,9 @@ from typing import Any
 import bpy
 
 import addon
-from addon.default_scene import build_cornell_box
-from addon.export import VPL_MARKER
-from addon.par2d_bake import OUTPUT_MARKER
+from addon.scene.export import VPL_MARKER
+from addon.scenes.registry import build_cornell_box
+from addon.writeback.par2d_bake import OUTPUT_MARKER
 
 #: Custom properties that mark what vplace writes (and may replace).
 MARKERS = (VPL_MARKER, OUTPUT_MARKER)

@@ -48,8 +48,12 @@ def build(out_dir: Path) -> Path:
              "--only-binary=:all:", "-d", str(wheels), *EXTRA_WHEELS],
             check=True,
         )
-        for src in ADDON.glob("*.py"):
-            shutil.copy2(src, stage / src.name)
+        for src in ADDON.rglob("*.py"):
+            rel = src.relative_to(ADDON)
+            if rel.parts[0] == "_build":
+                continue
+            (stage / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, stage / rel)
         names = sorted(p.name for p in wheels.glob("*.whl"))
         manifest = (ADDON / "blender_manifest.toml").read_text()
         listed = ", ".join(f'"./wheels/{n}"' for n in names)

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from blender_util import cornell, data_snapshot, diff
 
-from addon import apply
-from addon.export import VPL_MARKER, export_scene
 from addon.native import vplace
+from addon.scene.export import VPL_MARKER, export_scene
+from addon.writeback import apply
 
 
 def some_vpls(n, seed=0, profile="cosine"):
@@ -80,7 +80,7 @@ def test_bad_vpl_sets_are_refused():
 
 
 def test_clear_operator_is_undoable_and_reports():
-    from addon import operators
+    from addon.ui import operators
 
     operators.register()
     try:

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from blender_util import addon_cornell, data_snapshot, diff
 
-from addon import apply, bench_export
+from addon.scene import bench_export
+from addon.writeback import apply
 
 
 @pytest.fixture

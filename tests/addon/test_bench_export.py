@@ -1,7 +1,7 @@
 """The export benchmark runs (tiny) and measures what it says: a textured terrain's triangles,
 its one texture, positive times and memory."""
 
-from addon import bench_export
+from addon.scene import bench_export
 
 
 def test_the_export_benchmark_measures_a_textured_terrain():

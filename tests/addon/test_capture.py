@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from blender_util import cornell, diff, rna_snapshot
 
-from addon import capture
+from addon.capture import passes as capture
 
 
 def scene_state(scene):
@@ -81,8 +81,8 @@ def test_capture_errors():
 
 
 def test_capture_hides_the_lights_vplace_wrote(tmp_path):
-    from addon import apply
     from addon.native import vplace
+    from addon.writeback import apply
 
     scene = cornell()
     first = capture.capture(scene, resolution=(16, 16), samples=4)

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from blender_util import addon_cornell, data_snapshot, diff
 
-from addon import apply, eevee_setup
 from addon.native import vplace
+from addon.writeback import apply, eevee_setup
 
 
 @pytest.fixture

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from blender_util import CORNELL_OBJ, cornell, empty_file
 
-from addon import export
-from addon.default_scene import parse_mtl, parse_obj
-from addon.native import build_scene
+from addon.scene import export
+from addon.scene.convert import build_scene
+from addon.scenes.registry import parse_mtl, parse_obj
 
 
 def test_cornell_export_matches_the_obj():
@@ -77,7 +77,7 @@ def test_bad_scenes_give_clear_errors():
 
 def test_emissive_materials_and_what_emits():
     from addon.errors import ExportError
-    from addon.pipeline import check_lights
+    from addon.job import check_lights
 
     scene = cornell()
     bpy.data.objects["light"].hide_render = True

@@ -28,7 +28,8 @@ INSTALL_AND_RUN = textwrap.dedent(
     mod = sys.modules["bl_ext.user_default.vplace"]
     bpy.ops.wm.read_factory_settings(use_empty=True)
     addon_utils.enable("bl_ext.user_default.vplace", default_set=True)
-    from bl_ext.user_default.vplace import default_scene, apply
+    from bl_ext.user_default.vplace.scenes import registry as default_scene
+    from bl_ext.user_default.vplace.writeback import apply
     scene = default_scene.build_cornell_box(obj_path)
     s = scene.vplace
     s.capture_size = 16
@@ -52,6 +53,7 @@ def test_extension_zip_installs_and_runs(tmp_path):
     zip_path = Path(build.stdout.strip().splitlines()[-1])
     names = zipfile.ZipFile(zip_path).namelist()
     assert "blender_manifest.toml" in names and "__init__.py" in names
+    assert {"ui/operators.py", "scene/export.py", "writeback/apply.py"} <= set(names), names
     assert any(n.startswith("wheels/vplace-") for n in names)
     assert not any("_build" in n or "__pycache__" in n for n in names)
     script = tmp_path / "install.py"

@@ -8,9 +8,12 @@ import numpy as np
 import pytest
 from blender_util import empty_file
 
-from addon import apply, export
-from addon.capture import Capture
-from addon.native import build_scene, gloss_mask, vplace
+from addon.capture.native_view import gloss_mask
+from addon.capture.passes import Capture
+from addon.native import vplace
+from addon.scene import export
+from addon.scene.convert import build_scene
+from addon.writeback import apply
 
 
 @pytest.fixture

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from blender_util import empty_file, principled
 
-from addon import export
-from addon.native import build_scene
+from addon.scene import export
+from addon.scene.convert import build_scene
 
 #: A 2 x 2 texture (Blender rows bottom first): red, green / blue, white; alpha 0 on the left.
 TEXELS = np.array(

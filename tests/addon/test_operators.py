@@ -8,9 +8,9 @@ import pytest
 from blender_util import CORNELL_OBJ, data_snapshot, diff, empty_file
 
 import addon
-from addon import apply
-from addon.default_scene import build_cornell_box
 from addon.native import vplace
+from addon.scenes.registry import build_cornell_box
+from addon.writeback import apply
 
 
 @pytest.fixture
@@ -117,7 +117,7 @@ def written_lights():
 
 @pytest.mark.slow
 def test_apply_twice_writes_the_same_lights_and_image(registered, tmp_path):
-    from addon import capture
+    from addon.capture import passes as capture
 
     scene = small_cornell()
     assert bpy.ops.vplace.apply() == {"FINISHED"}

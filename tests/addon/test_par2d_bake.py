@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from blender_util import empty_file
 
-from addon import par2d_bake
 from addon.native import vplace
+from addon.writeback import par2d_bake
 
 
 def _square(name, x0, y0, x1, y1, collection, emission=None, z=0.0):

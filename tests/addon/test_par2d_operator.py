@@ -6,8 +6,9 @@ import pytest
 from blender_util import data_snapshot, diff, empty_file
 
 import addon
-from addon import default_scene, par2d_bake
 from addon.native import vplace
+from addon.scenes import registry as default_scene
+from addon.writeback import par2d_bake
 
 
 @pytest.fixture

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from blender_util import cornell
 
-from addon import capture, render_key
+from addon.capture import passes as capture
+from addon.capture import render_key
 
 
 def key(scene):

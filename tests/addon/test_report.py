@@ -9,8 +9,10 @@ import bpy
 import numpy as np
 import pytest
 
-from addon import apply, default_scene, report
-from addon.report import CAPTURE_CURVE, RELAYOUT, WITH_RT, ReportConfig, ReportError, Row
+from addon.report import runs as report
+from addon.report.runs import CAPTURE_CURVE, RELAYOUT, WITH_RT, ReportConfig, ReportError, Row
+from addon.scenes import registry as default_scene
+from addon.writeback import apply
 
 FIT = ["Cornell camera", "Cornell camera left"]
 HELD_OUT = [default_scene.CORNELL_HELD_OUT_CAMERA]

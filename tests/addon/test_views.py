@@ -5,9 +5,11 @@ import bpy
 import pytest
 from blender_util import addon_cornell, data_snapshot, diff
 
-from addon import apply, pipeline, views
-from addon.default_scene import CORNELL_HELD_OUT_CAMERA
+from addon import job as pipeline
+from addon.capture import views
 from addon.errors import AddonError, CaptureError
+from addon.scenes.registry import CORNELL_HELD_OUT_CAMERA
+from addon.writeback import apply
 
 
 @pytest.fixture

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from blender_util import empty_file
 
-from addon import world as world_mod
-from addon.native import native_world
+from addon.scene import world as world_mod
+from addon.scene.convert import native_world
 
 
 @pytest.fixture

@@ -19,8 +19,12 @@ import numpy as np
 import pytest
 from blender_util import cornell
 
-from addon import apply, capture, export
-from addon.native import build_scene, view_of, vplace
+from addon.capture import passes as capture
+from addon.capture.native_view import view_of
+from addon.native import vplace
+from addon.scene import export
+from addon.scene.convert import build_scene
+from addon.writeback import apply
 
 RES = (64, 64)
 SAMPLES = 1024

@@ -7,13 +7,17 @@ import pytest
 from blender_util import cornell
 from PIL import Image
 
-from addon import apply, capture, eevee, images, pipeline
-from addon.export import VPL_MARKER
+from addon import job as pipeline
+from addon.capture import passes as capture
+from addon.native import vplace
+from addon.scene.export import VPL_MARKER
+from addon.writeback import apply
+from addon.writeback import eevee_render as eevee
 
 
 def load_png_linear(path):
     c = np.asarray(Image.open(path).convert("RGB"), dtype=np.float64) / 255.0
-    return images.srgb_to_linear(c)
+    return vplace.images.srgb_to_linear(c)
 
 
 def luminance(img):
@@ -74,7 +78,7 @@ def test_main_job_writes_everything_and_eevee_shows_what_the_evaluator_computed(
     assert abs(eevee_added / evaluator_added - 1) < 0.05
     assert e["ssim"] > m["ssim_direct_only"] + 0.05 and e["rmse"] < 0.8 * m["rmse_direct_only"]
     assert abs(m["brightness"] - 1) < 0.1
-    # The PNGs are pictures of the same images.
+    # The PNGs are pictures of the same vplace.images.
     shown = luminance(load_png_linear(tmp_path / "eevee_vpl.png")).mean()
     ours = luminance(load_png_linear(tmp_path / "direct_plus_vpl.png")).mean()
     assert abs(shown / ours - 1) < 0.1

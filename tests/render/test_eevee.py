@@ -7,8 +7,13 @@ import numpy as np
 import pytest
 from blender_util import cornell
 
-from addon import apply, capture, eevee, export
-from addon.native import build_scene, view_of, vplace
+from addon.capture import passes as capture
+from addon.capture.native_view import view_of
+from addon.native import vplace
+from addon.scene import export
+from addon.scene.convert import build_scene
+from addon.writeback import apply
+from addon.writeback import eevee_render as eevee
 
 RES = (48, 48)
 

@@ -5,17 +5,14 @@ import bpy
 import pytest
 from blender_util import no_vpls
 
-from addon import (
-    apply,
-    capture,
-    default_scene,
-    eevee,
-    eevee_setup,
-    emitter_lights,
-    export,
-    pipeline,
-)
-from addon.native import build_scene
+from addon import job as pipeline
+from addon.capture import passes as capture
+from addon.scene import export
+from addon.scene.convert import build_scene
+from addon.scenes import registry as default_scene
+from addon.writeback import apply, eevee_setup
+from addon.writeback import eevee_render as eevee
+from addon.writeback import stand_ins as emitter_lights
 
 pytestmark = pytest.mark.slow
 

@@ -28,8 +28,11 @@ import numpy as np
 import pytest
 from blender_util import add_lamp, empty_file
 
-from addon import capture, export
-from addon.native import build_scene, view_of, vplace
+from addon.capture import passes as capture
+from addon.capture.native_view import view_of
+from addon.native import vplace
+from addon.scene import export
+from addon.scene.convert import build_scene
 
 RES = (32, 32)
 ALBEDO = 0.7

@@ -27,8 +27,11 @@ from test_lights import (
     stage,
 )
 
-from addon import capture, export
-from addon.native import build_scene, view_of, vplace
+from addon.capture import passes as capture
+from addon.capture.native_view import view_of
+from addon.native import vplace
+from addon.scene import export
+from addon.scene.convert import build_scene
 
 
 def checker(name: str, n: int = 4, *, alpha: bool = False, texels: int = 64) -> bpy.types.Image:

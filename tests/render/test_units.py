@@ -7,7 +7,7 @@ import bpy
 import numpy as np
 from blender_util import add_lamp, empty_file
 
-from addon import capture
+from addon.capture import passes as capture
 
 ALBEDO = 0.5
 

@@ -19,7 +19,10 @@ import bpy
 import pytest
 from blender_util import empty_file
 
-from addon import apply, capture, eevee, eevee_setup, pipeline
+from addon import job as pipeline
+from addon.capture import passes as capture
+from addon.writeback import apply, eevee_setup
+from addon.writeback import eevee_render as eevee
 
 SIZE = (48, 36)
 #: The prefix of the measurement's line in the script's output.

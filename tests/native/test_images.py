@@ -3,8 +3,7 @@
 import numpy as np
 import pytest
 from PIL import Image
-
-from addon import images
+from vplace import images
 
 
 def test_png_round_trip(tmp_path):

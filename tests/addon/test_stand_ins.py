@@ -10,8 +10,10 @@ import pytest
 from blender_util import empty_file, no_vpls
 from mathutils import Vector
 
-from addon import apply, emitter_lights, export
-from addon.native import build_scene
+from addon.scene import export
+from addon.scene.convert import build_scene
+from addon.writeback import apply
+from addon.writeback import stand_ins as emitter_lights
 
 RADIANCE = (2.0, 1.0, 0.5)
 
@@ -130,7 +132,7 @@ def test_written_emitter_lights_face_the_way_the_surface_emits(scene):
 def world_image(h=64, w=128, sky=0.2, sun=None):
     """A WorldInfo with an equirectangular image: a uniform sky and one sun pixel ``sun``
     (row, column, radiance)."""
-    from addon.world import WorldInfo
+    from addon.scene.world import WorldInfo
 
     img = np.full((h, w, 3), sky, np.float32)
     if sun is not None:
@@ -156,13 +158,13 @@ def test_a_world_sun_is_its_compact_bright_lobe_with_its_irradiance():
 def test_a_sky_without_an_outstanding_sun_has_none():
     assert emitter_lights.world_sun(world_image()) is None
     assert emitter_lights.world_sun(world_image(sun=(20, 40, 2.0))) is None  # 10x, not 20x
-    from addon.world import WorldInfo
+    from addon.scene.world import WorldInfo
 
     assert emitter_lights.world_sun(WorldInfo("c", (1.0, 1.0, 1.0))) is None
 
 
 def test_the_written_sun_shines_from_the_suns_direction_and_eevee_must_not_extract_it(scene):
-    from addon import eevee_setup
+    from addon.writeback import eevee_setup
 
     sun = emitter_lights.world_sun(world_image(sun=(20, 40, 5000.0)))
     world = bpy.data.worlds.new("sky")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -12,11 +12,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from . import images
-from .native import vplace
+from ..native import vplace
 
 if TYPE_CHECKING:
-    from .report import Row
+    from .runs import Row
 
 COLOURS = {
     "uniform": "tab:blue",
@@ -135,7 +134,7 @@ def error_vs_budget(path: Path, rows: Sequence[Row]) -> Path:
 
 
 def _display(linear: np.ndarray) -> np.ndarray:
-    return images.linear_to_srgb(np.asarray(linear, dtype=np.float64)[..., :3])
+    return vplace.images.linear_to_srgb(np.asarray(linear, dtype=np.float64)[..., :3])
 
 
 def image_grid(
@@ -179,19 +178,19 @@ def image_grid(
     return path
 
 
-def par2d_plot(path: Path, rows: Sequence[dict[str, Any]]) -> Path:
+def par2d_plot(path: Path, rows: Sequence[vplace.par2d_measure.Par2dRow]) -> Path:
     """PAR 2D: RMSE against exact over time for Monte Carlo at rising ray counts, and PAR."""
     fig, ax = plt.subplots(figsize=(5.5, 4))
-    mc = sorted((r for r in rows if r["method"] == "monte_carlo"), key=lambda r: r["seconds"])
-    ax.plot([r["seconds"] for r in mc], [r["rmse"] for r in mc], "o-", label="Monte Carlo")
+    mc = sorted((r for r in rows if r.method == "monte_carlo"), key=lambda r: r.seconds)
+    ax.plot([r.seconds for r in mc], [r.rmse for r in mc], "o-", label="Monte Carlo")
     for r in mc:
-        ax.annotate(f"{r['rays']} rays", (r["seconds"], r["rmse"]), fontsize=6)
+        ax.annotate(f"{r.rays} rays", (r.seconds, r.rmse), fontsize=6)
     for r in rows:
-        if r["method"] == "par":
-            y = max(r["rmse"], 1e-12)
-            ax.plot([r["seconds"]], [y], "*", ms=10, label=f"PAR (RMSE {r['rmse']:.1e})")
-        elif r["method"] == "exact":
-            ax.axvline(r["seconds"], color="black", ls=":", label="exact sweep (the reference)")
+        if r.method == "par":
+            y = max(r.rmse, 1e-12)
+            ax.plot([r.seconds], [y], "*", ms=10, label=f"PAR (RMSE {r.rmse:.1e})")
+        elif r.method == "exact":
+            ax.axvline(r.seconds, color="black", ls=":", label="exact sweep (the reference)")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("seconds")

@@ -33,11 +33,11 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from .native import vplace
+from ..native import vplace
 
 if TYPE_CHECKING:
-    from .export import ExportedScene
-    from .world import WorldInfo
+    from ..scene.export import ExportedScene
+    from ..scene.world import WorldInfo
 
 __all__ = ["MAX_EMITTER_LIGHTS", "EmitterLight", "emitter_lights"]
 

@@ -42,9 +42,9 @@ from typing import Any, TypeVar
 import bpy
 import numpy as np
 
+from ..errors import ExportError
+from ..settings import override
 from . import materials as mat_rule
-from .errors import ExportError
-from .settings import override
 from .world import WorldInfo, world_info
 
 __all__ = [

@@ -15,8 +15,12 @@ import numpy as np
 import pytest
 from mathutils import Vector
 
-from addon import builtin_rooms, default_scene, export, pipeline, report
-from addon.native import build_scene
+from addon import job as pipeline
+from addon.report import runs as report
+from addon.scene import export
+from addon.scene.convert import build_scene
+from addon.scenes import registry as default_scene
+from addon.scenes import rooms as builtin_rooms
 
 ROOT = Path(__file__).resolve().parents[2]
 INTERIOR = {

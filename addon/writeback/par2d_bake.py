@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from .export import evaluated_mesh, material_info
-from .native import vplace
+from ..native import vplace
+from ..scene.export import evaluated_mesh, material_info
 
 __all__ = [
     "Flat2DScene",

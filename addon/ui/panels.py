@@ -7,7 +7,7 @@ from typing import Any
 
 import bpy
 
-from . import eevee_setup
+from ..writeback import eevee_setup
 
 
 class _Panel:

@@ -46,11 +46,17 @@ from typing import Any
 import bpy
 import numpy as np
 
-from . import apply, builtin_rooms, capture, default_scene, eevee, eevee_setup, pipeline
-from .errors import ReportError
-from .native import bench_par2d, gloss_mask, view_of, vplace
-from .settings import override
-from .views import ViewSpec
+from .. import job as pipeline
+from ..capture import passes as capture
+from ..capture.native_view import gloss_mask, view_of
+from ..capture.views import ViewSpec
+from ..errors import ReportError
+from ..native import vplace
+from ..scenes import registry as default_scene
+from ..scenes import rooms as builtin_rooms
+from ..settings import override
+from ..writeback import apply, eevee_setup
+from ..writeback import eevee_render as eevee
 
 #: Seeds of the renders: the user's capture, the ground truth, Cycles' curve.
 CAPTURE_SEED = 0
@@ -946,7 +952,7 @@ def run_scene(
     log: Callable[[str], None],
 ) -> tuple[list[Row], dict[str, Any]]:
     """Every view of one scene: rows, plus the fit summary and image paths."""
-    from . import report_plots
+    from . import plots as report_plots
 
     blend = preset.blend or default_scene.builtin_scene(preset.name)
     bpy.ops.wm.open_mainfile(filepath=str(blend))
@@ -1007,7 +1013,7 @@ def run_report(
 ) -> dict[str, Any]:
     """Runs the report and writes its files into ``out``. Opens each scene's .blend (the current
     file is replaced in memory, never saved)."""
-    from . import report_plots
+    from . import plots as report_plots
 
     config.validate()
     out.mkdir(parents=True, exist_ok=True)
@@ -1019,10 +1025,10 @@ def run_report(
         scene_rows, info = run_scene(preset, config, out, cache_dir, log)
         rows += scene_rows
         scenes[preset.name] = info
-    par_rows: list[dict[str, Any]] = []
+    par_rows: list[vplace.par2d_measure.Par2dRow] = []
     if config.par2d:
-        # The benchmark scene of vplace.bench_par2d: 512x512, 8 lights, 64 occluders.
-        par_rows, _ = bench_par2d.measure(size=512, rays=(4, 16, 64, 256))
+        # vplace.par2d_measure's scene: 512x512, 8 lights, 64 occluders.
+        par_rows, _ = vplace.par2d_measure.measure(size=512, rays=(4, 16, 64, 256))
         report_plots.par2d_plot(out / "par2d_speed_error.png", par_rows)
     means = aggregate(rows)
     result = {
@@ -1036,7 +1042,7 @@ def run_report(
         "means": [row_dict(r) for r in means],
         "targets": targets(means),
         "break_even": break_even(means),
-        "par2d": par_rows,
+        "par2d": [asdict(r) for r in par_rows],
     }
     write_csv(out / "results.csv", rows)
     report_plots.error_vs_time(out, means)

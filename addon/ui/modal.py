@@ -15,7 +15,7 @@ from typing import Any
 
 import bpy
 
-from .native import vplace
+from ..native import vplace
 
 
 class BackgroundOperator:

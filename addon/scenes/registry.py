@@ -19,10 +19,10 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from . import builtin_rooms
-from .errors import AddonError
+from ..errors import AddonError
+from . import rooms as builtin_rooms
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 SCENES = REPO / "blend_scenes"
 CORNELL_OBJ = SCENES / "cornell_box" / "CornellBox-Original.obj"
 CORNELL_BLEND = SCENES / "cornell_box" / "cornell_box.blend"

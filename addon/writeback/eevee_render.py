@@ -39,10 +39,11 @@ import bpy
 import numpy as np
 import OpenEXR
 
-from . import apply, eevee_setup, render_key
-from .capture import IMAGE_SETTINGS, hide_vpls, vpl_objects
-from .errors import AddonError
-from .settings import SettingsGuard, override, standard_view
+from ..capture import render_key
+from ..capture.passes import IMAGE_SETTINGS, hide_vpls, vpl_objects
+from ..errors import AddonError
+from ..settings import SettingsGuard, override, standard_view
+from . import apply, eevee_setup
 
 #: EEVEE's render samples in the scored renders: 4 were as close to Cycles' image of the VPLs
 #: as 16 (SSIM 0.946 against 0.949 on Sponza), at about a quarter of the time.

@@ -8,7 +8,7 @@ memory of the process (``ru_maxrss``) and the Python-side peak of the export (``
 which sees numpy's buffers). The export target of issue 14: under 3 s and within 2 GB for a
 million textured triangles.
 
-    python -m addon.bench_export [--grid 709] [--texture 2048] [--repeat 3]
+    python -m addon.scene.bench_export [--grid 709] [--texture 2048] [--repeat 3]
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ import bpy
 import numpy as np
 
 from . import export
-from .native import build_scene
+from .convert import build_scene
 
 
 def grid_mesh(

@@ -26,7 +26,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Vector
 
-from .errors import AddonError
+from ..errors import AddonError
 
 VIEW_MODES = ("active", "cameras", "frames", "orbit")
 #: Custom property marking the temporary cameras of an orbit (removed after the capture).

@@ -16,8 +16,8 @@ from bpy.props import (
     StringProperty,
 )
 
-from .pipeline import Job
-from .views import ViewSet
+from ..capture.views import ViewSet
+from ..job import Job
 
 #: The job's defaults: the panel starts where the command line does.
 _DEFAULT = Job()

@@ -27,8 +27,17 @@ from typing import Any
 import bpy
 import numpy as np
 
-from . import apply, capture, eevee_setup, export, images
-from .emitter_lights import (
+from .capture import passes as capture
+from .capture.native_view import gloss_mask, view_of
+from .capture.views import ViewSet, ViewSpec, capture_resolution
+from .capture.views import specs as view_specs
+from .errors import AddonError, CaptureError, ExportError
+from .native import vplace
+from .scene import export
+from .scene.convert import build_scene
+from .settings import override
+from .writeback import apply, eevee_setup
+from .writeback.stand_ins import (
     SUN_MIN_LIT,
     EmitterLight,
     SunLight,
@@ -36,11 +45,6 @@ from .emitter_lights import (
     sun_lit_fraction,
     world_sun,
 )
-from .errors import AddonError, CaptureError, ExportError
-from .native import build_scene, gloss_mask, view_of, vplace
-from .settings import override
-from .views import ViewSet, ViewSpec, capture_resolution
-from .views import specs as view_specs
 
 #: The layout methods, in the report's order: Keller's light paths, reflective shadow maps, the
 #: regression-guided layout, and the same with its VPL powers refitted to the captured light.
@@ -591,7 +595,7 @@ def score_eevee(
     volume, one is baked for the render (without indirect light, removed after), or EEVEE
     would light closed rooms with the world through their walls; its bake seconds are
     reported apart from the frame's."""
-    from . import eevee
+    from .writeback import eevee_render as eevee
 
     cap = reference.capture
     with eevee_setup.world_volume_for_render(bl_scene) as bake:
@@ -602,7 +606,7 @@ def score_eevee(
             setup=eevee.SETUPS["vpl"],
             cache_dir=cache_dir,
         )
-    images.save_png(path, img.image)
+    vplace.images.save_png(path, img.image)
     return {
         **score(img.image, cap.gi),
         "seconds": img.seconds,
@@ -666,9 +670,9 @@ def run_main_job(
         for problem in problems:
             log(f"[vplace] warning: EEVEE: {problem} (Set up EEVEE for vplace fixes it)")
     ref, vpls = reference.capture, computed.vpls
-    images.save_png(out_dir / "cycles_gi.png", ref.gi)
-    images.save_png(out_dir / "direct.png", ref.direct)
-    images.save_png(out_dir / "direct_plus_vpl.png", ref.direct + computed.indirect)
+    vplace.images.save_png(out_dir / "cycles_gi.png", ref.gi)
+    vplace.images.save_png(out_dir / "direct.png", ref.direct)
+    vplace.images.save_png(out_dir / "direct_plus_vpl.png", ref.direct + computed.indirect)
     shown = None
     if eevee and write_back:
         with timer.stage("EEVEE render"):

@@ -41,10 +41,10 @@ from dataclasses import dataclass
 import bpy
 from mathutils import Vector
 
+from ..errors import AddonError
+from ..scene.export import VPL_MARKER
+from ..settings import override
 from . import apply
-from .errors import AddonError
-from .export import VPL_MARKER
-from .settings import override
 
 #: EEVEE's hard limit on lights in a scene (measured: 65,536; the excess is dropped).
 MAX_LIGHTS = 65536

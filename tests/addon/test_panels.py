@@ -7,8 +7,10 @@ import bpy
 import pytest
 from blender_util import addon_cornell
 
-from addon import apply, pipeline, ui
+from addon import job as pipeline
 from addon.native import vplace
+from addon.ui import panels as ui
+from addon.writeback import apply
 
 
 class Recorder:

@@ -49,10 +49,10 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Vector
 
-from .emitter_lights import EmitterLight, SunLight
-from .errors import WriteBackError
-from .export import VPL_MARKER
-from .native import vplace
+from ..errors import WriteBackError
+from ..native import vplace
+from ..scene.export import VPL_MARKER
+from .stand_ins import EmitterLight, SunLight
 
 COLLECTION_NAME = "vplace VPLs"
 #: EEVEE renders 8,192 lights; beyond 65,536 it drops them (DESIGN). We refuse more than this.

@@ -16,9 +16,10 @@ from typing import Any, ClassVar
 
 import bpy
 
-from . import apply, eevee_setup, par2d_bake, pipeline
+from .. import job as pipeline
+from ..native import vplace
+from ..writeback import apply, eevee_setup, par2d_bake
 from .modal import BackgroundOperator
-from .native import vplace
 
 
 def cache_dir() -> Path:

@@ -23,10 +23,10 @@ import bpy
 import numpy as np
 import OpenEXR
 
+from ..errors import CaptureError
+from ..scene.export import VPL_MARKER
+from ..settings import SettingsGuard, at_frame, override, standard_view
 from . import render_key
-from .errors import CaptureError
-from .export import VPL_MARKER
-from .settings import SettingsGuard, at_frame, override, standard_view
 
 #: Bump when the capture's content or layout changes, to invalidate caches.
 CAPTURE_VERSION = 3

@@ -49,7 +49,7 @@ __all__ = [
     "write_skyroom_blend",
 ]
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 SKYROOM_BLEND = REPO / "blend_scenes" / "skyroom" / "skyroom.blend"
 PANELROOM_BLEND = REPO / "blend_scenes" / "panelroom" / "panelroom.blend"
 

@@ -1,0 +1,1 @@
+"""Capture: the views, their Cycles passes (cached by the render key) and their ``vplace.View``."""

@@ -1,0 +1,62 @@
+"""A capture as a ``vplace.View``, and the mask of the pixels whose glossy layer vplace models."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..native import vplace
+
+if TYPE_CHECKING:
+    from ..scene.export import ExportedScene
+    from .passes import Capture
+
+
+def gloss_mask(scene: vplace.Scene, exported: ExportedScene, cap: Capture) -> np.ndarray | None:
+    """(H, W) float32: 1 where the pixel's surface has a glossy layer vplace models (rough:
+    ``export.ROUGH_GLOSS``), 0 where it is left to EEVEE's ray tracing; None when no material
+    has a rough glossy layer. A surface without a glossy layer has a black Glossy Color pass, so
+    only a scene with sharp layers needs to know which surface each pixel sees: a short ray
+    along the view direction finds it in ``scene``."""
+    rough, sharp = exported.rough_gloss, exported.sharp_gloss
+    if not rough.any():
+        return None
+    mask = cap.covered.astype(np.float32)
+    if not sharp.any():
+        return mask
+    ys, xs = np.nonzero(cap.covered)
+    target = cap.position[ys, xs].astype(np.float32)
+    look = target - np.asarray(cap.camera_position, dtype=np.float32)
+    look /= np.maximum(np.linalg.norm(look, axis=1, keepdims=True), 1e-12)
+    back = np.float32(1e-3 * scene.diagonal)
+    _, tri, _ = scene.intersect(
+        np.ascontiguousarray(target - back * look), np.ascontiguousarray(look)
+    )
+    hit = tri >= 0
+    mat = exported.material_ids[np.where(hit, tri, 0)]
+    mask[ys, xs] = np.where(hit & sharp[mat], 0.0, 1.0)
+    return mask
+
+
+def view_of(
+    cap: Capture, *, held_out: bool = False, gloss: np.ndarray | None = None
+) -> vplace.View:
+    """The ``vplace.View`` of a capture; ``held_out`` leaves out its global-illumination passes
+    (what a view the model has not seen provides). ``gloss`` (:func:`gloss_mask`) adds the
+    rough glossy layers to the receivers' reflectance and to the indirect light to match."""
+    return vplace.View(
+        position=cap.position,
+        normal=cap.normal,
+        albedo=cap.reflectance(gloss),
+        covered=cap.covered,
+        depth=cap.depth,
+        direct=cap.direct,
+        diffuse_direct=cap.diffuse_direct,
+        diffuse_indirect=None if held_out else cap.diffuse_indirect,
+        indirect=None if held_out else cap.modelled_indirect(gloss),
+        specular=cap.glossy_color,
+        camera_position=cap.camera_position,
+        world_to_clip=cap.world_to_clip,
+        name=cap.camera,
+    )

@@ -1,0 +1,106 @@
+"""The exported Blender scene as ``vplace`` objects: lights, the world and the ``vplace.Scene``."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..native import vplace
+
+if TYPE_CHECKING:
+    from .export import AlphaInfo, ExportedScene, LightInfo, TextureInfo, WorldInfo
+
+
+def native_light(info: LightInfo) -> vplace.Light:
+    """The core light for an exported Blender light, with every parameter Cycles uses."""
+    if info.type == "POINT":
+        return vplace.Light.point(
+            info.position, info.power, radius=info.radius, soft_falloff=info.soft_falloff
+        )
+    if info.type == "SPOT":
+        return vplace.Light.spot(
+            info.position,
+            info.direction,
+            info.spot_half_angle,
+            info.power,
+            blend=info.spot_blend,
+            radius=info.radius,
+            soft_falloff=info.soft_falloff,
+        )
+    if info.type == "AREA":
+        return vplace.Light.area(
+            info.position,
+            info.direction,
+            info.tangent,
+            "ellipse" if info.area_disk else "rectangle",
+            info.size_x,
+            info.size_y,
+            info.power,
+            spread=info.spread,
+        )
+    if info.type == "SUN":
+        return vplace.Light.sun(info.direction, info.power, angle=info.angle)
+    raise vplace.InputError(f"light {info.name!r} has an unsupported type {info.type!r}")
+
+
+def native_world(info: WorldInfo) -> vplace.Light:
+    """The core's world light for an exported Blender world."""
+    return vplace.Light.world(
+        info.color,
+        1.0,
+        image=info.image,
+        rotation=None if info.rotation is None else info.rotation.tolist(),
+    )
+
+
+def _texture_map(info: TextureInfo) -> vplace.TextureMap:
+    return vplace.TextureMap(
+        info.index, uv_scale=info.uv_scale, uv_offset=info.uv_offset, wrap=info.wrap
+    )
+
+
+def _alpha_test(info: AlphaInfo | None) -> vplace.AlphaTest | None:
+    if info is None:
+        return None
+    texture = _texture_map(info.texture) if info.texture is not None else None
+    return vplace.AlphaTest(
+        info.offset, info.scale, texture, source=info.source, cutoff=info.cutoff
+    )
+
+
+def build_scene(exported: ExportedScene) -> vplace.Scene:
+    """A ``vplace.Scene`` (with its BVH) from an exported Blender scene: its lights, its world
+    when that sends light, its materials' emission; per material its albedo, or its base-colour
+    texture (``albedo_offset + texture_tint * rgb``) and alpha cut-out, read through the
+    exported UVs."""
+    lights = [native_light(light) for light in exported.lights]
+    if exported.world is not None and exported.world.emits:
+        lights.append(native_world(exported.world))
+    mats = exported.materials
+    textured = any(m.texture is not None or m.alpha is not None for m in mats)
+    if not textured:
+        return vplace.Scene(
+            exported.vertices,
+            exported.triangles,
+            exported.material_ids,
+            exported.albedo,
+            lights,
+            emission=exported.emission,
+        )
+    albedo = np.array(
+        [m.albedo_offset if m.texture is not None else m.albedo for m in mats], dtype=np.float32
+    ).reshape(-1, 3)
+    return vplace.Scene(
+        exported.vertices,
+        exported.triangles,
+        exported.material_ids,
+        albedo,
+        lights,
+        emission=exported.emission,
+        uvs=exported.uvs,
+        textures=exported.textures,
+        base_textures=[_texture_map(m.texture) if m.texture is not None else None for m in mats],
+        texture_tint=np.array([m.texture_tint for m in mats], dtype=np.float32).reshape(-1, 3),
+        alpha_tests=[_alpha_test(m.alpha) for m in mats],
+    )

@@ -1,0 +1,1 @@
+"""The built-in scenes: their registry and the builders of those made from code."""

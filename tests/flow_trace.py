@@ -1,0 +1,106 @@
+"""Measures how the main job travels through the add-on's and the vplace package's files.
+
+A helper module, not a test: ``python tests/flow_trace.py`` runs the main job on the Cornell box
+at a tiny size under ``sys.setprofile`` and prints the files it stays in, the number of stays (a
+maximal run of consecutive calls in one file) and of returns (entering a file already left
+before). ``tests/addon/test_flow.py`` holds the returns to a bound.
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+OWN = (ROOT / "addon", ROOT / "rust" / "vplace-py" / "python" / "vplace")
+
+
+@dataclass
+class Flow:
+    """The files, in the order of the calls, that the traced code entered."""
+
+    stays: list[str] = field(default_factory=list)
+
+    @property
+    def returns(self) -> int:
+        """Entries into a file that had already been left before."""
+        seen: set[str] = set()
+        count = 0
+        for name in self.stays:
+            count += name in seen
+            seen.add(name)
+        return count
+
+    @property
+    def files(self) -> int:
+        """The distinct files entered."""
+        return len(set(self.stays))
+
+    def text(self) -> str:
+        """The stays in order, then the totals."""
+        lines = [f"  {i:3d} {name}" for i, name in enumerate(self.stays, 1)]
+        lines.append(f"stays {len(self.stays)}, returns {self.returns}, files {self.files}")
+        return "\n".join(lines)
+
+
+def _own_file(filename: str) -> str | None:
+    path = Path(filename)
+    for root in OWN:
+        if path.is_relative_to(root):
+            return str(path.relative_to(ROOT))
+    return None
+
+
+def trace(fn: Any, *args: Any, **kwargs: Any) -> tuple[Any, Flow]:
+    """Runs ``fn(*args, **kwargs)`` and records the stays in the project's own files: a call
+    from code outside them (bpy, numpy, the native module) does not end a stay."""
+    flow = Flow()
+    own = {}
+
+    def profile(frame: FrameType, event: str, _arg: Any) -> None:
+        if event != "call":
+            return
+        filename = frame.f_code.co_filename
+        name = own.get(filename)
+        if name is None:
+            name = own[filename] = _own_file(filename) or ""
+        if name and (not flow.stays or flow.stays[-1] != name):
+            flow.stays.append(name)
+
+    sys.setprofile(profile)
+    try:
+        result = fn(*args, **kwargs)
+    finally:
+        sys.setprofile(None)
+    return result, flow
+
+
+def main_job_flow(out_dir: Path) -> Flow:
+    """The flow of the main job on the Cornell box: 32 px, 4 spp, 16 VPLs, no EEVEE."""
+    import bpy
+
+    from addon import job_runner as runner
+    from addon.scenes.registry import builtin_scene
+
+    bpy.ops.wm.open_mainfile(filepath=str(builtin_scene("cornell")))
+    job = runner.Job(n_vpls=16, size=32, samples=4, cache_dir=out_dir / "cache")
+    _, flow = trace(
+        runner.run_main_job,
+        bpy.context.scene,
+        out_dir,
+        job=job,
+        eevee=False,
+        truth_samples=4,
+        log=lambda _: None,
+    )
+    return flow
+
+
+if __name__ == "__main__":
+    sys.path.insert(0, str(ROOT))
+    with tempfile.TemporaryDirectory() as tmp:
+        print(main_job_flow(Path(tmp)).text())
