@@ -38,13 +38,20 @@ def view_set(args: argparse.Namespace) -> ViewSet:
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
-    from .job import FEATURE_MODES, Job
-    from .report.runs import PRESETS, ReportConfig
-    from .scenes.registry import BUILTIN
-
+    """The command line: ``demo``, ``report`` or ``par2d`` with their options."""
     p = argparse.ArgumentParser(prog="vplace", description=__doc__)
     p.add_argument("--debug", action="store_true", help="print tracebacks of errors")
     sub = p.add_subparsers(dest="command", required=True)
+    _demo_options(sub)
+    _report_options(sub)
+    _par2d_options(sub)
+    return p.parse_args(argv)
+
+
+def _demo_options(sub: argparse._SubParsersAction) -> None:
+    from .job import FEATURE_MODES, Job
+    from .scenes.registry import BUILTIN
+
     demo = sub.add_parser("demo", help="run the main job on a scene (default: the Cornell box)")
     demo.add_argument(
         "--scene",
@@ -109,6 +116,12 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         help="near-field radius of the VPLs, m (default: 1%% of the scene's diagonal)",
     )
     demo.add_argument("--no-eevee", action="store_true", help="skip the EEVEE preview render")
+
+
+def _report_options(sub: argparse._SubParsersAction) -> None:
+    from .job import FEATURE_MODES
+    from .report.runs import PRESETS, ReportConfig
+
     rep = sub.add_parser(
         "report",
         help="speed against error: scenes x views x methods x VPL budgets, with Cycles",
@@ -162,11 +175,13 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     rep.add_argument("--eevee-samples", type=int, default=None, help="EEVEE's render samples")
     rep.add_argument("--feature-mode", choices=FEATURE_MODES, default="auto")
     rep.add_argument("--no-par2d", action="store_true", help="skip the PAR 2D plot")
+
+
+def _par2d_options(sub: argparse._SubParsersAction) -> None:
     par = sub.add_parser("par2d", help="bake the PAR 2D demo scene and render it with EEVEE")
     par.add_argument("--out", type=Path, default=Path("out/par2d"))
     par.add_argument("--size", type=int, default=256, help="light map side, pixels")
     par.add_argument("--method", choices=("exact", "par", "monte_carlo"), default="exact")
-    return p.parse_args(argv)
 
 
 def run_par2d_demo(out: Path, size: int, method: str) -> None:

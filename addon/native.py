@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import vplace
 import vplace.images
+import vplace.job
+import vplace.markdown
 import vplace.par2d_measure
 
 __all__ = ["vplace"]

@@ -4,6 +4,11 @@ A helper module, not a test: ``python tests/flow_trace.py`` runs the main job on
 at a tiny size under ``sys.setprofile`` and prints the files it stays in, the number of stays (a
 maximal run of consecutive calls in one file) and of returns (entering a file already left
 before). ``tests/addon/test_flow.py`` holds the returns to a bound.
+
+Calls are counted down to :data:`DEPTH` levels below the job (the job, its stages and the
+helpers they call directly; a stage's own internals are its business), leaving out
+comprehensions, generator expressions and lambdas (``<listcomp>``...), which are not calls a
+reader follows. ``--depth N`` counts deeper (0: every level).
 """
 
 from __future__ import annotations
@@ -16,6 +21,8 @@ from types import FrameType
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
+#: How many levels below the traced function are counted (0: all).
+DEPTH = 2
 OWN = (ROOT / "addon", ROOT / "rust" / "vplace-py" / "python" / "vplace")
 
 
@@ -55,14 +62,26 @@ def _own_file(filename: str) -> str | None:
     return None
 
 
-def trace(fn: Any, *args: Any, **kwargs: Any) -> tuple[Any, Flow]:
-    """Runs ``fn(*args, **kwargs)`` and records the stays in the project's own files: a call
-    from code outside them (bpy, numpy, the native module) does not end a stay."""
+def _depth(frame: FrameType | None) -> int:
+    depth = 0
+    while frame is not None:
+        depth += 1
+        frame = frame.f_back
+    return depth
+
+
+def trace(fn: Any, *args: Any, depth: int = DEPTH, **kwargs: Any) -> tuple[Any, Flow]:
+    """Runs ``fn(*args, **kwargs)`` and records the stays in the project's own files, counting
+    calls down to ``depth`` levels below ``fn`` (0: all): a call from code outside them (bpy,
+    numpy, the native module) does not end a stay."""
     flow = Flow()
-    own = {}
+    own: dict[str, str] = {}
+    top = _depth(sys._getframe()) + 1  # fn's own frame
 
     def profile(frame: FrameType, event: str, _arg: Any) -> None:
-        if event != "call":
+        if event != "call" or frame.f_code.co_name.startswith("<"):
+            return
+        if depth and _depth(frame) - top > depth:
             return
         filename = frame.f_code.co_filename
         name = own.get(filename)
@@ -79,20 +98,22 @@ def trace(fn: Any, *args: Any, **kwargs: Any) -> tuple[Any, Flow]:
     return result, flow
 
 
-def main_job_flow(out_dir: Path) -> Flow:
-    """The flow of the main job on the Cornell box: 32 px, 4 spp, 16 VPLs, no EEVEE."""
+def main_job_flow(out_dir: Path, depth: int = DEPTH) -> Flow:
+    """The flow of the main job on the Cornell box: 32 px, 4 spp, 16 VPLs, a 4 spp truth, no
+    EEVEE (the file is opened first, outside the trace)."""
     import bpy
 
-    from addon import job_runner as runner
+    from addon import job
     from addon.scenes.registry import builtin_scene
 
     bpy.ops.wm.open_mainfile(filepath=str(builtin_scene("cornell")))
-    job = runner.Job(n_vpls=16, size=32, samples=4, cache_dir=out_dir / "cache")
+    settings = job.Job(n_vpls=16, size=32, samples=4, cache_dir=out_dir / "cache")
     _, flow = trace(
-        runner.run_main_job,
+        job.run_main_job,
         bpy.context.scene,
         out_dir,
-        job=job,
+        depth=depth,
+        job=settings,
         eevee=False,
         truth_samples=4,
         log=lambda _: None,
@@ -102,5 +123,6 @@ def main_job_flow(out_dir: Path) -> Flow:
 
 if __name__ == "__main__":
     sys.path.insert(0, str(ROOT))
+    levels = int(sys.argv[sys.argv.index("--depth") + 1]) if "--depth" in sys.argv else DEPTH
     with tempfile.TemporaryDirectory() as tmp:
-        print(main_job_flow(Path(tmp)).text())
+        print(main_job_flow(Path(tmp), levels).text())

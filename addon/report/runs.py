@@ -645,8 +645,8 @@ def eevee_rows(
             s.vpls,
             scene_diagonal=diagonal,
             specular=data.prepared.vpl_specular,
-            emitters=data.prepared.emitter_lights,
-            sun=data.prepared.world_sun,
+            emitters=data.prepared.stand_ins.emitters,
+            sun=data.prepared.stand_ins.sun,
         )
         try:
             names = ["vpl"] + (
@@ -976,7 +976,7 @@ def run_scene(
     else:
         shown = {v.name: {} for v in data.views}
     info: dict[str, Any] = {
-        "fit": pipeline.fit_summary(fitted),
+        "fit": asdict(vplace.job.FitSummary.of(fitted)),
         "fit_seconds": fit_seconds,
         "capture_seconds": data.capture_seconds,
         "views": {},

@@ -1,15 +1,21 @@
-"""The exported Blender scene as ``vplace`` objects: lights, the world and the ``vplace.Scene``."""
+"""The exported Blender scene as ``vplace`` objects: lights, the world and the ``vplace.Scene``;
+and the scene stage of a job (:func:`export_native`: export, check, BVH)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from contextlib import AbstractContextManager
 from typing import TYPE_CHECKING
 
+import bpy
 import numpy as np
 
+from ..errors import ExportError
 from ..native import vplace
+from .export import ExportedScene, export_scene
 
 if TYPE_CHECKING:
-    from .export import AlphaInfo, ExportedScene, LightInfo, TextureInfo, WorldInfo
+    from .export import AlphaInfo, LightInfo, TextureInfo, WorldInfo
 
 
 def native_light(info: LightInfo) -> vplace.Light:
@@ -104,3 +110,36 @@ def build_scene(exported: ExportedScene) -> vplace.Scene:
         texture_tint=np.array([m.texture_tint for m in mats], dtype=np.float32).reshape(-1, 3),
         alpha_tests=[_alpha_test(m.alpha) for m in mats],
     )
+
+
+def check_lights(exported: ExportedScene) -> None:
+    """Refuses a scene where nothing emits light: no light with power, a black world (or none)
+    and no emissive material. A scene lit by the world or by emissive meshes alone is fine."""
+    if exported.emitters():
+        return
+    if exported.lights:
+        raise ExportError(
+            "every light has zero power, the world is black and no material emits: "
+            "there is no light to bounce"
+        )
+    raise ExportError(
+        "the scene has no lights that render: no light object, a black world and no emissive "
+        "material (add a light, a world colour or texture, or an Emission shader)"
+    )
+
+
+def export_native(
+    bl_scene: bpy.types.Scene,
+    stage: Callable[[str], AbstractContextManager[None]],
+    log: Callable[[str], None],
+) -> tuple[ExportedScene, vplace.Scene]:
+    """The scene stage: the exported scene (its warnings logged), refused when nothing emits,
+    and its ``vplace.Scene`` with the BVH. ``stage`` is the job timer's ``stage``."""
+    with stage("export scene"):
+        exported = export_scene(bl_scene)
+    for warning in exported.warnings:
+        log(f"[vplace] warning: {warning}")
+    check_lights(exported)
+    with stage("build BVH"):
+        scene = build_scene(exported)
+    return exported, scene

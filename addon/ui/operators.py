@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import tempfile
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -108,7 +109,7 @@ class VPLACE_OT_fit(bpy.types.Operator):
             return {"CANCELLED"}
         _store_fit(scene, fitted, _model_key(job, prepared))
         report = scene.vplace.report()
-        report["fit"] = pipeline.fit_summary(fitted)
+        report["fit"] = asdict(vplace.job.FitSummary.of(fitted))
         report["stage_seconds"] = dict(timer.seconds)
         scene.vplace.last_report = json.dumps(report)
         self.report({"INFO"}, f"R² {fitted.r2:.3f} with {len(fitted.kept)} features")
@@ -182,16 +183,16 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
             computed.vpls,
             scene_diagonal=self.prepared.scene.diagonal,
             specular=self.prepared.vpl_specular,
-            emitters=self.prepared.emitter_lights,
-            sun=self.prepared.world_sun,
+            emitters=self.prepared.stand_ins.emitters,
+            sun=self.prepared.stand_ins.sun,
         )
         summary = pipeline.summary(scene, self.job, self.prepared, computed, self.timer)
-        scene.vplace.last_report = json.dumps(summary)
+        scene.vplace.last_report = json.dumps(summary.to_dict())
         if computed.fit is not None:
             _store_fit(scene, computed.fit, self.key)
-        emitters = summary["emitter_lights_written"]
+        emitters = summary.emitter_lights_written
         extra = f" and {emitters} lights for emissive meshes" if emitters else ""
-        self.report({"INFO"}, f"wrote {summary['lights_written']} VPL lights{extra}")
+        self.report({"INFO"}, f"wrote {summary.lights_written} VPL lights{extra}")
         for problem in eevee_setup.problems(scene):
             self.report({"WARNING"}, f"EEVEE: {problem} (Set up EEVEE for vplace fixes it)")
         return {"FINISHED"}

@@ -7,6 +7,7 @@ from typing import Any
 
 import bpy
 
+from ..native import vplace
 from ..writeback import eevee_setup
 
 
@@ -78,26 +79,26 @@ class VPLACE_PT_main(_Panel, bpy.types.Panel):
                 box.label(text=f"  {problem.message}")
         layout.operator("vplace.report", icon="TEXT")
         layout.operator("vplace.bake_par2d", icon="IMAGE_DATA")
-        report = settings.report()
-        if not report:
+        report = vplace.job.PanelReport.from_json(settings.last_report)
+        if report is None:
             return
         box = layout.box()
-        m = report.get("metrics", {})
-        box.label(text=f"{report.get('n_vpls', 0)} VPLs, {report.get('profile', '')} profile")
+        m = report.metrics
+        box.label(text=f"{report.n_vpls} VPLs, {report.profile} profile")
         if m:
             box.label(
                 text=f"RMSE vs Cycles GI: {m['rmse']:.4f} (direct only {m['rmse_direct_only']:.4f})"
             )
-        fit = report.get("fit")
+        fit = report.fit
         if fit:
-            box.label(text=f"R² {fit['r2']:.3f}, kept {len(fit['kept'])} features")
+            box.label(text=f"R² {fit.r2:.3f}, kept {len(fit.kept)} features")
             grid = box.grid_flow(columns=2, even_columns=True)
-            for name, weight in sorted(fit["weights"].items(), key=lambda kv: -kv[1]):
+            for name, weight in sorted(fit.weights.items(), key=lambda kv: -kv[1]):
                 grid.label(text=name)
                 grid.label(text=f"{weight:.3f}")
-            if fit.get("dropped"):
-                box.label(text="dropped: " + ", ".join(sorted(fit["dropped"])))
-        for stage, seconds in report.get("stage_seconds", {}).items():
+            if fit.dropped:
+                box.label(text="dropped: " + ", ".join(sorted(fit.dropped)))
+        for stage, seconds in report.stage_seconds.items():
             box.label(text=f"{stage}: {seconds:.2f} s")
 
 

@@ -28,6 +28,7 @@ An emitter's texture is read as its material's constant emission (the export's r
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -312,3 +313,26 @@ def sun_lit_fraction(
     targets = origins + np.float32(2.0 * scene.diagonal) * d
     blocked = scene.occluded(np.ascontiguousarray(origins), np.ascontiguousarray(targets))
     return float((~blocked).sum()) / len(ys)
+
+
+@dataclass(frozen=True)
+class StandIns:
+    """The lights that stand in for what EEVEE does not light with: the emissive meshes, and
+    the world's sun when it lights some of what the captured views see (``SUN_MIN_LIT``)."""
+
+    emitters: list[EmitterLight]
+    sun: SunLight | None
+
+
+def stand_ins(
+    exported: ExportedScene,
+    scene: vplace.Scene,
+    surfaces: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+) -> StandIns:
+    """The stand-in lights of ``exported``; ``surfaces`` are the captured views' (position,
+    normal, covered) arrays, which the sun must light somewhere."""
+    sun = world_sun(exported.world)
+    if sun is not None:
+        lit = max(sun_lit_fraction(scene, p, n, c, sun) for p, n, c in surfaces)
+        sun = sun if lit >= SUN_MIN_LIT else None
+    return StandIns(emitter_lights(exported, scene), sun)

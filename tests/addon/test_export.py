@@ -77,7 +77,7 @@ def test_bad_scenes_give_clear_errors():
 
 def test_emissive_materials_and_what_emits():
     from addon.errors import ExportError
-    from addon.job import check_lights
+    from addon.scene.convert import check_lights
 
     scene = cornell()
     bpy.data.objects["light"].hide_render = True

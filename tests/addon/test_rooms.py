@@ -15,10 +15,9 @@ import numpy as np
 import pytest
 from mathutils import Vector
 
-from addon import job as pipeline
 from addon.report import runs as report
 from addon.scene import export
-from addon.scene.convert import build_scene
+from addon.scene.convert import build_scene, check_lights
 from addon.scenes import registry as default_scene
 from addon.scenes import rooms as builtin_rooms
 
@@ -68,7 +67,7 @@ def test_skyroom_is_lit_by_the_sky_alone_and_the_sun_falls_in_patches():
     scene = open_room("skyroom")
     assert not [o.name for o in bpy.data.objects if o.type == "LIGHT"]
     ex = export.export_scene(scene)
-    pipeline.check_lights(ex)  # no refusal: the world lights the room
+    check_lights(ex)  # no refusal: the world lights the room
     assert ex.lights == [] and ex.emitters() == ["world 'Sky'"]
     assert ex.world.source == "baked" and any("Sky Texture" in w for w in ex.warnings)
     # The sun: the baked map's brightest texel, above the horizon in the south-west (-x, -y).
@@ -104,7 +103,7 @@ def test_panelroom_is_closed_and_lit_by_emissive_triangles_alone():
     scene = open_room("panelroom")
     assert not [o.name for o in bpy.data.objects if o.type == "LIGHT"]
     ex = export.export_scene(scene)
-    pipeline.check_lights(ex)  # no refusal: the panels and the screen emit
+    check_lights(ex)  # no refusal: the panels and the screen emit
     assert ex.lights == [] and not ex.world.emits and ex.warnings == []
     assert sorted(ex.emitters()) == ["material 'Panel light'", "material 'TV screen'"]
     native = build_scene(ex)

@@ -1,0 +1,174 @@
+"""The capture stage of a job: every view's Cycles capture (cached), the views that are left out
+and why, and each capture as a ``vplace.View``; with the main job's reference render.
+
+It is handed the exported scene and its ``vplace.Scene`` and hands back a :class:`Captured`; the
+stages before it never see a capture.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from contextlib import AbstractContextManager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import bpy
+import numpy as np
+
+from ..errors import CaptureError
+from ..native import vplace
+from ..scene.export import ExportedScene
+from .native_view import gloss_mask, view_of
+from .passes import Capture, capture
+from .views import ViewSpec
+
+
+@dataclass
+class Captured:
+    """The captured views, in order, with their ``vplace.View`` and glossy masks."""
+
+    captures: list[Capture]
+    views: list[vplace.View]
+    #: Per capture, where its rough glossy layers are modelled (``native_view.gloss_mask``).
+    gloss: list[np.ndarray | None]
+    #: Views left out, with the reason (a camera that sees nothing, a duplicate view).
+    skipped: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ReferenceRender:
+    """How the main job's reference is made: the scene camera at ``samples`` and ``seed``;
+    ``ground_truth`` when the samples were asked for; ``own_capture_ok`` when the first view's
+    capture may stand in (no truth asked and the first view is the scene camera now)."""
+
+    samples: int
+    seed: int
+    ground_truth: bool
+    own_capture_ok: bool
+
+
+def capture_views(
+    bl_scene: bpy.types.Scene,
+    scene: vplace.Scene,
+    exported: ExportedScene,
+    specs: Sequence[ViewSpec],
+    *,
+    resolution: tuple[int, int],
+    samples: int,
+    seed: int,
+    cache_dir: Path | None,
+    stage: Callable[[str], AbstractContextManager[None]],
+    log: Callable[[str], None],
+) -> Captured:
+    """Captures each view of ``specs``. A view that sees no geometry, or that renders exactly
+    what an earlier view renders (the same capture key), is left out and said so; only when no
+    view is left is it an error. ``stage`` is the job timer's ``stage``."""
+    last = [0.0]
+
+    def on_progress(line: str) -> None:
+        now = time.perf_counter()
+        if now - last[0] > 2.0:
+            last[0] = now
+            log(f"[vplace]   {line}")
+
+    captures: list[Capture] = []
+    skipped: dict[str, str] = {}
+    for spec in specs:
+        with stage(f"capture {spec.name} (Cycles)"):
+            cap = capture(
+                bl_scene,
+                camera=spec.camera,
+                frame=spec.frame,
+                name=spec.name,
+                resolution=resolution,
+                samples=samples,
+                seed=seed,
+                cache_dir=cache_dir,
+                on_progress=on_progress,
+            )
+        same = next((c.view for c in captures if c.key == cap.key), None)
+        if same is not None:
+            skipped[spec.name] = f"the same view as {same!r}"
+        elif not cap.covered.any():
+            skipped[spec.name] = "the camera sees no geometry (only background)"
+        else:
+            captures.append(cap)
+            continue
+        log(f"[vplace] view {spec.name!r} left out: {skipped[spec.name]}")
+    if not captures:
+        names = ", ".join(repr(n) for n in skipped)
+        raise CaptureError(
+            f"no view is left to lay out VPLs for ({names}: "
+            + "; ".join(skipped.values())
+            + "): aim the camera at the scene"
+        )
+    gloss = [gloss_mask(scene, exported, c) for c in captures]
+    views = [view_of(c, gloss=g) for c, g in zip(captures, gloss, strict=True)]
+    return Captured(captures, views, gloss, skipped)
+
+
+def reference_of(
+    cap: Capture, view: vplace.View, gloss: np.ndarray | None, label: str
+) -> vplace.job.Reference:
+    """The arrays of a capture that a run is scored against."""
+    return vplace.job.Reference(
+        view,
+        cap.direct,
+        cap.gi,
+        cap.modelled_indirect(gloss),
+        label,
+        camera=cap.view,
+        samples=cap.samples,
+    )
+
+
+def own_reference(captured: Captured, samples: int) -> vplace.job.Reference:
+    """The first view's own capture as the reference (no extra render)."""
+    return reference_of(
+        captured.captures[0],
+        captured.views[0],
+        captured.gloss[0] if captured.gloss else None,
+        f"its own capture ({samples} spp; the capture's noise lowers every score)",
+    )
+
+
+def render_reference(
+    bl_scene: bpy.types.Scene,
+    scene: vplace.Scene,
+    exported: ExportedScene,
+    captured: Captured,
+    render: ReferenceRender,
+    *,
+    capture_samples: int,
+    cache_dir: Path | None,
+    stage: Callable[[str], AbstractContextManager[None]],
+) -> vplace.job.Reference:
+    """What the main job scores against: the scene camera at the current frame, rendered by
+    Cycles (cached) as ``render`` says; the first view's own capture when that may stand in and
+    is the scene camera."""
+    cam = bl_scene.camera
+    first = captured.captures[0]
+    if render.own_capture_ok and first.camera == cam.name:
+        return own_reference(captured, capture_samples)
+    with stage(f"reference render {cam.name} ({render.samples} spp, cached)"):
+        ref = capture(
+            bl_scene,
+            camera=cam,
+            resolution=(first.width, first.height),
+            samples=render.samples,
+            seed=render.seed,
+            cache_dir=cache_dir,
+        )
+    kind = (
+        "a ground truth"
+        if render.ground_truth
+        else "as noisy as the capture: give truth samples for a ground truth"
+    )
+    gloss = gloss_mask(scene, exported, ref)
+    return reference_of(
+        ref,
+        view_of(ref, held_out=True, gloss=gloss),
+        gloss,
+        f"Cycles at {render.samples} spp of {cam.name} ({kind})",
+    )

@@ -1,0 +1,99 @@
+"""The write-back stage of a job: the VPLs (and the stand-in lights) written as Blender lights,
+what EEVEE will not show right, and the main job's EEVEE render of the written lights."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from contextlib import AbstractContextManager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import bpy
+import numpy as np
+
+from ..native import vplace
+from . import apply, eevee_setup
+from .stand_ins import StandIns, stand_ins
+
+if TYPE_CHECKING:
+    from ..scene.export import ExportedScene
+
+
+@dataclass
+class WrittenBack:
+    """What the write-back left: the stand-in lights it wrote and EEVEE's problems, in words."""
+
+    stand_ins: StandIns
+    problems: list[str]
+
+
+def write_back(
+    bl_scene: bpy.types.Scene,
+    vpls: vplace.VplSet,
+    *,
+    scene: vplace.Scene,
+    exported: ExportedScene,
+    surfaces: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+    blend_path: Path | None,
+    stage: Callable[[str], AbstractContextManager[None]],
+    log: Callable[[str], None],
+) -> WrittenBack:
+    """Writes ``vpls`` and the stand-in lights of ``exported`` (``stand_ins.stand_ins``: the
+    sun when it lights some of ``surfaces``, the captured (position, normal, covered) arrays)
+    into the VPL collection (``apply.write_vpls``), saves a copy of the file to ``blend_path``
+    when given, and logs what EEVEE will not show right. The VPLs get specular factor 1 when
+    some material has a rough glossy layer (``apply``'s module docs)."""
+    specular = vpl_specular(exported)
+    with stage("write back"):
+        lights = stand_ins(exported, scene, surfaces)
+        apply.write_vpls(
+            bl_scene,
+            vpls,
+            scene_diagonal=scene.diagonal,
+            specular=specular,
+            emitters=lights.emitters,
+            sun=lights.sun,
+        )
+        if blend_path is not None:
+            bpy.ops.wm.save_as_mainfile(filepath=str(blend_path), copy=True)
+    problems = [str(p) for p in eevee_setup.problems(bl_scene)]
+    for problem in problems:
+        log(f"[vplace] warning: EEVEE: {problem} (Set up EEVEE for vplace fixes it)")
+    return WrittenBack(lights, problems)
+
+
+def vpl_specular(exported: ExportedScene) -> float:
+    """The written VPLs' specular factor: 1 when some material has a rough glossy layer (the
+    evaluator counts the VPLs' light on it), else 0 (``apply``'s module docs)."""
+    return 1.0 if exported.rough_gloss.any() else 0.0
+
+
+def score_eevee(
+    bl_scene: bpy.types.Scene, reference: vplace.job.Reference, path: Path, cache_dir: Path | None
+) -> dict[str, float]:
+    """Renders the written lights with EEVEE from the scene camera (float, Standard view, the
+    scored set-up), scores the image against the reference, and saves it as a PNG picture.
+
+    As "Set up EEVEE for vplace" would: when the world emits and the scene has no vplace probe
+    volume, one is baked for the render (without indirect light, removed after), or EEVEE
+    would light closed rooms with the world through their walls; its bake seconds are
+    reported apart from the frame's."""
+    from . import eevee_render as eevee
+
+    height, width = reference.gi.shape[:2]
+    with eevee_setup.world_volume_for_render(bl_scene) as bake:
+        img = eevee.render(
+            bl_scene,
+            resolution=(width, height),
+            samples=eevee.EEVEE_SAMPLES,
+            setup=eevee.SETUPS["vpl"],
+            cache_dir=cache_dir,
+        )
+    vplace.images.save_png(path, img.image)
+    return {
+        **vplace.job.score(img.image, reference.gi),
+        "seconds": img.seconds,
+        "samples": eevee.EEVEE_SAMPLES,
+        "world_volume_bake_seconds": bake,
+    }

@@ -1,0 +1,435 @@
+"""One job without Blender: the layout methods and their one dispatch, the fit, the evaluator,
+the scores, and the typed results a run hands to its callers.
+
+The Blender add-on exports the scene and captures the views (``vplace.Scene``, ``vplace.View``
+and a :class:`Reference`), then calls :func:`compute`; the command line, the panel and the report
+all go through :func:`lay_out`. Nothing here imports Blender, so every function may run on a
+worker thread (``progress`` cancels the long calls).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import vplace
+
+#: The layout methods, in the report's order: Keller's light paths, reflective shadow maps, the
+#: regression-guided layout, and the same with its VPL powers refitted to the captured light.
+METHODS = ("uniform", "rsm", "vplace", "vplace+refit")
+#: How the regression picks its features: "auto", the surface's features (the same from every
+#: view) with those that do not raise CV R^2 dropped; "view", also the view's features (depth,
+#: coverage, normal and depth spread); "all", every usable feature, no selection.
+FEATURE_MODES = ("auto", "view", "all")
+
+
+@dataclass
+class StageTimer:
+    """Wall time per named stage, in the order they ran."""
+
+    log: Callable[[str], None] = print
+    seconds: dict[str, float] = field(default_factory=dict)
+
+    @contextmanager
+    def stage(self, name: str) -> Iterator[None]:
+        """Announces ``name``, times the block and announces its seconds."""
+        self.log(f"[vplace] {name} ...")
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.seconds[name] = time.perf_counter() - start
+            self.log(f"[vplace] {name}: {self.seconds[name]:.2f} s")
+
+
+def quiet_timer() -> StageTimer:
+    """A timer that logs nothing."""
+    return StageTimer(log=lambda _line: None)
+
+
+def method_name(method: str, refit: bool) -> str:
+    """The :data:`METHODS` name of a layout method with or without the power refit (the panel and
+    the command line set them apart)."""
+    return "vplace+refit" if method == "vplace" and refit else method
+
+
+@dataclass
+class LayoutSettings:
+    """What the fit, the layout and the evaluator read of a job. The add-on's ``Job`` adds the
+    capture's settings; the panel's and the command line's defaults are these."""
+
+    n_vpls: int = 128
+    seed: int = 0
+    profile: str = "cosine"
+    #: Near-field radius of the VPLs (m); None: the scene's (``NEAR_FIELD_FRACTION`` of its
+    #: diagonal: VPL spacing grows with the scene).
+    radius: float | None = None
+    cell_px: int = 16
+    #: One of :data:`METHODS`. The default is ``vplace+refit``: it beats the others in the
+    #: report at equal N.
+    method: str = "vplace+refit"
+    alpha: float = 1.0
+    iterations: int = 3
+    #: One of :data:`FEATURE_MODES`.
+    feature_mode: str = "auto"
+
+
+def fit(scene: vplace.Scene, views: Sequence[vplace.View], settings: LayoutSettings) -> vplace.Fit:
+    """The regression on ``views`` with the settings' cells and feature mode."""
+    return vplace.fit(
+        scene,
+        list(views),
+        cell_px=settings.cell_px,
+        surface_only=settings.feature_mode == "auto",
+        select=settings.feature_mode != "all",
+    )
+
+
+@dataclass
+class Laid:
+    """The VPLs of one method, and how they were made."""
+
+    vpls: vplace.VplSet
+    #: The regression-guided layout before the refit (vplace methods).
+    layout: vplace.Layout | None = None
+    refit: vplace.Refit | None = None
+    #: Seconds of the layout (placement) and of the refit.
+    layout_seconds: float = 0.0
+    refit_seconds: float = 0.0
+
+
+def lay_out(
+    scene: vplace.Scene,
+    views: Sequence[vplace.View],
+    settings: LayoutSettings,
+    *,
+    fitted: vplace.Fit | None = None,
+    timer: StageTimer | None = None,
+    progress: vplace.Progress | None = None,
+) -> Laid:
+    """The VPLs of ``settings.method`` (the one method dispatch). ``views`` are what the
+    regression-guided layout places for and iterates against (views without an indirect image
+    give a one-shot layout); ``fitted`` is the model (fitted here when None)."""
+    timer = timer or quiet_timer()
+    n = settings.n_vpls
+    radius = settings.radius if settings.radius is not None else scene.near_field_radius
+    views = list(views)
+    kind = dict(profile=settings.profile, radius=radius)
+    start = time.perf_counter()
+    if settings.method == "uniform":
+        with timer.stage(f"uniform VPLs (n={n})"):
+            vpls = vplace.uniform_vpls(
+                scene, n, seed=settings.seed, bounces=vplace.MAX_BOUNCES, **kind
+            )
+        return Laid(vpls, layout_seconds=time.perf_counter() - start)
+    if settings.method == "rsm":
+        with timer.stage(f"RSM VPLs (n={n})"):
+            vpls = vplace.rsm_vpls(scene, n, **kind)
+        return Laid(vpls, layout_seconds=time.perf_counter() - start)
+    if fitted is None:
+        with timer.stage("fit regression"):
+            fitted = fit(scene, views, settings)
+    stride = vplace.stride_for(views)  # the iteration's and the refit's pixels, bounded
+    with timer.stage(f"layout (n={n}, alpha={settings.alpha:g})"):
+        laid = vplace.layout(
+            scene,
+            views,
+            fit=fitted,
+            budget=n,
+            alpha=settings.alpha,
+            cell_px=settings.cell_px,
+            iterate=settings.iterations > 0,
+            iterations=max(settings.iterations, 1),
+            seed=settings.seed,
+            stride=stride,
+            progress=progress,
+            **kind,
+        )
+    out = Laid(laid.vpls, layout=laid, layout_seconds=time.perf_counter() - start)
+    if settings.method == "vplace+refit" and all(v.has_indirect for v in views):
+        with timer.stage("refit VPL powers"):
+            start = time.perf_counter()
+            out.refit = vplace.refit(scene, views, laid.vpls, stride=stride, progress=progress)
+            out.refit_seconds = time.perf_counter() - start
+        out.vpls = out.refit.vpls
+    return out
+
+
+def score(image: np.ndarray, truth: np.ndarray) -> dict[str, float]:
+    """RMSE, relative MSE (linear HDR), SSIM (display luminance) of ``image`` against ``truth``,
+    and its brightness (mean luminance over the truth's); SSIM is NaN below 11 x 11 pixels."""
+    image = np.ascontiguousarray(image, dtype=np.float32)
+    truth = np.ascontiguousarray(truth, dtype=np.float32)
+    ssim = vplace.ssim(image, truth) if min(truth.shape[:2]) >= 11 else float("nan")
+    lum = np.asarray(vplace.LUMINANCE)
+    mean_truth = max(float((truth[..., :3] @ lum).mean()), 1e-12)
+    return {
+        "rmse": vplace.rmse(image, truth),
+        "relative_mse": vplace.relative_mse(image, truth),
+        "ssim": ssim,
+        "brightness": float((image[..., :3] @ lum).mean()) / mean_truth,
+    }
+
+
+@dataclass
+class Reference:
+    """What a run is scored against: a Cycles render of a view, as arrays (its G-buffer is the
+    view the evaluator shades), and what it is, in words."""
+
+    view: vplace.View
+    #: (H, W, 3) direct light and global illumination (direct + indirect) of the render.
+    direct: np.ndarray
+    gi: np.ndarray
+    #: (H, W, 3) the indirect light vplace models (diffuse, and the rough glossy layers).
+    modelled_indirect: np.ndarray
+    label: str
+    #: The camera's name and the render's samples.
+    camera: str = ""
+    samples: int = 0
+
+
+@dataclass
+class Computed:
+    """A method's VPLs, their indirect image on the reference view, evaluator stats and
+    metrics against the reference."""
+
+    laid: Laid
+    indirect: np.ndarray
+    stats: vplace.EvalStats
+    metrics: dict[str, float]
+    fit: vplace.Fit | None = None
+
+    @property
+    def vpls(self) -> vplace.VplSet:
+        """The VPLs to write (refitted when the method refits)."""
+        return self.laid.vpls
+
+
+def compute(
+    scene: vplace.Scene,
+    views: Sequence[vplace.View],
+    settings: LayoutSettings,
+    reference: Reference,
+    *,
+    timer: StageTimer | None = None,
+    progress: vplace.Progress | None = None,
+    fitted: vplace.Fit | None = None,
+) -> Computed:
+    """:func:`fit` (unless ``fitted``), :func:`lay_out`, the evaluator on the reference view and
+    the metrics against it."""
+    timer = timer or quiet_timer()
+    if fitted is None:
+        with timer.stage("fit regression"):
+            fitted = fit(scene, views, settings)
+    laid = lay_out(scene, views, settings, fitted=fitted, timer=timer, progress=progress)
+    with timer.stage("evaluate VPLs"):
+        indirect, stats = vplace.evaluate(scene, reference.view, laid.vpls, progress=progress)
+    direct, gi = reference.direct, reference.gi
+    ours = score(direct + indirect, gi)
+    base = score(direct, gi)
+    metrics = {
+        **ours,
+        **{f"{k}_direct_only": v for k, v in base.items()},
+        "rmse_indirect": vplace.rmse(indirect, reference.modelled_indirect),
+    }
+    return Computed(laid, indirect, stats, metrics, fitted)
+
+
+@dataclass
+class FitSummary:
+    """The fit's figures for reports and the panel."""
+
+    r2: float
+    adjusted_r2: float | None
+    view_r2: dict[str, float | None]
+    kept: list[str]
+    weights: dict[str, float]
+    #: Each dropped feature with the reason.
+    dropped: dict[str, str]
+
+    @classmethod
+    def of(cls, fitted: vplace.Fit) -> FitSummary:
+        """The summary of a fitted model."""
+        return cls(
+            fitted.r2,
+            fitted.adjusted_r2,
+            fitted.view_r2,
+            fitted.kept,
+            fitted.weights,
+            fitted.dropped,
+        )
+
+
+@dataclass
+class EvaluatorSummary:
+    """The evaluator's work on the reference view, and the layout's iteration and refit."""
+
+    shadow_rays: int
+    pairs: int
+    seconds: float
+    rays_per_second: float
+    #: The layout's error per iteration and the best one (vplace methods).
+    iteration_errors: list[float] | None = None
+    best_iteration: int | None = None
+    #: The refit's error before and after (``vplace+refit``).
+    refit_error: list[float] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready, without the figures a method does not have."""
+        return {k: v for k, v in asdict(self).items() if v is not None}
+
+
+@dataclass
+class Baseline:
+    """Another method scored beside the job's, at the same budget."""
+
+    metrics: dict[str, float]
+    seconds: float
+
+
+@dataclass
+class ReferenceInfo:
+    """What the images were scored against."""
+
+    label: str
+    samples: int
+    view: str
+
+
+@dataclass
+class JobSummary:
+    """One run: the scene, the settings, the stage times, the evaluator and the scores. The
+    main job adds the reference, the EEVEE scores, the baselines and its files."""
+
+    scene: str
+    triangles: int
+    lights: int
+    views: list[str]
+    skipped_views: dict[str, str]
+    resolution: list[int]
+    samples: int
+    capture_render_seconds: float
+    n_vpls: int
+    lights_written: int
+    emitter_lights_written: int
+    method: str
+    alpha: float
+    iterations: int
+    profile: str
+    radius: float
+    seed: int
+    stage_seconds: dict[str, float]
+    evaluator: EvaluatorSummary
+    metrics: dict[str, float]
+    fit: FitSummary | None = None
+    reference: ReferenceInfo | None = None
+    eevee: dict[str, float] | None = None
+    eevee_problems: list[str] = field(default_factory=list)
+    baselines: dict[str, Baseline] = field(default_factory=dict)
+    files: list[str] = field(default_factory=list)
+
+    def to_dict(self, *, main_job: bool = False) -> dict[str, Any]:
+        """JSON-ready; the main job's fields only with ``main_job``."""
+        out = asdict(self)
+        out["evaluator"] = self.evaluator.to_dict()
+        if not main_job:
+            for key in ("reference", "eevee", "eevee_problems", "baselines", "files"):
+                del out[key]
+        return out
+
+
+@dataclass
+class PanelReport:
+    """What the panel shows of the last run (``Scene.vplace.last_report``, JSON): read by
+    attribute, every part optional (a Fit alone stores no metrics)."""
+
+    n_vpls: int = 0
+    profile: str = ""
+    metrics: dict[str, float] = field(default_factory=dict)
+    fit: FitSummary | None = None
+    stage_seconds: dict[str, float] = field(default_factory=dict)
+
+    @classmethod
+    def from_json(cls, text: str) -> PanelReport | None:
+        """The report stored as ``text``; None when nothing is stored."""
+        if not text:
+            return None
+        data = json.loads(text)
+        fit = data.get("fit")
+        return cls(
+            n_vpls=data.get("n_vpls", 0),
+            profile=data.get("profile", ""),
+            metrics=data.get("metrics") or {},
+            fit=FitSummary(**fit) if fit else None,
+            stage_seconds=data.get("stage_seconds") or {},
+        )
+
+
+def compute_with_baselines(
+    scene: vplace.Scene,
+    views: Sequence[vplace.View],
+    settings: LayoutSettings,
+    reference: Reference,
+    baselines: Sequence[str],
+    *,
+    timer: StageTimer | None = None,
+) -> tuple[Computed, dict[str, Baseline]]:
+    """:func:`compute` for the settings' method, then each other method of ``baselines`` at the
+    same budget, with the same fit and reference, timed apart and quietly."""
+    computed = compute(scene, views, settings, reference, timer=timer)
+    compared = {}
+    for method in (b for b in baselines if b != settings.method):
+        quiet = quiet_timer()
+        other = compute(
+            scene,
+            views,
+            replace(settings, method=method),
+            reference,
+            timer=quiet,
+            fitted=computed.fit,
+        )
+        compared[method] = Baseline(other.metrics, sum(quiet.seconds.values()))
+    return computed, compared
+
+
+def write_files(
+    out_dir: Path,
+    summary: JobSummary,
+    reference: Reference,
+    computed: Computed,
+    cell_px: int,
+    log: Callable[[str], None] = print,
+) -> None:
+    """The main job's files in ``out_dir``: the reference's GI and direct light and the
+    evaluator's image as PNG, the VPLs as CSV, the model as JSON, and the summary as JSON and
+    Markdown (``summary.files`` is set to every file of the folder); ``cell_px`` is the fit's
+    cell size, for the log."""
+    from vplace import images, markdown
+
+    images.save_png(out_dir / "cycles_gi.png", reference.gi)
+    images.save_png(out_dir / "direct.png", reference.direct)
+    images.save_png(out_dir / "direct_plus_vpl.png", reference.direct + computed.indirect)
+    vpls = computed.vpls
+    np.savetxt(
+        out_dir / "vpls.csv",
+        np.hstack([vpls.position, vpls.normal, vpls.flux]),
+        delimiter=",",
+        header="x,y,z,nx,ny,nz,flux_r,flux_g,flux_b",
+        comments="",
+        fmt="%.6g",
+    )
+    if computed.fit is not None:
+        (out_dir / "model.json").write_text(computed.fit.to_json())
+        log(f"[vplace] fitted model (cells of {cell_px} px):\n{computed.fit}")
+    summary.files = sorted({*(p.name for p in out_dir.iterdir() if p.is_file()), "report.json"})
+    (out_dir / "report.json").write_text(json.dumps(summary.to_dict(main_job=True), indent=2))
+    text = markdown.job_report(summary)
+    (out_dir / "report.md").write_text(text)
+    log(text)
