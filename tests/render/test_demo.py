@@ -52,21 +52,21 @@ def test_main_job_writes_everything_and_eevee_shows_what_the_evaluator_computed(
     table = np.loadtxt(tmp_path / "vpls.csv", delimiter=",", skiprows=1)
     assert table.shape == (64, 9)
     # Scored against a 256 spp truth of the scene camera, not against the 64 spp capture.
-    assert "ground truth" in report["reference"]["label"] and report["reference"]["samples"] == 256
-    m = report["metrics"]
+    assert "ground truth" in report.reference.label and report.reference.samples == 256
+    m = report.metrics
     # VPL indirect light brings the estimate closer to Cycles GI than direct light alone.
     assert m["rmse"] < 0.8 * m["rmse_direct_only"]
     assert m["relative_mse"] < 0.8 * m["relative_mse_direct_only"]
-    assert report["evaluator"]["shadow_rays"] > 0
+    assert report.evaluator.shadow_rays > 0
     # Every VPL with power is a light; those the refit switched off are not written.
     coll = apply.find_collection()
     written = int((table[:, 6:9].max(axis=1) > 0).sum())
-    assert coll is not None and len(coll.objects) == report["lights_written"] == written > 0
+    assert coll is not None and len(coll.objects) == report.lights_written == written > 0
     assert all(o.get(VPL_MARKER) for o in coll.objects)
     # EEVEE, scored in float against the same truth, shows what the evaluator computed: the
     # light its VPLs add (EEVEE with them less EEVEE without) is the evaluator's VPL light, and
     # its image is far closer to the truth than direct light alone.
-    e = report["eevee"]
+    e = report.eevee
     truth = capture.capture(
         scene, resolution=(48, 48), samples=256, seed=pipeline.REFERENCE_SEED,
         cache_dir=tmp_path / "cache",

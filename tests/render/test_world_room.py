@@ -110,7 +110,7 @@ def measure(out: Path) -> dict:
     after = [p.setting for p in eevee_setup.problems(scene)]
     shown = eevee.render(scene, resolution=SIZE, samples=4, setup=eevee.SETUPS["vpl+rt"])
     return {
-        "evaluator": report["metrics"],
+        "evaluator": report.metrics,
         "eevee": pipeline.score(shown.image, truth.gi),
         "problems_before": before,
         "problems_after": after,
