@@ -120,7 +120,7 @@ def _demo_options(sub: argparse._SubParsersAction) -> None:
 
 def _report_options(sub: argparse._SubParsersAction) -> None:
     from .job import FEATURE_MODES
-    from .report.runs import PRESETS, ReportConfig
+    from .report.config import PRESETS, ReportConfig
 
     rep = sub.add_parser(
         "report",
@@ -210,7 +210,8 @@ def run(args: argparse.Namespace) -> None:
         run_par2d_demo(args.out, args.size, args.method)
         return
     if args.command == "report":
-        from .report.runs import ReportConfig, run_report
+        from .report.config import ReportConfig
+        from .report.runs import run_report
 
         config = ReportConfig(
             scenes=args.scenes,

@@ -15,7 +15,7 @@ import numpy as np
 from ..native import vplace
 
 if TYPE_CHECKING:
-    from .runs import Row
+    from .config import Row
 
 COLOURS = {
     "uniform": "tab:blue",

@@ -33,9 +33,7 @@ collection written for EEVEE is removed again.
 from __future__ import annotations
 
 import contextlib
-import csv
 import json
-import math
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -53,202 +51,24 @@ from ..capture.views import ViewSpec
 from ..errors import ReportError
 from ..native import vplace
 from ..scenes import registry as default_scene
-from ..scenes import rooms as builtin_rooms
 from ..settings import override
 from ..writeback import apply, eevee_setup
 from ..writeback import eevee_render as eevee
-
-#: Seeds of the renders: the user's capture, the ground truth, Cycles' curve.
-CAPTURE_SEED = 0
-TRUTH_SEED = 7919
-CURVE_SEED = 104729
-
-METHODS = pipeline.METHODS
-RELAYOUT = "vplace (re-layout)"
-#: vplace+refit laid out from captures at other sample counts (``samples``: the capture's spp).
-CAPTURE_CURVE = "vplace+refit by capture spp"
-#: The suffix of a VPL method rendered with EEVEE's ray-traced reflections on.
-WITH_RT = " + rt reflections"
-#: The budget the image grids, EEVEE and the targets use (the nearest one run).
-GRID_BUDGET = 256
-#: The issues' margins: vplace's SSIM above each baseline, EEVEE with VPLs above EEVEE's own GI,
-#: held-out views against the fit views' mean, EEVEE against the evaluator.
-SSIM_MARGIN = 0.05
-HELD_OUT_SPREAD = 0.03
-EEVEE_SPREAD = 0.02
-BRIGHTNESS_TOLERANCE = 0.03
-FIT_VIEW_SSIM = 0.90
-#: The default capture's layout against the curve's largest sample count.
-CAPTURE_SPREAD = 0.01
-
-
-@dataclass(frozen=True)
-class ScenePreset:
-    """A scene for the report: its views, capture size and sample counts."""
-
-    name: str
-    fit_views: tuple[str, ...]
-    held_out_views: tuple[str, ...]
-    resolution: tuple[int, int]
-    capture_samples: int
-    truth_samples: int
-    #: A .blend path, or None for the built-in scene of this name.
-    blend: Path | None = None
-
-
-PRESETS = {
-    "cornell": ScenePreset(
-        "cornell",
-        ("Cornell camera", "Cornell camera left", "Cornell camera high"),
-        (default_scene.CORNELL_HELD_OUT_CAMERA, "Cornell camera (held out, low)"),
-        (160, 160),
-        256,
-        2048,
-    ),
-    "sponza": ScenePreset(
-        "sponza",
-        (default_scene.SPONZA_CAMERA, "CameraBalcony", default_scene.SPONZA_WEST_CAMERA),
-        (default_scene.SPONZA_HELD_OUT_CAMERA, "CameraAlcove"),
-        (320, 180),
-        128,
-        1024,
-    ),
-    "skyroom": ScenePreset(
-        "skyroom",
-        tuple(builtin_rooms.SKYROOM_FIT),
-        tuple(builtin_rooms.SKYROOM_HELD_OUT),
-        (256, 144),
-        16,
-        1024,
-    ),
-    "panelroom": ScenePreset(
-        "panelroom",
-        tuple(builtin_rooms.PANELROOM_FIT),
-        tuple(builtin_rooms.PANELROOM_HELD_OUT),
-        (256, 144),
-        16,
-        1024,
-    ),
-}
-
-
-@dataclass
-class ReportConfig:
-    """What the report runs. ``None`` fields take the scene preset's value."""
-
-    scenes: Sequence[str] = ("cornell", "sponza", "skyroom", "panelroom")
-    #: Any .blend instead of the built-in scenes, with its cameras.
-    blend: Path | None = None
-    fit_cameras: Sequence[str] = ()
-    held_out_cameras: Sequence[str] = ()
-    budgets: Sequence[int] = (16, 64, 256, 1024)
-    methods: Sequence[str] = METHODS
-    resolution: tuple[int, int] | None = None
-    capture_samples: int | None = None
-    truth_samples: int | None = None
-    #: Cycles + OpenImageDenoise at these samples, the user's alternative.
-    cycles_samples: Sequence[int] = (1, 4, 16, 64)
-    alpha: float = 1.0
-    iterations: int = 3
-    cell_px: int = 16
-    #: One of :data:`pipeline.FEATURE_MODES`.
-    feature_mode: str = "auto"
-    #: Seeds of the stochastic layouts (uniform, vplace); tables and plots show their mean.
-    seeds: Sequence[int] = (0, 1, 2)
-    #: Score the grid budget's lights with EEVEE, beside EEVEE's own GI.
-    with_eevee: bool = True
-    #: The methods whose lights EEVEE renders (each costs one EEVEE render per view).
-    eevee_methods: Sequence[str] = ("uniform", "rsm", "vplace+refit")
-    #: The alternatives of :data:`eevee.SETUPS` rendered per view (``cycles+oidn`` runs at
-    #: ``cycles_samples``).
-    alternatives: Sequence[str] = ("plain", "rt", "rt+volume", "vpl+rt", "cycles+oidn")
-    eevee_samples: int = eevee.EEVEE_SAMPLES
-    #: Capture sample counts to lay out vplace+refit from (at the grid budget), every view
-    #: scored: layout quality against capture cost. Empty: no curve.
-    capture_curve: Sequence[int] = ()
-    #: Probes along the longest side of the baked light probe volumes (``rt+volume``, and the
-    #: world's volume of the VPL renders when the world emits).
-    volume_resolution: int = eevee_setup.VOLUME_PROBES
-    par2d: bool = True
-    cache_dir: Path | None = None
-
-    def presets(self) -> list[ScenePreset]:
-        """The scenes to run."""
-        if self.blend is not None:
-            return [
-                ScenePreset(
-                    Path(self.blend).stem,
-                    tuple(self.fit_cameras),
-                    tuple(self.held_out_cameras),
-                    self.resolution or (320, 180),
-                    self.capture_samples or 128,
-                    self.truth_samples or 1024,
-                    blend=Path(self.blend),
-                )
-            ]
-        return [PRESETS[s] for s in self.scenes]
-
-    def validate(self) -> None:
-        """Raises :class:`ReportError` for an unusable configuration."""
-        unknown = [m for m in self.methods if m not in METHODS]
-        if unknown:
-            raise ReportError(f"unknown methods {unknown}: choose from {list(METHODS)}")
-        if not self.budgets or min(self.budgets) < 1:
-            raise ReportError(f"budgets must be positive VPL counts, got {list(self.budgets)}")
-        if max(self.budgets) > apply.MAX_VPLS:
-            raise ReportError(f"budgets above {apply.MAX_VPLS} VPLs are not supported")
-        if self.blend is not None:
-            if not Path(self.blend).is_file():
-                raise ReportError(f"no such .blend file: {self.blend}")
-            if not self.fit_cameras:
-                raise ReportError("a report on a .blend needs --fit-cameras")
-        else:
-            bad = [s for s in self.scenes if s not in PRESETS]
-            if bad:
-                raise ReportError(f"unknown scenes {bad}: choose from {sorted(PRESETS)}")
-        if any(s < 1 for s in (*self.cycles_samples, *self.capture_curve)):
-            raise ReportError("Cycles sample counts must be at least 1")
-        if self.feature_mode not in pipeline.FEATURE_MODES:
-            raise ReportError(f"feature mode must be one of {pipeline.FEATURE_MODES}")
-        if self.volume_resolution < 1:
-            raise ReportError("the light probe volume needs at least 1 probe along each side")
-        if not self.seeds:
-            raise ReportError("give at least one seed")
-        bad = [a for a in self.alternatives if a not in eevee.SETUPS]
-        if bad:
-            raise ReportError(f"unknown alternatives {bad}: choose from {sorted(eevee.SETUPS)}")
-        bad = [m for m in self.eevee_methods if m not in METHODS]
-        if bad:
-            raise ReportError(f"unknown EEVEE methods {bad}: choose from {list(METHODS)}")
-
-
-@dataclass
-class Row:
-    """One scored image: a method (or an alternative) at a budget on a view, by a renderer."""
-
-    scene: str
-    view: str
-    role: str  # "fit" or "held-out"
-    method: str  # a METHODS name, RELAYOUT, an eevee.SETUPS name, or "direct"
-    renderer: str  # "evaluator", "eevee", "cycles" or "reference"
-    n_vpls: int | None
-    samples: int | None
-    rmse: float
-    relative_mse: float
-    ssim: float
-    #: Mean luminance of the image over the ground truth's.
-    brightness: float
-    #: Paid once for every frame and view: captures, fit, layout, refit, a volume's bake.
-    one_time_seconds: float
-    #: One frame: the evaluator's image, an EEVEE or a Cycles render.
-    frame_seconds: float
-    shadow_rays: int = 0
-    seed: int | None = None
-    extra: dict[str, Any] = field(default_factory=dict)
-
-    @property
-    def one_minus_ssim(self) -> float:
-        return 1.0 - self.ssim
+from .config import (
+    CAPTURE_CURVE,
+    CAPTURE_SEED,
+    CURVE_SEED,
+    RELAYOUT,
+    TRUTH_SEED,
+    WITH_RT,
+    ReportConfig,
+    Row,
+    ScenePreset,
+    grid_budget,
+    row_dict,
+    write_csv,
+)
+from .summary import aggregate, break_even, markdown, targets
 
 
 @contextmanager
@@ -339,11 +159,6 @@ def _timed(fn: Callable[[], Any]) -> tuple[float, Any]:
     start = time.perf_counter()
     out = fn()
     return time.perf_counter() - start, out
-
-
-def grid_budget(budgets: Sequence[int]) -> int:
-    """The budget nearest GRID_BUDGET (the lower one on ties): image grids, EEVEE, targets."""
-    return min(budgets, key=lambda n: (abs(n - GRID_BUDGET), n))
 
 
 @dataclass
@@ -564,6 +379,154 @@ def reference_rows(view: ViewData, scene_name: str) -> list[Row]:
     ]
 
 
+@dataclass
+class _EeveeRun:
+    """The EEVEE (and Cycles + OIDN) renders of one scene's report: every view of each setup,
+    scored into rows, with the images kept per view."""
+
+    bl_scene: bpy.types.Scene
+    data: SceneData
+    config: ReportConfig
+    scene_name: str
+    cache_dir: Path
+    log: Callable[[str], None]
+    grid_n: int
+    rows: list[Row] = field(default_factory=list)
+    images: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+
+    def add(
+        self,
+        view: ViewData,
+        method: str,
+        setup: str,
+        img: eevee.EeveeImage,
+        one_time: float,
+        samples: int | None,
+        extra: dict[str, Any] | None = None,
+        seed: int | None = None,
+    ) -> None:
+        """Scores ``img`` against the view's truth as a row."""
+        renderer = "cycles" if setup == "cycles+oidn" else "eevee"
+        row = Row(
+            self.scene_name,
+            view.name,
+            view.role,
+            method,
+            renderer,
+            self.grid_n if setup.startswith("vpl") else None,
+            samples,
+            one_time_seconds=one_time,
+            frame_seconds=img.seconds,
+            seed=seed,
+            extra={"setup": setup, **(extra or {})},
+            **pipeline.score(img.image, view.truth.gi),
+        )
+        self.rows.append(row)
+        self.log(
+            f"[vplace]   {renderer} {view.name} {method:<18} SSIM {row.ssim:.4f} "
+            f"brightness {row.brightness:.3f} {img.seconds:6.1f} s"
+        )
+
+    def each_view(
+        self, setup: eevee.Setup, samples: int
+    ) -> Iterator[tuple[ViewData, eevee.EeveeImage]]:
+        """Every view rendered with ``setup`` at ``samples`` (cached)."""
+        for view in self.data.views:
+            yield (
+                view,
+                eevee.render(
+                    self.bl_scene,
+                    resolution=self.data.resolution,
+                    camera=view.camera,
+                    samples=samples,
+                    setup=setup,
+                    seed=CURVE_SEED,
+                    cache_dir=self.cache_dir,
+                ),
+            )
+
+    def vpl_rows(self, method: str, s: LaidSet, world_bake: float) -> None:
+        """The lights of ``s`` written, rendered on every view (and with ray tracing for
+        ``vplace+refit``), and removed again."""
+        config, prepared = self.config, self.data.prepared
+        apply.write_vpls(
+            self.bl_scene,
+            s.vpls,
+            scene_diagonal=prepared.scene.diagonal,
+            specular=prepared.vpl_specular,
+            emitters=prepared.stand_ins.emitters,
+            sun=prepared.stand_ins.sun,
+        )
+        try:
+            names = ["vpl"] + (
+                ["vpl+rt"] if method == "vplace+refit" and "vpl+rt" in config.alternatives else []
+            )
+            for name in names:
+                label = method if name == "vpl" else method + WITH_RT
+                for view, img in self.each_view(eevee.SETUPS[name], config.eevee_samples):
+                    self.add(
+                        view,
+                        label,
+                        name,
+                        img,
+                        s.one_time_seconds + world_bake,
+                        config.eevee_samples,
+                        seed=s.seed,
+                    )
+                    if name == "vpl":
+                        self.images[view.name][method] = img.image
+        finally:
+            apply.clear_vpls()
+
+    def methods(self, chosen: dict[str, LaidSet]) -> None:
+        """The chosen methods' lights, with the world's probe volume baked once for all."""
+        with contextlib.ExitStack() as stack:
+            world_bake = 0.0
+            if chosen:  # the world's light, occluded, as eevee_setup.set_up bakes it
+                world_bake = stack.enter_context(
+                    eevee_setup.world_volume_for_render(
+                        self.bl_scene, probes=self.config.volume_resolution
+                    )
+                )
+            if world_bake:
+                self.log(f"[vplace] the world's light probe volume baked in {world_bake:.1f} s")
+            for method, s in chosen.items():
+                self.vpl_rows(method, s, world_bake)
+
+    def alternatives(self) -> None:
+        """What a Blender user would pick instead: EEVEE plain, with ray tracing, with a baked
+        probe volume, and Cycles + OpenImageDenoise."""
+        config, images = self.config, self.images
+        for name in ("plain", "rt"):
+            if name in config.alternatives:
+                label = {"plain": "eevee", "rt": "eevee rt"}[name]
+                for view, img in self.each_view(eevee.SETUPS[name], config.eevee_samples):
+                    self.add(view, label, name, img, 0.0, config.eevee_samples)
+                    images[view.name][label] = img.image
+        if "rt+volume" in config.alternatives:
+            with eevee_setup.temporary_volume(
+                self.bl_scene, probes=config.volume_resolution
+            ) as bake:
+                self.log(f"[vplace] light probe volume baked in {bake:.1f} s")
+                for view, img in self.each_view(eevee.SETUPS["rt+volume"], config.eevee_samples):
+                    self.add(
+                        view,
+                        "eevee rt + volume",
+                        "rt+volume",
+                        img,
+                        bake,
+                        config.eevee_samples,
+                        {"bake_seconds": bake},
+                    )
+                    images[view.name]["eevee rt + volume"] = img.image
+        if "cycles+oidn" in config.alternatives:
+            for spp in config.cycles_samples:
+                for view, img in self.each_view(eevee.SETUPS["cycles+oidn"], spp):
+                    self.add(view, "cycles+oidn", "cycles+oidn", img, 0.0, spp)
+                    if spp == max(config.cycles_samples):
+                        images[view.name][f"cycles+oidn {spp}"] = img.image
+
+
 def eevee_rows(
     bl_scene: bpy.types.Scene,
     data: SceneData,
@@ -581,56 +544,8 @@ def eevee_rows(
             "not replace the user's VPLs (run it with --no-eevee, or on a copy)"
         )
     grid_n = grid_budget(config.budgets)
-    diagonal = data.prepared.scene.diagonal
-    rows: list[Row] = []
-    images: dict[str, dict[str, np.ndarray]] = {v.name: {} for v in data.views}
-
-    def add(
-        view: ViewData,
-        method: str,
-        setup: str,
-        img: eevee.EeveeImage,
-        one_time: float,
-        samples: int | None,
-        extra: dict[str, Any] | None = None,
-        seed: int | None = None,
-    ) -> None:
-        renderer = "cycles" if setup == "cycles+oidn" else "eevee"
-        row = Row(
-            scene_name,
-            view.name,
-            view.role,
-            method,
-            renderer,
-            grid_n if setup.startswith("vpl") else None,
-            samples,
-            one_time_seconds=one_time,
-            frame_seconds=img.seconds,
-            seed=seed,
-            extra={"setup": setup, **(extra or {})},
-            **pipeline.score(img.image, view.truth.gi),
-        )
-        rows.append(row)
-        log(
-            f"[vplace]   {renderer} {view.name} {method:<18} SSIM {row.ssim:.4f} "
-            f"brightness {row.brightness:.3f} {img.seconds:6.1f} s"
-        )
-
-    def each_view(setup: eevee.Setup, samples: int) -> Iterator[tuple[ViewData, eevee.EeveeImage]]:
-        for view in data.views:
-            yield (
-                view,
-                eevee.render(
-                    bl_scene,
-                    resolution=data.resolution,
-                    camera=view.camera,
-                    samples=samples,
-                    setup=setup,
-                    seed=CURVE_SEED,
-                    cache_dir=cache_dir,
-                ),
-            )
-
+    run = _EeveeRun(bl_scene, data, config, scene_name, cache_dir, log, grid_n)
+    run.images = {v.name: {} for v in data.views}
     chosen = {
         s.method: s
         for s in sets
@@ -638,310 +553,9 @@ def eevee_rows(
         and s.seed in (config.seeds[0], None)
         and s.method in config.eevee_methods
     }
-
-    def vpl_rows(method: str, s: LaidSet, world_bake: float) -> None:
-        apply.write_vpls(
-            bl_scene,
-            s.vpls,
-            scene_diagonal=diagonal,
-            specular=data.prepared.vpl_specular,
-            emitters=data.prepared.stand_ins.emitters,
-            sun=data.prepared.stand_ins.sun,
-        )
-        try:
-            names = ["vpl"] + (
-                ["vpl+rt"] if method == "vplace+refit" and "vpl+rt" in config.alternatives else []
-            )
-            for name in names:
-                label = method if name == "vpl" else method + WITH_RT
-                for view, img in each_view(eevee.SETUPS[name], config.eevee_samples):
-                    add(
-                        view,
-                        label,
-                        name,
-                        img,
-                        s.one_time_seconds + world_bake,
-                        config.eevee_samples,
-                        seed=s.seed,
-                    )
-                    if name == "vpl":
-                        images[view.name][method] = img.image
-        finally:
-            apply.clear_vpls()
-
-    with contextlib.ExitStack() as stack:
-        world_bake = 0.0
-        if chosen:  # the world's light, occluded, as eevee_setup.set_up bakes it
-            world_bake = stack.enter_context(
-                eevee_setup.world_volume_for_render(bl_scene, probes=config.volume_resolution)
-            )
-        if world_bake:
-            log(f"[vplace] the world's light probe volume baked in {world_bake:.1f} s")
-        for method, s in chosen.items():
-            vpl_rows(method, s, world_bake)
-    for name in ("plain", "rt"):
-        if name in config.alternatives:
-            label = {"plain": "eevee", "rt": "eevee rt"}[name]
-            for view, img in each_view(eevee.SETUPS[name], config.eevee_samples):
-                add(view, label, name, img, 0.0, config.eevee_samples)
-                images[view.name][label] = img.image
-    if "rt+volume" in config.alternatives:
-        with eevee_setup.temporary_volume(bl_scene, probes=config.volume_resolution) as bake:
-            log(f"[vplace] light probe volume baked in {bake:.1f} s")
-            for view, img in each_view(eevee.SETUPS["rt+volume"], config.eevee_samples):
-                add(
-                    view,
-                    "eevee rt + volume",
-                    "rt+volume",
-                    img,
-                    bake,
-                    config.eevee_samples,
-                    {"bake_seconds": bake},
-                )
-                images[view.name]["eevee rt + volume"] = img.image
-    if "cycles+oidn" in config.alternatives:
-        for spp in config.cycles_samples:
-            for view, img in each_view(eevee.SETUPS["cycles+oidn"], spp):
-                add(view, "cycles+oidn", "cycles+oidn", img, 0.0, spp)
-                if spp == max(config.cycles_samples):
-                    images[view.name][f"cycles+oidn {spp}"] = img.image
-    return rows, images
-
-
-def aggregate(rows: Sequence[Row]) -> list[Row]:
-    """One row per (scene, view, method, renderer, budget or samples): the mean over seeds of
-    every metric and time; ``extra`` holds ``seeds``, ``ssim_std`` and ``rmse_std``."""
-    groups: dict[tuple[Any, ...], list[Row]] = {}
-    for r in rows:
-        key = (r.scene, r.view, r.method, r.renderer, r.n_vpls, r.samples)
-        groups.setdefault(key, []).append(r)
-    out = []
-    keys = ("rmse", "relative_mse", "ssim", "brightness", "one_time_seconds", "frame_seconds")
-    for members in groups.values():
-        first = members[0]
-        mean = {k: float(np.mean([getattr(r, k) for r in members])) for k in keys}
-        kept = ("setup", "bake_seconds", "capture_seconds")
-        extra = {k: v for k, v in first.extra.items() if k in kept}
-        extra.update(
-            seeds=len(members),
-            by_seed={
-                str(r.seed): {"ssim": r.ssim, "rmse": r.rmse, "brightness": r.brightness}
-                for r in members
-                if r.seed is not None
-            },
-            ssim_std=float(np.std([r.ssim for r in members])),
-            rmse_std=float(np.std([r.rmse for r in members])),
-        )
-        out.append(
-            Row(
-                first.scene,
-                first.view,
-                first.role,
-                first.method,
-                first.renderer,
-                first.n_vpls,
-                first.samples,
-                shadow_rays=int(np.mean([r.shadow_rays for r in members])),
-                seed=first.seed if len(members) == 1 else None,
-                extra=extra,
-                **mean,
-            )
-        )
-    return out
-
-
-def same_lights(evaluator: Row, shown: Row) -> dict[str, float]:
-    """The evaluator's scores for the very lights ``shown`` (an EEVEE row) rendered: the seed's
-    run of an aggregated row, or the row itself for a deterministic method."""
-    by_seed = evaluator.extra.get("by_seed", {})
-    if shown.seed is not None and str(shown.seed) in by_seed:
-        return dict(by_seed[str(shown.seed)])
-    return {"ssim": evaluator.ssim, "rmse": evaluator.rmse, "brightness": evaluator.brightness}
-
-
-def _at(
-    rows: Sequence[Row], scene: str, view: str, method: str, renderer: str, n: int | None
-) -> Row | None:
-    return next(
-        (
-            r
-            for r in rows
-            if (r.scene, r.view, r.method, r.renderer, r.n_vpls)
-            == (scene, view, method, renderer, n)
-        ),
-        None,
-    )
-
-
-def targets(rows: list[Row]) -> list[dict[str, Any]]:
-    """The issues' targets on every scene of ``rows`` (means over seeds) at the grid budget."""
-    checks: list[dict[str, Any]] = []
-
-    def check(name: str, value: Any, met: bool, detail: str) -> None:
-        checks.append({"check": name, "value": value, "met": bool(met), "detail": detail})
-
-    for scene in dict.fromkeys(r.scene for r in rows):
-        mine = [r for r in rows if r.scene == scene]
-        budgets = sorted({r.n_vpls for r in mine if r.renderer == "evaluator" and r.n_vpls})
-        if not budgets:
-            continue
-        n = grid_budget(budgets)
-        views = list(dict.fromkeys((r.view, r.role) for r in mine))
-        fit_views = [v for v, role in views if role == "fit"]
-        held = [v for v, role in views if role == "held-out"]
-        ours = {v: _at(mine, scene, v, "vplace+refit", "evaluator", n) for v, _ in views}
-        if all(ours.values()):
-            fit_mean = float(np.mean([ours[v].ssim for v in fit_views]))
-            check(
-                f"{scene} N={n}: the fit views reach SSIM {FIT_VIEW_SSIM}",
-                fit_mean,
-                fit_mean >= FIT_VIEW_SSIM,
-                f"fit views' mean {fit_mean:.4f}",
-            )
-            for v in held:
-                gap = fit_mean - ours[v].ssim
-                check(
-                    f"{scene} {v} (held out) N={n}: within {HELD_OUT_SPREAD} SSIM of the fit "
-                    "views' mean",
-                    gap,
-                    gap <= HELD_OUT_SPREAD,
-                    f"{ours[v].ssim:.4f} against {fit_mean:.4f}: {gap:+.4f}",
-                )
-        for v, role in views:
-            us = ours.get(v)
-            if us is None:
-                continue
-            for base in ("uniform", "rsm"):
-                b = _at(mine, scene, v, base, "evaluator", n)
-                if b is not None:
-                    gap = us.ssim - b.ssim
-                    check(
-                        f"{scene} {v} ({role}) N={n}: vplace+refit SSIM >= {base} + {SSIM_MARGIN}",
-                        gap,
-                        gap >= SSIM_MARGIN,
-                        f"{us.ssim:.4f} against {b.ssim:.4f}: {gap:+.4f}",
-                    )
-            uniform = _at(mine, scene, v, "uniform", "evaluator", n)
-            if uniform is not None:
-                check(
-                    f"{scene} {v} ({role}) N={n}: not below uniform",
-                    us.ssim - uniform.ssim,
-                    us.ssim >= uniform.ssim,
-                    f"{us.ssim:.4f} against {uniform.ssim:.4f}",
-                )
-            direct = _at(mine, scene, v, "direct", "reference", None)
-            if role == "held-out" and direct is not None:
-                check(
-                    f"{scene} {v} (held out) N={n}: relative MSE below direct light's",
-                    us.relative_mse,
-                    us.relative_mse < direct.relative_mse,
-                    f"{us.relative_mse:.5f} against {direct.relative_mse:.5f}",
-                )
-            shown = _at(mine, scene, v, "vplace+refit", "eevee", n)
-            if shown is not None:
-                evaluated = same_lights(us, shown)["ssim"]
-                gap = evaluated - shown.ssim
-                check(
-                    f"{scene} {v} ({role}): EEVEE with the VPLs within {EEVEE_SPREAD} SSIM "
-                    "of the evaluator (the same lights)",
-                    gap,
-                    abs(gap) <= EEVEE_SPREAD,
-                    f"EEVEE {shown.ssim:.4f}, evaluator {evaluated:.4f}",
-                )
-                off = shown.brightness - 1
-                detail = f"{shown.brightness:.4f}x"
-                plain = _at(mine, scene, v, "eevee", "eevee", None)
-                if plain is not None and direct is not None:
-                    # EEVEE's own direct light against Cycles': a part vplace does not render.
-                    own = plain.brightness / direct.brightness
-                    detail += f"; EEVEE's direct light alone is {own:.3f}x Cycles' direct light"
-                check(
-                    f"{scene} {v} ({role}): EEVEE with the VPLs within "
-                    f"{BRIGHTNESS_TOLERANCE:.0%} of the truth's brightness",
-                    off,
-                    abs(off) <= BRIGHTNESS_TOLERANCE,
-                    detail,
-                )
-                volume = _at(mine, scene, v, "eevee rt + volume", "eevee", None)
-                if volume is not None:
-                    gap = shown.ssim - volume.ssim
-                    check(
-                        f"{scene} {v} ({role}): EEVEE with the VPLs >= EEVEE ray tracing + "
-                        f"volume + {SSIM_MARGIN}",
-                        gap,
-                        gap >= SSIM_MARGIN,
-                        f"{shown.ssim:.4f} against {volume.ssim:.4f}: {gap:+.4f}",
-                    )
-        curve = [r for r in mine if r.method == CAPTURE_CURVE and r.role == "fit"]
-        spps = sorted({r.samples for r in curve if r.samples})
-        default = pipeline.Job().samples
-        if default in spps and spps[-1] > default:
-            at = {spp: float(np.mean([r.ssim for r in curve if r.samples == spp])) for spp in spps}
-            gap = at[spps[-1]] - at[default]
-            check(
-                f"{scene}: the default capture ({default} spp) within {CAPTURE_SPREAD} SSIM of "
-                f"{spps[-1]} spp (fit views' mean)",
-                gap,
-                gap <= CAPTURE_SPREAD,
-                f"{at[default]:.4f} against {at[spps[-1]]:.4f}: {-gap:+.4f}",
-            )
-    return checks
-
-
-def break_even(rows: list[Row]) -> list[dict[str, Any]]:
-    """Per view: after how many frames vplace+refit (one-time cost plus its EEVEE frames) costs
-    less than Cycles + OIDN frames of at least the same SSIM (the fewest samples that reach it)."""
-    out = []
-    for r in rows:
-        if r.method != "vplace+refit" or r.renderer != "eevee":
-            continue
-        cycles = sorted(
-            (c for c in rows if (c.scene, c.view, c.method) == (r.scene, r.view, "cycles+oidn")),
-            key=lambda c: c.samples or 0,
-        )
-        if not cycles:
-            continue
-        match = next((c for c in cycles if c.ssim >= r.ssim), None)
-        entry: dict[str, Any] = {
-            "scene": r.scene,
-            "view": r.view,
-            "role": r.role,
-            "eevee_ssim": r.ssim,
-            "one_time_seconds": r.one_time_seconds,
-            "eevee_frame_seconds": r.frame_seconds,
-        }
-        if match is None:
-            top = cycles[-1]
-            entry.update(
-                cycles_samples=None, cycles_ssim=top.ssim, cycles_frame_seconds=top.frame_seconds
-            )
-            gain = top.frame_seconds - r.frame_seconds
-            entry["frames"] = None
-            entry["note"] = (
-                f"Cycles + OIDN at {top.samples} spp reaches only SSIM {top.ssim:.4f} in "
-                f"{top.frame_seconds:.1f} s; more samples would cost more per frame"
-                + (
-                    f": break-even after fewer than {math.ceil(r.one_time_seconds / gain)} frames"
-                    if gain > 0
-                    else ""
-                )
-            )
-        else:
-            gain = match.frame_seconds - r.frame_seconds
-            frames = math.ceil(r.one_time_seconds / gain) if gain > 0 else None
-            entry.update(
-                cycles_samples=match.samples,
-                cycles_ssim=match.ssim,
-                cycles_frame_seconds=match.frame_seconds,
-                frames=frames,
-            )
-            entry["note"] = (
-                f"break-even after {frames} frames"
-                if frames
-                else "never on this machine: an EEVEE frame costs at least a Cycles + OIDN frame"
-            )
-        out.append(entry)
-    return out
+    run.methods(chosen)
+    run.alternatives()
+    return run.rows, run.images
 
 
 def run_scene(
@@ -1062,238 +676,3 @@ def _json_default(value: Any) -> Any:
     if isinstance(value, Path):
         return str(value)
     raise TypeError(f"cannot write {type(value).__name__} to JSON")
-
-
-def row_dict(row: Row) -> dict[str, Any]:
-    """A row as a flat JSON-ready dict (``extra`` kept nested)."""
-    d = asdict(row)
-    d["one_minus_ssim"] = row.one_minus_ssim
-    return {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in d.items()}
-
-
-CSV_FIELDS = (
-    "scene",
-    "view",
-    "role",
-    "method",
-    "renderer",
-    "n_vpls",
-    "samples",
-    "rmse",
-    "relative_mse",
-    "ssim",
-    "one_minus_ssim",
-    "brightness",
-    "one_time_seconds",
-    "frame_seconds",
-    "shadow_rays",
-    "seed",
-)
-
-
-def write_csv(path: Path, rows: list[Row]) -> None:
-    """The rows as CSV (without ``extra``)."""
-    with path.open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=CSV_FIELDS, extrasaction="ignore")
-        w.writeheader()
-        for r in rows:
-            w.writerow(row_dict(r))
-
-
-def _fmt(value: float | None, spec: str) -> str:
-    return (
-        "-"
-        if value is None or (isinstance(value, float) and math.isnan(value))
-        else format(value, spec)
-    )
-
-
-def _sd(row: Row) -> str:
-    seeds = row.extra.get("seeds", 1)
-    return f" ({row.extra['ssim_std']:.3f})" if seeds > 1 else ""
-
-
-def _capture_curve_lines(rows: Sequence[Row]) -> list[str]:
-    """The table of :func:`capture_curve_rows` (mean SSIM over seeds), or nothing."""
-    curve = [r for r in rows if r.method == CAPTURE_CURVE]
-    if not curve:
-        return []
-    views = list(dict.fromkeys((r.view, r.role) for r in curve))
-    lines = [
-        f"### Capture samples against layout quality (vplace+refit, N={curve[0].n_vpls})",
-        "",
-        "The fit views captured at each sample count, the same fit, layout and refit, every view "
-        "scored with the evaluator against the truth. One-time s: captures, fit, layout, refit.",
-        "",
-        "| capture spp | captures s | one-time s | fit views' SSIM | held-out SSIM | "
-        + " | ".join(v for v, _ in views)
-        + " |",
-        "|---" * (5 + len(views)) + "|",
-    ]
-    for spp in sorted({r.samples for r in curve if r.samples}):
-        mine = {r.view: r for r in curve if r.samples == spp}
-        first = next(iter(mine.values()))
-
-        def mean(role: str, mine: dict[str, Row] = mine) -> str:
-            values = [r.ssim for r in mine.values() if r.role == role]
-            return f"{np.mean(values):.4f}" if values else "-"
-
-        lines.append(
-            f"| {spp} | {first.extra['capture_seconds']:.1f} | {first.one_time_seconds:.1f} | "
-            f"{mean('fit')} | {mean('held-out')} | "
-            + " | ".join(f"{mine[v].ssim:.4f}" if v in mine else "-" for v, _ in views)
-            + " |"
-        )
-    return [*lines, ""]
-
-
-def markdown(result: dict[str, Any], rows: list[Row]) -> str:
-    """The human-readable report."""
-    lines = ["# vplace report", ""]
-    lines += [
-        "Each method lays out one set of lights for all the fit views at once; every view, fit or "
-        "held out, is scored with those same lights. Evaluator rows: the ground truth's direct "
-        "light plus the evaluator's VPL indirect light over the view's G-buffer. EEVEE rows: what "
-        "a user sees, EEVEE rendering the written lights (float, Standard view, "
-        f"{result['config']['eevee_samples']} samples), or the alternatives a Blender user would "
-        "pick instead; Cycles + OIDN rows: Cycles at that many samples, denoised. Every image is "
-        "scored against a high-sample Cycles render of the view. SSIM on display luminance "
-        "(DESIGN: Metrics); RMSE and relative MSE on linear HDR; brightness is the mean luminance "
-        "over the truth's. One-time seconds: the captures of the fit views, the fit, the layout "
-        "and refit, or a volume's bake, paid once for every view and frame; frame seconds: one "
-        "image. Stochastic layouts run with seeds "
-        f"{list(result['config']['seeds'])}; rows show their mean (SSIM standard deviation in "
-        "brackets); `results.csv` has every run. EEVEE here is software OpenGL on 2 CPU cores: "
-        "its frame times are no measure of a GPU's.",
-        "",
-        f"Total report time: {result['seconds']:.0f} s.",
-        "",
-    ]
-    for name, info in result["scenes"].items():
-        fit = info["fit"]
-        r2 = ", ".join(f"{v} {_fmt(x, '.3f')}" for v, x in fit["view_r2"].items())
-        lines += [
-            f"## {name}",
-            "",
-            f"Fit over {len(fit['view_r2'])} views: kept "
-            + ", ".join(fit["kept"])
-            + f" (R^2 {fit['r2']:.3f}; per view {r2}; {info['fit_seconds']:.2f} s). Captures of "
-            f"the fit views: {info['capture_seconds']:.1f} s.",
-            "",
-        ]
-        budgets = sorted({r.n_vpls for r in rows if r.scene == name and r.renderer == "evaluator"})
-        for view, v in info["views"].items():
-            mine = [r for r in rows if r.scene == name and r.view == view]
-            lines += [
-                f"### {view} ({v['role']} view)",
-                "",
-                f"{v['resolution'][0]}x{v['resolution'][1]} px, {v['triangles']} triangles; ground "
-                f"truth {v['truth_samples']} spp in {v['truth_seconds']:.1f} s. Images: "
-                + ", ".join(f"`{v[k]}`" for k in ("grid", "eevee_grid") if k in v)
-                + ".",
-                "",
-                "Evaluator, SSIM (sd) / RMSE by VPL budget:",
-                "",
-                "| method | " + " | ".join(f"N={n}" for n in budgets) + " |",
-                "|---|" + "---|" * len(budgets),
-            ]
-            tabled = (r.method for r in mine if r.renderer == "evaluator")
-            for method in dict.fromkeys(m for m in tabled if m != CAPTURE_CURVE):
-                cells = []
-                for n in budgets:
-                    r = next(
-                        (
-                            x
-                            for x in mine
-                            if x.method == method and x.renderer == "evaluator" and x.n_vpls == n
-                        ),
-                        None,
-                    )
-                    cells.append(f"{r.ssim:.3f}{_sd(r)} / {r.rmse:.4f}" if r else "-")
-                lines.append(f"| {method} | " + " | ".join(cells) + " |")
-            direct = next((x for x in mine if x.method == "direct"), None)
-            if direct:
-                lines += ["", f"Direct light only: SSIM {direct.ssim:.3f}, RMSE {direct.rmse:.4f}."]
-            shown = [r for r in mine if r.renderer in ("eevee", "cycles")]
-            if shown:
-                lines += [
-                    "",
-                    "What a user sees (the grid budget's lights in EEVEE) and the alternatives:",
-                    "",
-                    "| image | SSIM | RMSE | brightness | evaluator, same lights: SSIM / "
-                    "brightness | one-time s | frame s |",
-                    "|---|---|---|---|---|---|---|",
-                ]
-                for r in shown:
-                    label = f"{r.renderer}: {r.method}"
-                    if r.n_vpls:
-                        label += f", N={r.n_vpls}"
-                    if r.seed is not None:
-                        label += f", seed {r.seed}"
-                    if r.renderer == "cycles":
-                        label += f", {r.samples} spp"
-                    base = r.method.removesuffix(WITH_RT)
-                    ev = _at(mine, name, view, base, "evaluator", r.n_vpls) if r.n_vpls else None
-                    same = (
-                        "{ssim:.3f} / {brightness:.3f}".format(**same_lights(ev, r)) if ev else "-"
-                    )
-                    lines.append(
-                        f"| {label} | {r.ssim:.3f} | {r.rmse:.4f} | {r.brightness:.3f} | {same} | "
-                        f"{r.one_time_seconds:.1f} | {r.frame_seconds:.1f} |"
-                    )
-            lines.append("")
-        lines += _capture_curve_lines([r for r in rows if r.scene == name])
-    if result["break_even"]:
-        lines += [
-            "## Break-even: vplace + EEVEE against Cycles + OIDN",
-            "",
-            "Frames after which vplace's one-time cost plus its EEVEE frames costs less than "
-            "Cycles + OIDN frames of at least the same SSIM (the fewest samples that reach it). "
-            "EEVEE's frame time is software OpenGL on 2 cores; a GPU's is unknown here (no GPU "
-            "was lent).",
-            "",
-            "| scene | view | EEVEE SSIM | one-time s | EEVEE frame s | Cycles spp | Cycles SSIM "
-            "| Cycles frame s | frames |",
-            "|---|---|---|---|---|---|---|---|---|",
-        ]
-        for b in result["break_even"]:
-            lines.append(
-                f"| {b['scene']} | {b['view']} ({b['role']}) | {b['eevee_ssim']:.3f} | "
-                f"{b['one_time_seconds']:.1f} | {b['eevee_frame_seconds']:.1f} | "
-                f"{b['cycles_samples'] or '-'} | {b['cycles_ssim']:.3f} | "
-                f"{b['cycles_frame_seconds']:.1f} | {b['note']} |"
-            )
-        lines.append("")
-    if result["targets"]:
-        lines += ["## Targets", "", "| check | met | detail |", "|---|---|---|"]
-        for c in result["targets"]:
-            lines.append(f"| {c['check']} | {'yes' if c['met'] else '**no**'} | {c['detail']} |")
-        lines.append("")
-    if result["par2d"]:
-        lines += [
-            "## PAR 2D",
-            "",
-            "| method | rays | seconds | RMSE vs exact |",
-            "|---|---|---|---|",
-        ]
-        for p in result["par2d"]:
-            lines.append(
-                f"| {p['method']} | {p['rays'] or '-'} | {p['seconds']:.3f} | {p['rmse']:.3e} |"
-            )
-        lines += ["", "Plot: `par2d_speed_error.png`.", ""]
-    lines += ["## Files", "", *[f"- `{f}`" for f in result["files"]], ""]
-    return "\n".join(lines)
-
-
-__all__ = [
-    "PRESETS",
-    "ReportConfig",
-    "ReportError",
-    "Row",
-    "ScenePreset",
-    "aggregate",
-    "break_even",
-    "camera_view",
-    "run_report",
-    "targets",
-]

@@ -9,8 +9,10 @@ import bpy
 import numpy as np
 import pytest
 
+from addon.errors import ReportError
 from addon.report import runs as report
-from addon.report.runs import CAPTURE_CURVE, RELAYOUT, WITH_RT, ReportConfig, ReportError, Row
+from addon.report import summary
+from addon.report.config import CAPTURE_CURVE, RELAYOUT, WITH_RT, ReportConfig, Row
 from addon.scenes import registry as default_scene
 from addon.writeback import apply
 
@@ -205,7 +207,7 @@ def test_targets_compare_held_out_views_with_the_fit_mean_and_eevee_with_the_sam
         _row("H", "direct", None, 0.5, renderer="reference", role="held-out", relative_mse=0.3),
         _row("A", "vplace+refit", 256, 0.94, renderer="eevee", seed=0, brightness=1.05),
     ]
-    checks = {c["check"]: c for c in report.targets(rows)}
+    checks = {c["check"]: c for c in summary.targets(rows)}
     fit = checks["s N=256: the fit views reach SSIM 0.9"]
     assert fit["met"] and fit["value"] == pytest.approx(0.91)
     spread = checks["s H (held out) N=256: within 0.03 SSIM of the fit views' mean"]
@@ -231,13 +233,13 @@ def test_break_even_counts_frames_until_the_one_time_cost_is_paid():
         _row("A", "cycles+oidn", None, s, renderer="cycles", samples=spp, frame_seconds=t)
         for spp, s, t in ((4, 0.85, 2.0), (16, 0.91, 6.0), (64, 0.95, 20.0))
     ]
-    (entry,) = report.break_even([ours, *cycles])
+    (entry,) = summary.break_even([ours, *cycles])
     # 16 spp is the fewest that reach 0.90; each frame saves 5 s, so 100 s pay off after 20.
     assert entry["cycles_samples"] == 16 and entry["frames"] == 20
     slow = _row("A", "vplace+refit", 256, 0.90, frame_seconds=7.0, **eevee)
-    assert report.break_even([slow, *cycles])[0]["frames"] is None
+    assert summary.break_even([slow, *cycles])[0]["frames"] is None
     better = _row("A", "vplace+refit", 256, 0.99, frame_seconds=1.0, **eevee)
-    (entry,) = report.break_even([better, *cycles])
+    (entry,) = summary.break_even([better, *cycles])
     assert entry["cycles_samples"] is None and "fewer than 6 frames" in entry["note"]
 
 

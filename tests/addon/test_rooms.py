@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from mathutils import Vector
 
-from addon.report import runs as report
+from addon.report import config as report
 from addon.scene import export
 from addon.scene.convert import build_scene, check_lights
 from addon.scenes import registry as default_scene

@@ -1,0 +1,251 @@
+"""The report's configuration (the scene presets, ``ReportConfig``) and its rows (``Row``,
+as CSV and JSON)."""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .. import job as pipeline
+from ..errors import ReportError
+from ..scenes import registry as default_scene
+from ..scenes import rooms as builtin_rooms
+from ..writeback import apply, eevee_setup
+from ..writeback import eevee_render as eevee
+
+#: Seeds of the renders: the user's capture, the ground truth, Cycles' curve.
+CAPTURE_SEED = 0
+TRUTH_SEED = 7919
+CURVE_SEED = 104729
+
+METHODS = pipeline.METHODS
+RELAYOUT = "vplace (re-layout)"
+#: vplace+refit laid out from captures at other sample counts (``samples``: the capture's spp).
+CAPTURE_CURVE = "vplace+refit by capture spp"
+#: The suffix of a VPL method rendered with EEVEE's ray-traced reflections on.
+WITH_RT = " + rt reflections"
+#: The budget the image grids, EEVEE and the targets use (the nearest one run).
+GRID_BUDGET = 256
+#: The issues' margins: vplace's SSIM above each baseline, EEVEE with VPLs above EEVEE's own GI,
+#: held-out views against the fit views' mean, EEVEE against the evaluator.
+SSIM_MARGIN = 0.05
+HELD_OUT_SPREAD = 0.03
+EEVEE_SPREAD = 0.02
+BRIGHTNESS_TOLERANCE = 0.03
+FIT_VIEW_SSIM = 0.90
+#: The default capture's layout against the curve's largest sample count.
+CAPTURE_SPREAD = 0.01
+
+
+@dataclass(frozen=True)
+class ScenePreset:
+    """A scene for the report: its views, capture size and sample counts."""
+
+    name: str
+    fit_views: tuple[str, ...]
+    held_out_views: tuple[str, ...]
+    resolution: tuple[int, int]
+    capture_samples: int
+    truth_samples: int
+    #: A .blend path, or None for the built-in scene of this name.
+    blend: Path | None = None
+
+
+PRESETS = {
+    "cornell": ScenePreset(
+        "cornell",
+        ("Cornell camera", "Cornell camera left", "Cornell camera high"),
+        (default_scene.CORNELL_HELD_OUT_CAMERA, "Cornell camera (held out, low)"),
+        (160, 160),
+        256,
+        2048,
+    ),
+    "sponza": ScenePreset(
+        "sponza",
+        (default_scene.SPONZA_CAMERA, "CameraBalcony", default_scene.SPONZA_WEST_CAMERA),
+        (default_scene.SPONZA_HELD_OUT_CAMERA, "CameraAlcove"),
+        (320, 180),
+        128,
+        1024,
+    ),
+    "skyroom": ScenePreset(
+        "skyroom",
+        tuple(builtin_rooms.SKYROOM_FIT),
+        tuple(builtin_rooms.SKYROOM_HELD_OUT),
+        (256, 144),
+        16,
+        1024,
+    ),
+    "panelroom": ScenePreset(
+        "panelroom",
+        tuple(builtin_rooms.PANELROOM_FIT),
+        tuple(builtin_rooms.PANELROOM_HELD_OUT),
+        (256, 144),
+        16,
+        1024,
+    ),
+}
+
+
+@dataclass
+class ReportConfig:
+    """What the report runs. ``None`` fields take the scene preset's value."""
+
+    scenes: Sequence[str] = ("cornell", "sponza", "skyroom", "panelroom")
+    #: Any .blend instead of the built-in scenes, with its cameras.
+    blend: Path | None = None
+    fit_cameras: Sequence[str] = ()
+    held_out_cameras: Sequence[str] = ()
+    budgets: Sequence[int] = (16, 64, 256, 1024)
+    methods: Sequence[str] = METHODS
+    resolution: tuple[int, int] | None = None
+    capture_samples: int | None = None
+    truth_samples: int | None = None
+    #: Cycles + OpenImageDenoise at these samples, the user's alternative.
+    cycles_samples: Sequence[int] = (1, 4, 16, 64)
+    alpha: float = 1.0
+    iterations: int = 3
+    cell_px: int = 16
+    #: One of :data:`pipeline.FEATURE_MODES`.
+    feature_mode: str = "auto"
+    #: Seeds of the stochastic layouts (uniform, vplace); tables and plots show their mean.
+    seeds: Sequence[int] = (0, 1, 2)
+    #: Score the grid budget's lights with EEVEE, beside EEVEE's own GI.
+    with_eevee: bool = True
+    #: The methods whose lights EEVEE renders (each costs one EEVEE render per view).
+    eevee_methods: Sequence[str] = ("uniform", "rsm", "vplace+refit")
+    #: The alternatives of :data:`eevee.SETUPS` rendered per view (``cycles+oidn`` runs at
+    #: ``cycles_samples``).
+    alternatives: Sequence[str] = ("plain", "rt", "rt+volume", "vpl+rt", "cycles+oidn")
+    eevee_samples: int = eevee.EEVEE_SAMPLES
+    #: Capture sample counts to lay out vplace+refit from (at the grid budget), every view
+    #: scored: layout quality against capture cost. Empty: no curve.
+    capture_curve: Sequence[int] = ()
+    #: Probes along the longest side of the baked light probe volumes (``rt+volume``, and the
+    #: world's volume of the VPL renders when the world emits).
+    volume_resolution: int = eevee_setup.VOLUME_PROBES
+    par2d: bool = True
+    cache_dir: Path | None = None
+
+    def presets(self) -> list[ScenePreset]:
+        """The scenes to run."""
+        if self.blend is not None:
+            return [
+                ScenePreset(
+                    Path(self.blend).stem,
+                    tuple(self.fit_cameras),
+                    tuple(self.held_out_cameras),
+                    self.resolution or (320, 180),
+                    self.capture_samples or 128,
+                    self.truth_samples or 1024,
+                    blend=Path(self.blend),
+                )
+            ]
+        return [PRESETS[s] for s in self.scenes]
+
+    def validate(self) -> None:
+        """Raises :class:`ReportError` for an unusable configuration."""
+        unknown = [m for m in self.methods if m not in METHODS]
+        if unknown:
+            raise ReportError(f"unknown methods {unknown}: choose from {list(METHODS)}")
+        if not self.budgets or min(self.budgets) < 1:
+            raise ReportError(f"budgets must be positive VPL counts, got {list(self.budgets)}")
+        if max(self.budgets) > apply.MAX_VPLS:
+            raise ReportError(f"budgets above {apply.MAX_VPLS} VPLs are not supported")
+        if self.blend is not None:
+            if not Path(self.blend).is_file():
+                raise ReportError(f"no such .blend file: {self.blend}")
+            if not self.fit_cameras:
+                raise ReportError("a report on a .blend needs --fit-cameras")
+        else:
+            bad = [s for s in self.scenes if s not in PRESETS]
+            if bad:
+                raise ReportError(f"unknown scenes {bad}: choose from {sorted(PRESETS)}")
+        if any(s < 1 for s in (*self.cycles_samples, *self.capture_curve)):
+            raise ReportError("Cycles sample counts must be at least 1")
+        if self.feature_mode not in pipeline.FEATURE_MODES:
+            raise ReportError(f"feature mode must be one of {pipeline.FEATURE_MODES}")
+        if self.volume_resolution < 1:
+            raise ReportError("the light probe volume needs at least 1 probe along each side")
+        if not self.seeds:
+            raise ReportError("give at least one seed")
+        bad = [a for a in self.alternatives if a not in eevee.SETUPS]
+        if bad:
+            raise ReportError(f"unknown alternatives {bad}: choose from {sorted(eevee.SETUPS)}")
+        bad = [m for m in self.eevee_methods if m not in METHODS]
+        if bad:
+            raise ReportError(f"unknown EEVEE methods {bad}: choose from {list(METHODS)}")
+
+
+@dataclass
+class Row:
+    """One scored image: a method (or an alternative) at a budget on a view, by a renderer."""
+
+    scene: str
+    view: str
+    role: str  # "fit" or "held-out"
+    method: str  # a METHODS name, RELAYOUT, an eevee.SETUPS name, or "direct"
+    renderer: str  # "evaluator", "eevee", "cycles" or "reference"
+    n_vpls: int | None
+    samples: int | None
+    rmse: float
+    relative_mse: float
+    ssim: float
+    #: Mean luminance of the image over the ground truth's.
+    brightness: float
+    #: Paid once for every frame and view: captures, fit, layout, refit, a volume's bake.
+    one_time_seconds: float
+    #: One frame: the evaluator's image, an EEVEE or a Cycles render.
+    frame_seconds: float
+    shadow_rays: int = 0
+    seed: int | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def one_minus_ssim(self) -> float:
+        return 1.0 - self.ssim
+
+
+def row_dict(row: Row) -> dict[str, Any]:
+    """A row as a flat JSON-ready dict (``extra`` kept nested)."""
+    d = asdict(row)
+    d["one_minus_ssim"] = row.one_minus_ssim
+    return {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in d.items()}
+
+
+CSV_FIELDS = (
+    "scene",
+    "view",
+    "role",
+    "method",
+    "renderer",
+    "n_vpls",
+    "samples",
+    "rmse",
+    "relative_mse",
+    "ssim",
+    "one_minus_ssim",
+    "brightness",
+    "one_time_seconds",
+    "frame_seconds",
+    "shadow_rays",
+    "seed",
+)
+
+
+def write_csv(path: Path, rows: list[Row]) -> None:
+    """The rows as CSV (without ``extra``)."""
+    with path.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=CSV_FIELDS, extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow(row_dict(r))
+
+
+def grid_budget(budgets: Sequence[int]) -> int:
+    """The budget nearest GRID_BUDGET (the lower one on ties): image grids, EEVEE, targets."""
+    return min(budgets, key=lambda n: (abs(n - GRID_BUDGET), n))

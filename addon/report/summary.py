@@ -1,0 +1,495 @@
+"""The report's summary: the rows averaged over seeds, the target checks, the break-even, and
+the Markdown report (its tables through ``vplace.markdown.table``)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from .. import job as pipeline
+from ..native import vplace
+from .config import (
+    BRIGHTNESS_TOLERANCE,
+    CAPTURE_CURVE,
+    CAPTURE_SPREAD,
+    EEVEE_SPREAD,
+    FIT_VIEW_SSIM,
+    HELD_OUT_SPREAD,
+    SSIM_MARGIN,
+    WITH_RT,
+    Row,
+    grid_budget,
+)
+
+
+def aggregate(rows: Sequence[Row]) -> list[Row]:
+    """One row per (scene, view, method, renderer, budget or samples): the mean over seeds of
+    every metric and time; ``extra`` holds ``seeds``, ``ssim_std`` and ``rmse_std``."""
+    groups: dict[tuple[Any, ...], list[Row]] = {}
+    for r in rows:
+        key = (r.scene, r.view, r.method, r.renderer, r.n_vpls, r.samples)
+        groups.setdefault(key, []).append(r)
+    out = []
+    keys = ("rmse", "relative_mse", "ssim", "brightness", "one_time_seconds", "frame_seconds")
+    for members in groups.values():
+        first = members[0]
+        mean = {k: float(np.mean([getattr(r, k) for r in members])) for k in keys}
+        kept = ("setup", "bake_seconds", "capture_seconds")
+        extra = {k: v for k, v in first.extra.items() if k in kept}
+        extra.update(
+            seeds=len(members),
+            by_seed={
+                str(r.seed): {"ssim": r.ssim, "rmse": r.rmse, "brightness": r.brightness}
+                for r in members
+                if r.seed is not None
+            },
+            ssim_std=float(np.std([r.ssim for r in members])),
+            rmse_std=float(np.std([r.rmse for r in members])),
+        )
+        out.append(
+            Row(
+                first.scene,
+                first.view,
+                first.role,
+                first.method,
+                first.renderer,
+                first.n_vpls,
+                first.samples,
+                shadow_rays=int(np.mean([r.shadow_rays for r in members])),
+                seed=first.seed if len(members) == 1 else None,
+                extra=extra,
+                **mean,
+            )
+        )
+    return out
+
+
+def same_lights(evaluator: Row, shown: Row) -> dict[str, float]:
+    """The evaluator's scores for the very lights ``shown`` (an EEVEE row) rendered: the seed's
+    run of an aggregated row, or the row itself for a deterministic method."""
+    by_seed = evaluator.extra.get("by_seed", {})
+    if shown.seed is not None and str(shown.seed) in by_seed:
+        return dict(by_seed[str(shown.seed)])
+    return {"ssim": evaluator.ssim, "rmse": evaluator.rmse, "brightness": evaluator.brightness}
+
+
+def _at(
+    rows: Sequence[Row], scene: str, view: str, method: str, renderer: str, n: int | None
+) -> Row | None:
+    return next(
+        (
+            r
+            for r in rows
+            if (r.scene, r.view, r.method, r.renderer, r.n_vpls)
+            == (scene, view, method, renderer, n)
+        ),
+        None,
+    )
+
+
+def targets(rows: list[Row]) -> list[dict[str, Any]]:
+    """The issues' targets on every scene of ``rows`` (means over seeds) at the grid budget."""
+    checks: list[dict[str, Any]] = []
+
+    def check(name: str, value: Any, met: bool, detail: str) -> None:
+        checks.append({"check": name, "value": value, "met": bool(met), "detail": detail})
+
+    for scene in dict.fromkeys(r.scene for r in rows):
+        mine = [r for r in rows if r.scene == scene]
+        budgets = sorted({r.n_vpls for r in mine if r.renderer == "evaluator" and r.n_vpls})
+        if not budgets:
+            continue
+        n = grid_budget(budgets)
+        views = list(dict.fromkeys((r.view, r.role) for r in mine))
+        fit_views = [v for v, role in views if role == "fit"]
+        held = [v for v, role in views if role == "held-out"]
+        ours = {v: _at(mine, scene, v, "vplace+refit", "evaluator", n) for v, _ in views}
+        if all(ours.values()):
+            fit_mean = float(np.mean([ours[v].ssim for v in fit_views]))
+            check(
+                f"{scene} N={n}: the fit views reach SSIM {FIT_VIEW_SSIM}",
+                fit_mean,
+                fit_mean >= FIT_VIEW_SSIM,
+                f"fit views' mean {fit_mean:.4f}",
+            )
+            for v in held:
+                gap = fit_mean - ours[v].ssim
+                check(
+                    f"{scene} {v} (held out) N={n}: within {HELD_OUT_SPREAD} SSIM of the fit "
+                    "views' mean",
+                    gap,
+                    gap <= HELD_OUT_SPREAD,
+                    f"{ours[v].ssim:.4f} against {fit_mean:.4f}: {gap:+.4f}",
+                )
+        for v, role in views:
+            us = ours.get(v)
+            if us is None:
+                continue
+            for base in ("uniform", "rsm"):
+                b = _at(mine, scene, v, base, "evaluator", n)
+                if b is not None:
+                    gap = us.ssim - b.ssim
+                    check(
+                        f"{scene} {v} ({role}) N={n}: vplace+refit SSIM >= {base} + {SSIM_MARGIN}",
+                        gap,
+                        gap >= SSIM_MARGIN,
+                        f"{us.ssim:.4f} against {b.ssim:.4f}: {gap:+.4f}",
+                    )
+            uniform = _at(mine, scene, v, "uniform", "evaluator", n)
+            if uniform is not None:
+                check(
+                    f"{scene} {v} ({role}) N={n}: not below uniform",
+                    us.ssim - uniform.ssim,
+                    us.ssim >= uniform.ssim,
+                    f"{us.ssim:.4f} against {uniform.ssim:.4f}",
+                )
+            direct = _at(mine, scene, v, "direct", "reference", None)
+            if role == "held-out" and direct is not None:
+                check(
+                    f"{scene} {v} (held out) N={n}: relative MSE below direct light's",
+                    us.relative_mse,
+                    us.relative_mse < direct.relative_mse,
+                    f"{us.relative_mse:.5f} against {direct.relative_mse:.5f}",
+                )
+            shown = _at(mine, scene, v, "vplace+refit", "eevee", n)
+            if shown is not None:
+                evaluated = same_lights(us, shown)["ssim"]
+                gap = evaluated - shown.ssim
+                check(
+                    f"{scene} {v} ({role}): EEVEE with the VPLs within {EEVEE_SPREAD} SSIM "
+                    "of the evaluator (the same lights)",
+                    gap,
+                    abs(gap) <= EEVEE_SPREAD,
+                    f"EEVEE {shown.ssim:.4f}, evaluator {evaluated:.4f}",
+                )
+                off = shown.brightness - 1
+                detail = f"{shown.brightness:.4f}x"
+                plain = _at(mine, scene, v, "eevee", "eevee", None)
+                if plain is not None and direct is not None:
+                    # EEVEE's own direct light against Cycles': a part vplace does not render.
+                    own = plain.brightness / direct.brightness
+                    detail += f"; EEVEE's direct light alone is {own:.3f}x Cycles' direct light"
+                check(
+                    f"{scene} {v} ({role}): EEVEE with the VPLs within "
+                    f"{BRIGHTNESS_TOLERANCE:.0%} of the truth's brightness",
+                    off,
+                    abs(off) <= BRIGHTNESS_TOLERANCE,
+                    detail,
+                )
+                volume = _at(mine, scene, v, "eevee rt + volume", "eevee", None)
+                if volume is not None:
+                    gap = shown.ssim - volume.ssim
+                    check(
+                        f"{scene} {v} ({role}): EEVEE with the VPLs >= EEVEE ray tracing + "
+                        f"volume + {SSIM_MARGIN}",
+                        gap,
+                        gap >= SSIM_MARGIN,
+                        f"{shown.ssim:.4f} against {volume.ssim:.4f}: {gap:+.4f}",
+                    )
+        curve = [r for r in mine if r.method == CAPTURE_CURVE and r.role == "fit"]
+        spps = sorted({r.samples for r in curve if r.samples})
+        default = pipeline.Job().samples
+        if default in spps and spps[-1] > default:
+            at = {spp: float(np.mean([r.ssim for r in curve if r.samples == spp])) for spp in spps}
+            gap = at[spps[-1]] - at[default]
+            check(
+                f"{scene}: the default capture ({default} spp) within {CAPTURE_SPREAD} SSIM of "
+                f"{spps[-1]} spp (fit views' mean)",
+                gap,
+                gap <= CAPTURE_SPREAD,
+                f"{at[default]:.4f} against {at[spps[-1]]:.4f}: {-gap:+.4f}",
+            )
+    return checks
+
+
+def break_even(rows: list[Row]) -> list[dict[str, Any]]:
+    """Per view: after how many frames vplace+refit (one-time cost plus its EEVEE frames) costs
+    less than Cycles + OIDN frames of at least the same SSIM (the fewest samples that reach it)."""
+    out = []
+    for r in rows:
+        if r.method != "vplace+refit" or r.renderer != "eevee":
+            continue
+        cycles = sorted(
+            (c for c in rows if (c.scene, c.view, c.method) == (r.scene, r.view, "cycles+oidn")),
+            key=lambda c: c.samples or 0,
+        )
+        if not cycles:
+            continue
+        match = next((c for c in cycles if c.ssim >= r.ssim), None)
+        entry: dict[str, Any] = {
+            "scene": r.scene,
+            "view": r.view,
+            "role": r.role,
+            "eevee_ssim": r.ssim,
+            "one_time_seconds": r.one_time_seconds,
+            "eevee_frame_seconds": r.frame_seconds,
+        }
+        if match is None:
+            top = cycles[-1]
+            entry.update(
+                cycles_samples=None, cycles_ssim=top.ssim, cycles_frame_seconds=top.frame_seconds
+            )
+            gain = top.frame_seconds - r.frame_seconds
+            entry["frames"] = None
+            entry["note"] = (
+                f"Cycles + OIDN at {top.samples} spp reaches only SSIM {top.ssim:.4f} in "
+                f"{top.frame_seconds:.1f} s; more samples would cost more per frame"
+                + (
+                    f": break-even after fewer than {math.ceil(r.one_time_seconds / gain)} frames"
+                    if gain > 0
+                    else ""
+                )
+            )
+        else:
+            gain = match.frame_seconds - r.frame_seconds
+            frames = math.ceil(r.one_time_seconds / gain) if gain > 0 else None
+            entry.update(
+                cycles_samples=match.samples,
+                cycles_ssim=match.ssim,
+                cycles_frame_seconds=match.frame_seconds,
+                frames=frames,
+            )
+            entry["note"] = (
+                f"break-even after {frames} frames"
+                if frames
+                else "never on this machine: an EEVEE frame costs at least a Cycles + OIDN frame"
+            )
+        out.append(entry)
+    return out
+
+
+def _fmt(value: float | None, spec: str) -> str:
+    return (
+        "-"
+        if value is None or (isinstance(value, float) and math.isnan(value))
+        else format(value, spec)
+    )
+
+
+def _sd(row: Row) -> str:
+    seeds = row.extra.get("seeds", 1)
+    return f" ({row.extra['ssim_std']:.3f})" if seeds > 1 else ""
+
+
+def _capture_curve_lines(rows: Sequence[Row]) -> list[str]:
+    """The table of :func:`capture_curve_rows` (mean SSIM over seeds), or nothing."""
+    curve = [r for r in rows if r.method == CAPTURE_CURVE]
+    if not curve:
+        return []
+    views = list(dict.fromkeys((r.view, r.role) for r in curve))
+    lines = [
+        f"### Capture samples against layout quality (vplace+refit, N={curve[0].n_vpls})",
+        "",
+        "The fit views captured at each sample count, the same fit, layout and refit, every view "
+        "scored with the evaluator against the truth. One-time s: captures, fit, layout, refit.",
+        "",
+        *vplace.markdown.table(
+            ["capture spp", "captures s", "one-time s", "fit views' SSIM", "held-out SSIM"]
+            + [v for v, _ in views],
+            [],
+        ),
+    ]
+    for spp in sorted({r.samples for r in curve if r.samples}):
+        mine = {r.view: r for r in curve if r.samples == spp}
+        first = next(iter(mine.values()))
+
+        def mean(role: str, mine: dict[str, Row] = mine) -> str:
+            values = [r.ssim for r in mine.values() if r.role == role]
+            return f"{np.mean(values):.4f}" if values else "-"
+
+        lines.append(
+            f"| {spp} | {first.extra['capture_seconds']:.1f} | {first.one_time_seconds:.1f} | "
+            f"{mean('fit')} | {mean('held-out')} | "
+            + " | ".join(f"{mine[v].ssim:.4f}" if v in mine else "-" for v, _ in views)
+            + " |"
+        )
+    return [*lines, ""]
+
+
+def _intro(result: dict[str, Any]) -> list[str]:
+    return [
+        "# vplace report",
+        "",
+        "Each method lays out one set of lights for all the fit views at once; every view, fit or "
+        "held out, is scored with those same lights. Evaluator rows: the ground truth's direct "
+        "light plus the evaluator's VPL indirect light over the view's G-buffer. EEVEE rows: what "
+        "a user sees, EEVEE rendering the written lights (float, Standard view, "
+        f"{result['config']['eevee_samples']} samples), or the alternatives a Blender user would "
+        "pick instead; Cycles + OIDN rows: Cycles at that many samples, denoised. Every image is "
+        "scored against a high-sample Cycles render of the view. SSIM on display luminance "
+        "(DESIGN: Metrics); RMSE and relative MSE on linear HDR; brightness is the mean luminance "
+        "over the truth's. One-time seconds: the captures of the fit views, the fit, the layout "
+        "and refit, or a volume's bake, paid once for every view and frame; frame seconds: one "
+        "image. Stochastic layouts run with seeds "
+        f"{list(result['config']['seeds'])}; rows show their mean (SSIM standard deviation in "
+        "brackets); `results.csv` has every run. EEVEE here is software OpenGL on 2 CPU cores: "
+        "its frame times are no measure of a GPU's.",
+        "",
+        f"Total report time: {result['seconds']:.0f} s.",
+        "",
+    ]
+
+
+def _evaluator_table(mine: Sequence[Row], budgets: Sequence[int]) -> list[str]:
+    """SSIM (sd) / RMSE of each evaluator method by VPL budget."""
+    tabled = (r.method for r in mine if r.renderer == "evaluator")
+    body = []
+    for method in dict.fromkeys(m for m in tabled if m != CAPTURE_CURVE):
+        cells = []
+        for n in budgets:
+            r = next(
+                (
+                    x
+                    for x in mine
+                    if x.method == method and x.renderer == "evaluator" and x.n_vpls == n
+                ),
+                None,
+            )
+            cells.append(f"{r.ssim:.3f}{_sd(r)} / {r.rmse:.4f}" if r else "-")
+        body.append([method, *cells])
+    return vplace.markdown.table(["method", *(f"N={n}" for n in budgets)], body)
+
+
+def _shown_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
+    """What a user sees (EEVEE with the grid budget's lights) and the alternatives."""
+    shown = [r for r in mine if r.renderer in ("eevee", "cycles")]
+    if not shown:
+        return []
+    body = []
+    for r in shown:
+        label = f"{r.renderer}: {r.method}"
+        if r.n_vpls:
+            label += f", N={r.n_vpls}"
+        if r.seed is not None:
+            label += f", seed {r.seed}"
+        if r.renderer == "cycles":
+            label += f", {r.samples} spp"
+        base = r.method.removesuffix(WITH_RT)
+        ev = _at(mine, name, view, base, "evaluator", r.n_vpls) if r.n_vpls else None
+        same = "{ssim:.3f} / {brightness:.3f}".format(**same_lights(ev, r)) if ev else "-"
+        body.append(
+            [
+                label,
+                f"{r.ssim:.3f}",
+                f"{r.rmse:.4f}",
+                f"{r.brightness:.3f}",
+                same,
+                f"{r.one_time_seconds:.1f}",
+                f"{r.frame_seconds:.1f}",
+            ]
+        )
+    header = ["image", "SSIM", "RMSE", "brightness"]
+    header += ["evaluator, same lights: SSIM / brightness", "one-time s", "frame s"]
+    return [
+        "",
+        "What a user sees (the grid budget's lights in EEVEE) and the alternatives:",
+        "",
+        *vplace.markdown.table(header, body),
+    ]
+
+
+def _scene_lines(name: str, info: dict[str, Any], rows: Sequence[Row]) -> list[str]:
+    """One scene's section: the fit, then per view the evaluator's and the renderers' tables."""
+    fit = info["fit"]
+    r2 = ", ".join(f"{v} {_fmt(x, '.3f')}" for v, x in fit["view_r2"].items())
+    lines = [
+        f"## {name}",
+        "",
+        f"Fit over {len(fit['view_r2'])} views: kept "
+        + ", ".join(fit["kept"])
+        + f" (R^2 {fit['r2']:.3f}; per view {r2}; {info['fit_seconds']:.2f} s). Captures of "
+        f"the fit views: {info['capture_seconds']:.1f} s.",
+        "",
+    ]
+    budgets = sorted({r.n_vpls for r in rows if r.scene == name and r.renderer == "evaluator"})
+    for view, v in info["views"].items():
+        mine = [r for r in rows if r.scene == name and r.view == view]
+        lines += [
+            f"### {view} ({v['role']} view)",
+            "",
+            f"{v['resolution'][0]}x{v['resolution'][1]} px, {v['triangles']} triangles; ground "
+            f"truth {v['truth_samples']} spp in {v['truth_seconds']:.1f} s. Images: "
+            + ", ".join(f"`{v[k]}`" for k in ("grid", "eevee_grid") if k in v)
+            + ".",
+            "",
+            "Evaluator, SSIM (sd) / RMSE by VPL budget:",
+            "",
+            *_evaluator_table(mine, budgets),
+        ]
+        direct = next((x for x in mine if x.method == "direct"), None)
+        if direct:
+            lines += ["", f"Direct light only: SSIM {direct.ssim:.3f}, RMSE {direct.rmse:.4f}."]
+        lines += _shown_table(mine, name, view)
+        lines.append("")
+    return lines + _capture_curve_lines([r for r in rows if r.scene == name])
+
+
+def _break_even_lines(found: Sequence[dict[str, Any]]) -> list[str]:
+    if not found:
+        return []
+    header = ["scene", "view", "EEVEE SSIM", "one-time s", "EEVEE frame s", "Cycles spp"]
+    header += ["Cycles SSIM", "Cycles frame s", "frames"]
+    body = [
+        [
+            b["scene"],
+            f"{b['view']} ({b['role']})",
+            f"{b['eevee_ssim']:.3f}",
+            f"{b['one_time_seconds']:.1f}",
+            f"{b['eevee_frame_seconds']:.1f}",
+            b["cycles_samples"] or "-",
+            f"{b['cycles_ssim']:.3f}",
+            f"{b['cycles_frame_seconds']:.1f}",
+            b["note"],
+        ]
+        for b in found
+    ]
+    return [
+        "## Break-even: vplace + EEVEE against Cycles + OIDN",
+        "",
+        "Frames after which vplace's one-time cost plus its EEVEE frames costs less than "
+        "Cycles + OIDN frames of at least the same SSIM (the fewest samples that reach it). "
+        "EEVEE's frame time is software OpenGL on 2 cores; a GPU's is unknown here (no GPU "
+        "was lent).",
+        "",
+        *vplace.markdown.table(header, body),
+        "",
+    ]
+
+
+def _targets_lines(found: Sequence[dict[str, Any]]) -> list[str]:
+    if not found:
+        return []
+    body = [[c["check"], "yes" if c["met"] else "**no**", c["detail"]] for c in found]
+    return ["## Targets", "", *vplace.markdown.table(["check", "met", "detail"], body), ""]
+
+
+def _par2d_lines(found: Sequence[dict[str, Any]]) -> list[str]:
+    if not found:
+        return []
+    body = [
+        [p["method"], p["rays"] or "-", f"{p['seconds']:.3f}", f"{p['rmse']:.3e}"] for p in found
+    ]
+    header = ["method", "rays", "seconds", "RMSE vs exact"]
+    return [
+        "## PAR 2D",
+        "",
+        *vplace.markdown.table(header, body),
+        "",
+        "Plot: `par2d_speed_error.png`.",
+        "",
+    ]
+
+
+def markdown(result: dict[str, Any], rows: list[Row]) -> str:
+    """The human-readable report."""
+    lines = _intro(result)
+    for name, info in result["scenes"].items():
+        lines += _scene_lines(name, info, rows)
+    lines += _break_even_lines(result["break_even"])
+    lines += _targets_lines(result["targets"])
+    lines += _par2d_lines(result["par2d"])
+    lines += ["## Files", "", *[f"- `{f}`" for f in result["files"]], ""]
+    return "\n".join(lines)

@@ -1,0 +1,66 @@
+"""settings.py: temporary setting changes, restored in the order they were made, also when the
+block raises."""
+
+from __future__ import annotations
+
+import bpy
+import pytest
+
+from addon.settings import SettingsGuard, at_frame, override
+
+
+class Recorder:
+    """An object that logs every attribute it is given, in order."""
+
+    def __init__(self, **values: object) -> None:
+        object.__setattr__(self, "log", [])
+        for name, value in values.items():
+            object.__setattr__(self, name, value)
+
+    def __setattr__(self, name: str, value: object) -> None:
+        self.log.append((name, value))
+        object.__setattr__(self, name, value)
+
+
+def test_override_restores_every_change_in_order_even_when_the_block_raises():
+    owner = Recorder(media_type="IMAGE", file_format="PNG", color_depth="8", size=(1, 2))
+    with pytest.raises(RuntimeError, match="boom"), override() as g:
+        g.set(owner, "media_type", "MULTI_LAYER_IMAGE")
+        g.set(owner, "file_format", "OPEN_EXR_MULTILAYER")
+        g.set(owner, "file_format", "OPEN_EXR")  # changed twice: the first old value is kept
+        g.set(owner, "color_depth", "32")
+        g.set(owner, "size", [3, 4])
+        raise RuntimeError("boom")
+    assert (owner.media_type, owner.file_format, owner.color_depth) == ("IMAGE", "PNG", "8")
+    assert owner.size == (1, 2)  # a sequence is saved as a copy, not a live view
+    restored = owner.log[-4:]
+    assert [name for name, _ in restored] == ["media_type", "file_format", "color_depth", "size"]
+
+
+def test_remember_records_values_that_a_change_would_reset():
+    owner = Recorder(media_type="IMAGE", file_format="PNG")
+    with override() as g:
+        g.remember(owner, ("media_type", "file_format"))
+        object.__setattr__(owner, "file_format", "JPEG")  # as Blender resets it behind our back
+        g.set(owner, "media_type", "VIDEO")
+    assert (owner.media_type, owner.file_format) == ("IMAGE", "PNG")
+
+
+def test_a_guard_restores_once():
+    owner = Recorder(x=1)
+    g = SettingsGuard()
+    g.set(owner, "x", 2)
+    g.restore()
+    owner.x = 5
+    g.restore()  # nothing left to restore
+    assert owner.x == 5
+
+
+def test_at_frame_comes_back_when_the_block_raises():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.frame_set(3)
+    with pytest.raises(ValueError), at_frame(scene, 10):
+        assert scene.frame_current == 10
+        raise ValueError
+    assert scene.frame_current == 3

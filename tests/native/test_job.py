@@ -1,0 +1,126 @@
+"""vplace.job: the one method dispatch, the fit, compute (lay out, evaluate, score), the
+baselines and the typed summaries, on the benchmark room (no Blender)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+import vplace
+from views import view
+from vplace import bench_layout
+from vplace import job as vjob
+
+
+@pytest.fixture(scope="module")
+def room():
+    scene, _ = bench_layout.build_scene(2)
+    cap = bench_layout.synthetic_capture(48, 32)
+    truth = vplace.uniform_vpls(scene, 128, seed=11)
+    indirect, _ = vplace.evaluate(scene, view(cap), truth)
+    fitted_view = view(cap, indirect=indirect, diffuse_indirect=indirect)
+    direct = np.asarray(cap["direct"], np.float32)
+    ref = vjob.Reference(
+        fitted_view, direct, direct + indirect, indirect, "the room", camera="c", samples=1
+    )
+    return scene, fitted_view, ref
+
+
+def settings(**change) -> vjob.LayoutSettings:
+    return vjob.LayoutSettings(**{"n_vpls": 16, "iterations": 1, "cell_px": 8, **change})
+
+
+@pytest.mark.parametrize("method", vjob.METHODS)
+def test_lay_out_dispatches_every_method(room, method):
+    scene, v, _ = room
+    laid = vjob.lay_out(scene, [v], settings(method=method))
+    assert 0 < len(laid.vpls) <= 16
+    guided = method.startswith("vplace")
+    assert (laid.layout is not None) == guided
+    assert (laid.refit is not None) == (method == "vplace+refit")
+    if laid.refit is not None:
+        assert np.array_equal(laid.vpls.flux, laid.refit.vpls.flux) and laid.refit_seconds > 0
+    assert laid.layout_seconds > 0
+    assert laid.vpls.radius == pytest.approx(scene.near_field_radius)
+
+
+def test_a_radius_and_a_timer_reach_the_layout(room):
+    scene, v, _ = room
+    timer = vjob.StageTimer(log=lambda _line: None)
+    laid = vjob.lay_out(scene, [v], settings(method="uniform", radius=0.05), timer=timer)
+    assert laid.vpls.radius == pytest.approx(0.05)
+    assert list(timer.seconds) == ["uniform VPLs (n=16)"]
+
+
+def test_compute_scores_against_the_reference(room):
+    scene, v, ref = room
+    out = vjob.compute(scene, [v], settings(method="vplace"), ref)
+    assert out.fit is not None and out.laid.layout is not None
+    assert out.indirect.shape == ref.gi.shape
+    base = vjob.score(ref.direct, ref.gi)
+    assert out.metrics["rmse_direct_only"] == pytest.approx(base["rmse"])
+    assert out.metrics["rmse"] == pytest.approx(
+        vjob.score(ref.direct + out.indirect, ref.gi)["rmse"]
+    )
+    assert out.metrics["rmse_indirect"] == pytest.approx(
+        vplace.rmse(out.indirect, ref.gi - ref.direct)
+    )
+
+
+def test_score_of_the_truth_is_perfect_and_ssim_needs_11_pixels():
+    rng = np.random.default_rng(0)
+    img = rng.random((16, 16, 3)).astype(np.float32)
+    s = vjob.score(img, img)
+    assert s["rmse"] == 0 and s["ssim"] == pytest.approx(1) and s["brightness"] == pytest.approx(1)
+    assert np.isnan(vjob.score(img[:10, :10], img[:10, :10])["ssim"])
+    assert vjob.score(2 * img, img)["brightness"] == pytest.approx(2, rel=1e-5)
+
+
+def test_baselines_share_the_fit_and_leave_the_method_out(room):
+    scene, v, ref = room
+    computed, compared = vjob.compute_with_baselines(
+        scene, [v], settings(method="vplace"), ref, vjob.METHODS
+    )
+    assert set(compared) == set(vjob.METHODS) - {"vplace"}
+    for b in compared.values():
+        assert set(b.metrics) == set(computed.metrics) and b.seconds > 0
+
+
+def test_method_name():
+    assert vjob.method_name("vplace", True) == "vplace+refit"
+    assert vjob.method_name("vplace", False) == "vplace"
+    assert vjob.method_name("uniform", True) == "uniform"
+
+
+def _summary(**change) -> vjob.JobSummary:
+    fields = dict(
+        scene="s", triangles=2, lights=1, views=["v"], skipped_views={}, resolution=[4, 3],
+        samples=1, capture_render_seconds=0.5, n_vpls=8, lights_written=7,
+        emitter_lights_written=0, method="uniform", alpha=1.0, iterations=3, profile="cosine",
+        radius=0.1, seed=0, stage_seconds={"fit": 0.25},
+        evaluator=vjob.EvaluatorSummary(10, 20, 0.5, 20.0), metrics={"rmse": 0.5},
+    )  # fmt: skip
+    return vjob.JobSummary(**{**fields, **change})
+
+
+def test_summary_json_has_the_main_jobs_fields_only_when_asked():
+    s = _summary(baselines={"rsm": vjob.Baseline({"rmse": 0.7}, 1.0)})
+    short, full = s.to_dict(), s.to_dict(main_job=True)
+    assert "baselines" not in short and "files" not in short
+    assert full["baselines"] == {"rsm": {"metrics": {"rmse": 0.7}, "seconds": 1.0}}
+    # The evaluator leaves out the figures a method does not have.
+    assert short["evaluator"] == {"shadow_rays": 10, "pairs": 20, "seconds": 0.5,
+                                  "rays_per_second": 20.0}  # fmt: skip
+    assert list(full)[: len(short)] == list(short)  # the same order, the main job's after
+
+
+def test_the_panel_reads_a_stored_summary_by_attribute():
+    fit = vjob.FitSummary(0.9, 0.8, {"v": 0.9}, ["a"], {"a": 1.0}, {"b": "constant"})
+    text = json.dumps(_summary(fit=fit).to_dict())
+    report = vjob.PanelReport.from_json(text)
+    assert report is not None and report.fit == fit
+    assert (report.n_vpls, report.profile, report.metrics) == (8, "cosine", {"rmse": 0.5})
+    assert vjob.PanelReport.from_json("") is None
+    assert vjob.PanelReport.from_json(json.dumps({"fit": dataclasses.asdict(fit)})).n_vpls == 0

@@ -1,0 +1,49 @@
+"""vplace.markdown: the one table writer and the main job's short report."""
+
+from __future__ import annotations
+
+from vplace import job as vjob
+from vplace import markdown
+
+
+def test_table_lines():
+    assert markdown.table(["a", "b"], [[1, "x"], [2.5, None]]) == [
+        "| a | b |",
+        "|---|---|",
+        "| 1 | x |",
+        "| 2.5 | None |",
+    ]
+    assert markdown.table(["only"], []) == ["| only |", "|---|"]
+
+
+def _report(**change) -> vjob.JobSummary:
+    m = {"rmse": 0.1, "relative_mse": 0.2, "ssim": 0.9, "brightness": 1.0}
+    metrics = {**m, **{f"{k}_direct_only": v / 2 for k, v in m.items()}}
+    fields = dict(
+        scene="box", triangles=12, lights=1, views=["c"], skipped_views={}, resolution=[32, 24],
+        samples=4, capture_render_seconds=1.0, n_vpls=16, lights_written=16,
+        emitter_lights_written=0, method="vplace+refit", alpha=1.0, iterations=3,
+        profile="cosine", radius=0.01, seed=0, stage_seconds={"export scene": 0.5},
+        evaluator=vjob.EvaluatorSummary(1000, 2000, 0.5, 2e6), metrics=metrics,
+        reference=vjob.ReferenceInfo("a ground truth", 64, "c"),
+    )  # fmt: skip
+    return vjob.JobSummary(**{**fields, **change})
+
+
+def test_job_report_rows():
+    text = markdown.job_report(_report(baselines={"rsm": vjob.Baseline(_report().metrics, 1)}))
+    assert text.startswith("# vplace report: box\n")
+    assert "| export scene | 0.50 |" in text
+    assert "Every image is scored against a ground truth." in text
+    assert "| direct only | 0.05000 | 0.10000 | 0.4500 | 0.500 |" in text
+    assert "| evaluator: direct + VPL indirect (vplace+refit) | 0.10000 |" in text
+    assert "(rsm, same N)" in text and "EEVEE" not in text
+    assert "Evaluator: 1000 shadow rays in 0.500 s = 2.00 M rays/s" in text
+
+
+def test_job_report_eevee_row():
+    e = {"rmse": 0.1, "relative_mse": 0.2, "ssim": 0.9, "brightness": 1.0, "seconds": 2.0}
+    text = markdown.job_report(_report(eevee={**e, "samples": 16, "world_volume_bake_seconds": 3}))
+    assert "| EEVEE with the written lights (16 samples, 2.0 s; the world's probe volume " in text
+    plain = markdown.job_report(_report(eevee={**e, "samples": 16}))
+    assert "| EEVEE with the written lights (16 samples, 2.0 s) | 0.10000 |" in plain
