@@ -1,13 +1,16 @@
-"""The one job pipeline: export -> capture -> fit -> VPLs -> evaluator -> write-back -> report.
+"""The Blender side of the one job: export -> capture -> fit -> VPLs -> evaluator -> write-back.
 
 Used by the operators, the command line (``python -m addon.cli``) and the report, which only
-loops over views, budgets and seeds. The stages:
+loops over views, budgets and seeds. The scene is handed forward, each stage entered once:
 
-- :func:`prepare` (Blender, main thread): export the scene, build the native scene with its BVH,
-  capture every view with Cycles (cached).
-- :func:`lay_out` (no bpy: safe on a worker thread): the one method dispatch of :data:`METHODS`.
-- :func:`compute`: :func:`lay_out`, then the evaluator and the metrics on the first view.
-- :func:`run_main_job`: all of it, the write-back, and the files of the report.
+- :func:`prepare` (Blender, main thread): the scene stage (``scene.convert.export_native``:
+  export, BVH), the capture stage (``capture.stage``: every view with Cycles, cached) and, for
+  the main job, the reference.
+- ``vplace.job`` (no bpy: safe on a worker thread): the fit, the one method dispatch of
+  :data:`METHODS`, the evaluator and the scores; :func:`lay_out` and :func:`compute` call it
+  on the prepared views.
+- ``writeback.stage``: the VPLs and stand-in lights written, EEVEE scored.
+- :func:`run_main_job`: all of it, and the files of the report (``vplace.job.write_files``).
 
 Every stage is timed and announced through a :class:`StageTimer`.
 """
@@ -96,7 +99,7 @@ class Job(vplace.job.LayoutSettings):
 
     @classmethod
     def from_settings(cls, settings: Any, cache_dir: Path | None = None) -> Job:
-        """A job from ``Scene.vplace`` (see properties.py)."""
+        """A job from ``Scene.vplace`` (see ui/properties.py)."""
         return cls(
             n_vpls=settings.vpl_budget,
             size=settings.capture_size,

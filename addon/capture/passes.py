@@ -125,7 +125,7 @@ class Capture:
 
     def reflectance(self, gloss: np.ndarray | None = None) -> np.ndarray:
         """What a receiver reflects of the light the VPLs give it: the diffuse albedo, plus the
-        Glossy Color pass where ``gloss`` (an (H, W) weight, ``native.gloss_mask``) says its
+        Glossy Color pass where ``gloss`` (an (H, W) weight, ``native_view.gloss_mask``) says its
         glossy layer is modelled."""
         if gloss is None:
             return self.albedo

@@ -182,6 +182,37 @@ class ReportConfig:
 
 
 @dataclass
+class RowDetails:
+    """What only some rows have (None where a row has not): written as the row's ``extra``."""
+
+    #: EEVEE rows: the set-up (``eevee.SETUPS``), and a probe volume's bake.
+    setup: str | None = None
+    bake_seconds: float | None = None
+    #: Capture-curve rows: the captures' seconds.
+    capture_seconds: float | None = None
+    #: Re-layout rows: per kept feature, where the view's cells lie outside the fit's range.
+    out_of_range: dict[str, float] | None = None
+    #: Regression-guided layouts: the iteration's errors, its best, the reused shadow rays.
+    iteration_errors: list[float] | None = None
+    best_iteration: int | None = None
+    shared_pixels: int | None = None
+    #: Refitted layouts.
+    refit_seconds: float | None = None
+    refit_error_before: float | None = None
+    refit_error_after: float | None = None
+    switched_off: int | None = None
+    #: Rows averaged over seeds (``summary.aggregate``): how many, each seed's scores, spreads.
+    seeds: int | None = None
+    by_seed: dict[str, dict[str, float]] | None = None
+    ssim_std: float | None = None
+    rmse_std: float | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The details a row has, JSON-ready."""
+        return {k: v for k, v in asdict(self).items() if v is not None}
+
+
+@dataclass
 class Row:
     """One scored image: a method (or an alternative) at a budget on a view, by a renderer."""
 
@@ -203,7 +234,7 @@ class Row:
     frame_seconds: float
     shadow_rays: int = 0
     seed: int | None = None
-    extra: dict[str, Any] = field(default_factory=dict)
+    details: RowDetails = field(default_factory=lambda: RowDetails())
 
     @property
     def one_minus_ssim(self) -> float:
@@ -211,8 +242,10 @@ class Row:
 
 
 def row_dict(row: Row) -> dict[str, Any]:
-    """A row as a flat JSON-ready dict (``extra`` kept nested)."""
+    """A row as a flat JSON-ready dict (its details kept nested as ``extra``)."""
     d = asdict(row)
+    del d["details"]
+    d["extra"] = row.details.to_dict()
     d["one_minus_ssim"] = row.one_minus_ssim
     return {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in d.items()}
 

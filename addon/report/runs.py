@@ -63,6 +63,7 @@ from .config import (
     WITH_RT,
     ReportConfig,
     Row,
+    RowDetails,
     ScenePreset,
     grid_budget,
     row_dict,
@@ -170,7 +171,7 @@ class LaidSet:
     seed: int | None
     vpls: vplace.VplSet
     one_time_seconds: float
-    extra: dict[str, Any] = field(default_factory=dict)
+    details: RowDetails = field(default_factory=lambda: RowDetails())
 
 
 def lay_out_all(
@@ -212,24 +213,25 @@ def lay_out_all(
                 layout = guided.layout
                 assert layout is not None
                 t = base + fit_seconds + guided.layout_seconds
-                extra: dict[str, Any] = {
-                    "iteration_errors": layout.errors,
-                    "best_iteration": layout.best,
-                    "shared_pixels": layout.shared_pixels,
-                }
+                details = RowDetails(
+                    iteration_errors=layout.errors,
+                    best_iteration=layout.best,
+                    shared_pixels=layout.shared_pixels,
+                )
                 vpls = layout.vpls
                 if method == "vplace+refit":
                     refitted = guided.refit
                     assert refitted is not None
                     t += guided.refit_seconds
                     vpls = refitted.vpls
-                    extra.update(
+                    details = replace(
+                        details,
                         refit_seconds=guided.refit_seconds,
                         refit_error_before=refitted.error_before,
                         refit_error_after=refitted.error_after,
                         switched_off=int((refitted.scales == 0).sum()),
                     )
-                rows.append(LaidSet(method, n, seed, vpls, t, extra))
+                rows.append(LaidSet(method, n, seed, vpls, t, details))
     return rows
 
 
@@ -264,7 +266,7 @@ def evaluator_rows(
                 frame_seconds=stats.seconds,
                 shadow_rays=stats.shadow_rays,
                 seed=s.seed,
-                extra=dict(s.extra),
+                details=replace(s.details),
                 **pipeline.score(estimate, truth.gi),
             )
             rows.append(row)
@@ -293,7 +295,7 @@ def evaluator_rows(
                             frame_seconds=stats.seconds,
                             shadow_rays=stats.shadow_rays,
                             seed=seed,
-                            extra={"out_of_range": outside},
+                            details=RowDetails(out_of_range=outside),
                             **pipeline.score(estimate, truth.gi),
                         )
                     )
@@ -349,7 +351,7 @@ def capture_curve_rows(
                         frame_seconds=stats.seconds,
                         shadow_rays=stats.shadow_rays,
                         seed=seed,
-                        extra={"capture_seconds": capture_seconds},
+                        details=RowDetails(capture_seconds=capture_seconds),
                         **pipeline.score(view.truth.direct + indirect, view.truth.gi),
                     )
                 )
@@ -402,7 +404,7 @@ class _EeveeRun:
         img: eevee.EeveeImage,
         one_time: float,
         samples: int | None,
-        extra: dict[str, Any] | None = None,
+        bake_seconds: float | None = None,
         seed: int | None = None,
     ) -> None:
         """Scores ``img`` against the view's truth as a row."""
@@ -418,7 +420,7 @@ class _EeveeRun:
             one_time_seconds=one_time,
             frame_seconds=img.seconds,
             seed=seed,
-            extra={"setup": setup, **(extra or {})},
+            details=RowDetails(setup=setup, bake_seconds=bake_seconds),
             **pipeline.score(img.image, view.truth.gi),
         )
         self.rows.append(row)
@@ -516,7 +518,7 @@ class _EeveeRun:
                         img,
                         bake,
                         config.eevee_samples,
-                        {"bake_seconds": bake},
+                        bake_seconds=bake,
                     )
                     images[view.name]["eevee rt + volume"] = img.image
         if "cycles+oidn" in config.alternatives:

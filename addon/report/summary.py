@@ -21,13 +21,15 @@ from .config import (
     SSIM_MARGIN,
     WITH_RT,
     Row,
+    RowDetails,
     grid_budget,
 )
 
 
 def aggregate(rows: Sequence[Row]) -> list[Row]:
     """One row per (scene, view, method, renderer, budget or samples): the mean over seeds of
-    every metric and time; ``extra`` holds ``seeds``, ``ssim_std`` and ``rmse_std``."""
+    every metric and time; its details hold ``seeds``, ``by_seed``, ``ssim_std`` and
+    ``rmse_std``."""
     groups: dict[tuple[Any, ...], list[Row]] = {}
     for r in rows:
         key = (r.scene, r.view, r.method, r.renderer, r.n_vpls, r.samples)
@@ -37,9 +39,11 @@ def aggregate(rows: Sequence[Row]) -> list[Row]:
     for members in groups.values():
         first = members[0]
         mean = {k: float(np.mean([getattr(r, k) for r in members])) for k in keys}
-        kept = ("setup", "bake_seconds", "capture_seconds")
-        extra = {k: v for k, v in first.extra.items() if k in kept}
-        extra.update(
+        d = first.details
+        details = RowDetails(
+            setup=d.setup,
+            bake_seconds=d.bake_seconds,
+            capture_seconds=d.capture_seconds,
             seeds=len(members),
             by_seed={
                 str(r.seed): {"ssim": r.ssim, "rmse": r.rmse, "brightness": r.brightness}
@@ -60,7 +64,7 @@ def aggregate(rows: Sequence[Row]) -> list[Row]:
                 first.samples,
                 shadow_rays=int(np.mean([r.shadow_rays for r in members])),
                 seed=first.seed if len(members) == 1 else None,
-                extra=extra,
+                details=details,
                 **mean,
             )
         )
@@ -70,7 +74,7 @@ def aggregate(rows: Sequence[Row]) -> list[Row]:
 def same_lights(evaluator: Row, shown: Row) -> dict[str, float]:
     """The evaluator's scores for the very lights ``shown`` (an EEVEE row) rendered: the seed's
     run of an aggregated row, or the row itself for a deterministic method."""
-    by_seed = evaluator.extra.get("by_seed", {})
+    by_seed = evaluator.details.by_seed or {}
     if shown.seed is not None and str(shown.seed) in by_seed:
         return dict(by_seed[str(shown.seed)])
     return {"ssim": evaluator.ssim, "rmse": evaluator.rmse, "brightness": evaluator.brightness}
@@ -270,8 +274,8 @@ def _fmt(value: float | None, spec: str) -> str:
 
 
 def _sd(row: Row) -> str:
-    seeds = row.extra.get("seeds", 1)
-    return f" ({row.extra['ssim_std']:.3f})" if seeds > 1 else ""
+    seeds = row.details.seeds or 1
+    return f" ({row.details.ssim_std:.3f})" if seeds > 1 else ""
 
 
 def _capture_curve_lines(rows: Sequence[Row]) -> list[str]:
@@ -301,7 +305,7 @@ def _capture_curve_lines(rows: Sequence[Row]) -> list[str]:
             return f"{np.mean(values):.4f}" if values else "-"
 
         lines.append(
-            f"| {spp} | {first.extra['capture_seconds']:.1f} | {first.one_time_seconds:.1f} | "
+            f"| {spp} | {first.details.capture_seconds:.1f} | {first.one_time_seconds:.1f} | "
             f"{mean('fit')} | {mean('held-out')} | "
             + " | ".join(f"{mine[v].ssim:.4f}" if v in mine else "-" for v, _ in views)
             + " |"

@@ -3,7 +3,7 @@
 Builds a fresh file holding a wavy terrain of ``(n - 1)^2 * 2`` triangles with a UV map and a
 Principled material whose base colour is a ``tex`` x ``tex`` image texture, plus a sun and a
 camera, then times :func:`export.export_scene` (the render depsgraph, triangles, UVs, the
-texture) and :func:`native.build_scene` (the core scene with its BVH), and reports the peak
+texture) and :func:`scene.convert.build_scene` (the core scene with its BVH), and reports the peak
 memory of the process (``ru_maxrss``) and the Python-side peak of the export (``tracemalloc``,
 which sees numpy's buffers). The export target of issue 14: under 3 s and within 2 GB for a
 million textured triangles.

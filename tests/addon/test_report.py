@@ -12,7 +12,7 @@ import pytest
 from addon.errors import ReportError
 from addon.report import runs as report
 from addon.report import summary
-from addon.report.config import CAPTURE_CURVE, RELAYOUT, WITH_RT, ReportConfig, Row
+from addon.report.config import CAPTURE_CURVE, RELAYOUT, WITH_RT, ReportConfig, Row, RowDetails
 from addon.scenes import registry as default_scene
 from addon.writeback import apply
 
@@ -200,7 +200,7 @@ def test_targets_compare_held_out_views_with_the_fit_mean_and_eevee_with_the_sam
     rows = [
         _row("A", "uniform", 256, 0.80),
         _row("A", "rsm", 256, 0.84),
-        _row("A", "vplace+refit", 256, 0.92, extra={"by_seed": {"0": {"ssim": 0.95}}}),
+        _row("A", "vplace+refit", 256, 0.92, details=RowDetails(by_seed={"0": {"ssim": 0.95}})),
         _row("B", "vplace+refit", 256, 0.90),
         _row("H", "uniform", 256, 0.70, role="held-out", relative_mse=0.2),
         _row("H", "vplace+refit", 256, 0.86, role="held-out", relative_mse=0.1),
