@@ -121,17 +121,22 @@ def lay_out(
     n = settings.n_vpls
     radius = settings.radius if settings.radius is not None else scene.near_field_radius
     views = list(views)
-    kind = dict(profile=settings.profile, radius=radius)
+    profile = settings.profile
     start = time.perf_counter()
     if settings.method == "uniform":
         with timer.stage(f"uniform VPLs (n={n})"):
             vpls = vplace.uniform_vpls(
-                scene, n, seed=settings.seed, bounces=vplace.MAX_BOUNCES, **kind
+                scene,
+                n,
+                seed=settings.seed,
+                bounces=vplace.MAX_BOUNCES,
+                profile=profile,
+                radius=radius,
             )
         return Laid(vpls, layout_seconds=time.perf_counter() - start)
     if settings.method == "rsm":
         with timer.stage(f"RSM VPLs (n={n})"):
-            vpls = vplace.rsm_vpls(scene, n, **kind)
+            vpls = vplace.rsm_vpls(scene, n, profile=profile, radius=radius)
         return Laid(vpls, layout_seconds=time.perf_counter() - start)
     if fitted is None:
         with timer.stage("fit regression"):
@@ -150,7 +155,8 @@ def lay_out(
             seed=settings.seed,
             stride=stride,
             progress=progress,
-            **kind,
+            profile=profile,
+            radius=radius,
         )
     out = Laid(laid.vpls, layout=laid, layout_seconds=time.perf_counter() - start)
     if settings.method == "vplace+refit" and all(v.has_indirect for v in views):
