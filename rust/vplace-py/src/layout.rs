@@ -4,9 +4,9 @@ use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use std::sync::Arc;
 use vplace_core::{
-    evaluator::EvalParams,
+    layout::refine,
     layout::{Allocation, IndirectSource, LayoutParams, Strata},
-    refine,
+    shade::evaluator::EvalParams,
     view::View,
     vpl,
 };

@@ -4,7 +4,7 @@ use numpy::PyArray1;
 use pyo3::prelude::*;
 use std::sync::Arc;
 use vplace_core::{
-    refit::{refit as refit_vpls, RefitParams, Refitted},
+    layout::refit::{refit as refit_vpls, RefitParams, Refitted},
     view::View,
 };
 

@@ -5,8 +5,8 @@ use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use std::sync::Arc;
 use vplace_core::{
-    evaluator::{self, validate_vpls, EvalParams, EvalStats},
-    rsm,
+    layout::rsm,
+    shade::evaluator::{self, validate_vpls, EvalParams, EvalStats},
     vpl::{self, Profile, Vpl},
 };
 

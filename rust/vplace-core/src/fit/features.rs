@@ -27,9 +27,9 @@ use rayon::prelude::*;
 use crate::color::luminance;
 use crate::color::LUMINANCE;
 use crate::error::{Result, VplaceError};
-use crate::regression::{self, DropReason, Fit, FitParams};
+use crate::fit::regression::{self, DropReason, Fit, FitParams};
 use crate::scene::{LightKind, Scene};
-use crate::view::View;
+use crate::view::{check_len, View};
 
 /// Where a feature comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -228,22 +228,6 @@ struct Acc {
     label: f64,
 }
 
-fn check_len(what: &str, arr: &[f32], h: usize, w: usize, c: usize) -> Result<()> {
-    if arr.len() == h * w * c {
-        return Ok(());
-    }
-    let expected = if c == 1 {
-        format!("({h}, {w})")
-    } else {
-        format!("({h}, {w}, {c})")
-    };
-    Err(VplaceError::Shape {
-        what: what.into(),
-        expected,
-        got: format!("{} values", arr.len()),
-    })
-}
-
 #[inline]
 fn lum(v: &[f32]) -> f32 {
     luminance(Vec3::from_slice(v))
@@ -270,22 +254,16 @@ impl FeatureInput<'_> {
             ("albedo", self.albedo),
             ("direct", self.direct),
         ] {
-            check_len(what, arr, h, w, 3)?;
+            check_len(what, arr.len(), w, h, 3)?;
         }
         if let Some(ind) = self.indirect {
-            check_len("indirect", ind, h, w, 3)?;
+            check_len("indirect", ind.len(), w, h, 3)?;
         }
         if let Some(s) = self.specular {
-            check_len("specular", s, h, w, 3)?;
+            check_len("specular", s.len(), w, h, 3)?;
         }
-        check_len("depth", self.depth, h, w, 1)?;
-        if self.covered.len() != h * w {
-            return Err(VplaceError::Shape {
-                what: "covered".into(),
-                expected: format!("({h}, {w})"),
-                got: format!("{} values", self.covered.len()),
-            });
-        }
+        check_len("depth", self.depth.len(), w, h, 1)?;
+        check_len("covered", self.covered.len(), w, h, 1)?;
         match self.light {
             Some(StrongestLight::Position(p)) if !p.is_finite() => Err(VplaceError::NonFinite {
                 what: "light position".into(),
@@ -689,7 +667,7 @@ pub const VIEW_DEPENDENT: &str =
     "depends on the view, not on the surface: the lights must hold from every view";
 
 /// Normalizes the features of `cells` (the cells of the views named `names`, in order) and fits
-/// their label (see [`crate::regression`]); `light` is what the light-cosine feature was computed
+/// their label (see [`crate::fit::regression`]); `light` is what the light-cosine feature was computed
 /// with. Features whose input was not given are reported as [`DropReason::Unavailable`]; with
 /// `surface_only` the features that are not properties of the surface ([`FeatureDef::surface`])
 /// are left out, reported as [`DropReason::Excluded`].

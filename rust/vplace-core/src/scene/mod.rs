@@ -11,6 +11,9 @@
 //! filter in the traversal. A scene without any texture or alpha test keeps no per-hit material
 //! data at all and traverses exactly as before.
 
+pub mod emitters;
+pub mod texture;
+
 use glam::{UVec2, Vec2, Vec3, Vec3A};
 use obvhs::{
     cwbvh::{
@@ -25,11 +28,15 @@ use obvhs::{
 use std::sync::Arc;
 use std::time::Duration;
 
-use crate::emitters::{EmissiveMesh, EnvironmentMap};
 use crate::error::{check_finite, Result, VplaceError};
-use crate::shading::NEAR_FIELD_FRACTION;
-use crate::texture::{AlphaTest, Texture, TextureRef};
+use crate::scene::emitters::{EmissiveMesh, EnvironmentMap};
+use crate::scene::texture::{AlphaTest, Texture, TextureRef};
 
+/// The default near-field radius `radius` as a fraction of the scene diagonal
+/// ([`Scene::near_field_radius`]; the shading kernel, `shade::shading`, bounds
+/// the `1 / r^2` of a cosine VPL with the disk of this radius): VPL spacing grows with the scene, so the radius
+/// within which a VPL's `1 / r^2` is bounded does too.
+pub const NEAR_FIELD_FRACTION: f32 = 0.01;
 /// obvhs's `medium_build` with the full PLOC search distance from the first pass
 /// (`search_depth_threshold: 0`; the preset uses distance 1 for the first 3 passes). On rooms of
 /// large coplanar triangles (walls subdivided in grids: the Cornell box, the layout benchmark)
@@ -42,7 +49,7 @@ const BVH_BUILD: BvhBuildParams = BvhBuildParams {
 };
 
 /// The emitting shape of a [`Light`]. Radiometry follows Blender's Cycles exactly (see DESIGN,
-/// Coordinates and units, and the module docs of [`crate::emitters`], which sample them).
+/// Coordinates and units, and the module docs of [`crate::scene::emitters`], which sample them).
 #[derive(Debug, Clone, PartialEq)]
 pub enum LightKind {
     /// Blender POINT of power `P`: intensity `P / (4 pi)` in every direction. With a `radius`
@@ -527,7 +534,7 @@ pub struct Scene {
     bounds_max: Vec3,
     /// Number of zero-area triangles (kept, never hit).
     pub degenerate_triangles: usize,
-    /// The triangles whose material emits, sampled by power ([`crate::emitters`]).
+    /// The triangles whose material emits, sampled by power ([`crate::scene::emitters`]).
     emissive: EmissiveMesh,
     /// Textures, UVs and alpha tests; `None` when no material has a texture or an alpha test
     /// (then nothing per hit is looked up).
@@ -897,7 +904,7 @@ impl Scene {
     }
 
     /// The default near-field radius of the scene's VPLs: [`NEAR_FIELD_FRACTION`] of the
-    /// diagonal (VPL spacing grows with the scene; see [`crate::shading::near_field`]).
+    /// diagonal (VPL spacing grows with the scene; see `shade::shading::near_field`).
     #[must_use]
     pub fn near_field_radius(&self) -> f32 {
         NEAR_FIELD_FRACTION * self.diagonal()
@@ -1170,7 +1177,7 @@ impl Surfaces {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_util::{box_with, closed_box};
+    use crate::test_util::{box_with, card_scene, closed_box, extend};
 
     #[test]
     fn closest_hit_and_occlusion() {
@@ -1284,40 +1291,6 @@ mod tests {
     /// `(-0.5, -0.5)`, `(0.5, -0.5)`, `(0.5, 0.5)`, `(-0.5, 0.5)`, its UVs the unit square
     /// (`u` along x, `v` along y), material 1 = `card`; box UVs zero. Texture 0: 2 x 1 texels,
     /// left (u < 0.5) red with alpha 0, right green with alpha 1, read with `Extend`.
-    fn card_scene(card: Material, lights: Vec<Light>) -> Scene {
-        let corners = [
-            Vec3::new(-0.5, -0.5, 1.0),
-            Vec3::new(0.5, -0.5, 1.0),
-            Vec3::new(0.5, 0.5, 1.0),
-            Vec3::new(-0.5, 0.5, 1.0),
-        ];
-        let (v, t) = crate::test_util::box_geometry(&[corners]);
-        let mut ids = vec![0u32; t.len()];
-        let mut uvs = vec![[Vec2::ZERO; 3]; t.len()];
-        let (a, b, c, d) = (Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y);
-        ids[12..].fill(1);
-        uvs[12] = [a, b, c];
-        uvs[13] = [a, c, d];
-        let texture = Texture::new("t", 2, 1, 4, &[1., 0., 0., 0., 0., 1., 0., 1.]).unwrap();
-        Scene::new(SceneInput {
-            vertices: &v,
-            triangles: &t,
-            material_ids: &ids,
-            materials: &[Material::diffuse(Vec3::splat(0.5)), card],
-            lights,
-            uvs: Some(&uvs),
-            textures: vec![texture],
-        })
-        .unwrap()
-    }
-
-    fn extend(texture: u32) -> TextureRef {
-        TextureRef {
-            wrap: crate::texture::Wrap::Extend,
-            ..TextureRef::new(texture)
-        }
-    }
-
     #[test]
     fn albedo_at_hits_reads_the_texture() {
         let card = Material::textured(extend(0), Vec3::new(0.8, 0.6, 1.0));
@@ -1408,96 +1381,6 @@ mod tests {
             };
             let s = card_scene(card, vec![]);
             assert_eq!(s.occluded(below(0.3), above(0.3)), blocked, "{alpha}");
-        }
-    }
-
-    #[test]
-    fn light_paths_pass_cut_texels_and_stop_at_opaque_ones() {
-        let light = Light::point(Vec3::new(0.0, 0.0, 1.9), Vec3::splat(10.0));
-        let card = Material {
-            alpha_test: Some(AlphaTest::texture(extend(0))),
-            ..Material::diffuse(Vec3::splat(0.5))
-        };
-        let s = card_scene(card, vec![light.clone()]);
-        let opaque = card_scene(Material::diffuse(Vec3::splat(0.5)), vec![light]);
-        let v = crate::vpl::uniform_vpls(&s, 4000, 3).unwrap();
-        let on_card = |v: &&crate::vpl::Vpl| {
-            (v.position.z - 1.0).abs() < 0.01
-                && v.position.x.abs() < 0.5
-                && v.position.y.abs() < 0.5
-        };
-        // Seen from the light, the card's point at x lies over the floor's point at x / 0.47:
-        // the cut part (x < -0.25) shades nothing beyond x < -0.53 on the floor, the opaque
-        // part (x > 0) shades the floor's x in (0, 1).
-        let under = |v: &&crate::vpl::Vpl, x0: f32, x1: f32| {
-            v.position.z < 0.01 && (x0..x1).contains(&v.position.x) && v.position.y.abs() < 0.8
-        };
-        let (cut, opaque_half) = ((-0.95, -0.6), (0.05, 0.9));
-        // No VPL on the cut half of the card; VPLs on its opaque half.
-        assert_eq!(
-            v.iter()
-                .filter(on_card)
-                .filter(|v| v.position.x < -0.25)
-                .count(),
-            0
-        );
-        assert!(
-            v.iter()
-                .filter(on_card)
-                .filter(|v| v.position.x > 0.0)
-                .count()
-                > 100
-        );
-        // The floor under the cut half is lit through it; under the opaque half it is not.
-        assert!(v.iter().filter(|v| under(v, cut.0, cut.1)).count() > 30);
-        assert_eq!(
-            v.iter()
-                .filter(|v| under(v, opaque_half.0, opaque_half.1))
-                .count(),
-            0
-        );
-        // The opaque card shadows both halves.
-        let w = crate::vpl::uniform_vpls(&opaque, 4000, 3).unwrap();
-        assert_eq!(w.iter().filter(|v| under(v, cut.0, cut.1)).count(), 0);
-        // RSM rays too.
-        let r = crate::rsm::rsm_vpls(&s, 2000).unwrap();
-        assert_eq!(
-            r.iter()
-                .filter(on_card)
-                .filter(|v| v.position.x < -0.25)
-                .count(),
-            0
-        );
-        assert!(r.iter().filter(|v| under(v, cut.0, cut.1)).count() > 10);
-        assert_eq!(
-            r.iter()
-                .filter(|v| under(v, opaque_half.0, opaque_half.1))
-                .count(),
-            0
-        );
-    }
-
-    #[test]
-    fn light_paths_reflect_the_textured_albedo() {
-        // A textured floor under a point light: VPLs on the red half carry red flux only.
-        let light = Light::point(Vec3::new(0.0, 0.0, 1.9), Vec3::splat(10.0));
-        let s = card_scene(Material::textured(extend(0), Vec3::ONE), vec![light]);
-        let v = crate::vpl::uniform_vpls(&s, 3000, 8).unwrap();
-        let card: Vec<_> = v
-            .iter()
-            .filter(|v| (v.position.z - 1.0).abs() < 0.01)
-            .filter(|v| v.position.x.abs() < 0.5 && v.position.y.abs() < 0.5)
-            .collect();
-        assert!(card.len() > 100);
-        for v in card {
-            let u = v.position.x + 0.5;
-            let g = ((u - 0.25) / 0.5).clamp(0.0, 1.0);
-            let ratio = v.flux / v.flux.max_element();
-            let expect = Vec3::new(1.0 - g, g, 0.0) / (1.0 - g).max(g);
-            assert!(
-                (ratio - expect).abs().max_element() < 1e-3,
-                "{u}: {ratio} {expect}"
-            );
         }
     }
 

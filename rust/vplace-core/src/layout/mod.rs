@@ -34,7 +34,11 @@
 //! luminance `lum(F_group) / n` with its emitter's chromaticity, so the total reflected
 //! luminance flux is the same for every allocation: the layout moves accuracy, not energy.
 //!
-//! The iteration that moves budget toward cells with a high residual is [`crate::refine`].
+//! The iteration that moves budget toward cells with a high residual is [`crate::layout::refine`].
+
+pub mod refine;
+pub mod refit;
+pub mod rsm;
 
 use glam::{Mat4, Vec3};
 use rayon::prelude::*;
@@ -45,7 +49,7 @@ use crate::color::{luminance, luminance_f64};
 use crate::error::{Result, VplaceError};
 use crate::rng::Rng;
 use crate::scene::Scene;
-use crate::shading::{Batch, VplSoa};
+use crate::shade::shading::{Batch, VplSoa};
 use crate::view::View;
 use crate::vpl::{light_path_vpls, Profile, Vpl, MAX_BOUNCES};
 
@@ -533,7 +537,7 @@ const EMITTER_CHUNK: usize = 256;
 
 /// The view efficiency `eta_e` of each emitter: the mean over `samples` (position, unit normal,
 /// albedo) of `albedo / pi * I(cos_e) * max(0, n_p . l) * F(r)`, the shading term of
-/// [`crate::shading`] for the cosine profile without shadow rays (the radiance an emitter of
+/// [`crate::shade::shading`] for the cosine profile without shadow rays (the radiance an emitter of
 /// unit flux sends back from each sample pixel; `F` the near-field term with radius `radius`).
 /// Parallel over chunks of emitters; each sample shades a chunk in one batch.
 #[must_use]

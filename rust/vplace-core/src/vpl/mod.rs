@@ -7,9 +7,9 @@ use glam::Vec3;
 use std::f32::consts::PI;
 
 use crate::color::luminance;
-use crate::emitters::{cosine_direction, emitter_power, light_power, sample_emission};
 use crate::error::{Result, VplaceError};
 use crate::rng::Rng;
+use crate::scene::emitters::{cosine_direction, emitter_power, light_power, sample_emission};
 use crate::scene::{Light, Scene};
 
 /// How a VPL radiates its flux `Phi`.
@@ -66,7 +66,7 @@ impl Vpl {
     pub const SURFACE_OFFSET: f32 = 1e-3;
 }
 
-/// Total power a light emits into the scene (RGB watts; see [`crate::emitters`]).
+/// Total power a light emits into the scene (RGB watts; see [`crate::scene::emitters`]).
 #[must_use]
 pub fn emitted_power(light: &Light, scene: &Scene) -> Vec3 {
     light_power(light, scene)

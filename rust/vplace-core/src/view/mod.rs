@@ -16,7 +16,9 @@
 use glam::{Mat4, Vec3};
 
 use crate::error::{check_finite, Result, VplaceError};
-use crate::evaluator::GBuffer;
+
+mod gbuffer;
+pub use gbuffer::{check_len, GBuffer};
 
 /// The camera of a view.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -116,21 +118,6 @@ pub struct View {
     pub camera: Camera,
     /// Covered pixels the caller gave that were masked for a non-finite lighting pass.
     pub masked_pixels: usize,
-}
-
-fn check_len(what: &str, len: usize, w: usize, h: usize, c: usize) -> Result<()> {
-    if len == w * h * c {
-        return Ok(());
-    }
-    Err(VplaceError::Shape {
-        what: what.into(),
-        expected: if c == 1 {
-            format!("({h}, {w})")
-        } else {
-            format!("({h}, {w}, {c})")
-        },
-        got: format!("{len} values"),
-    })
 }
 
 impl View {
