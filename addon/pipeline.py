@@ -300,9 +300,11 @@ def fit(prepared: Prepared, job: Job, views: Sequence[vplace.View] | None = None
     return vplace.fit(
         prepared.scene,
         list(views if views is not None else prepared.views),
-        cell_px=job.cell_px,
-        surface_only=job.feature_mode == "auto",
-        select=job.feature_mode != "all",
+        vplace.FitParams(
+            cell_px=job.cell_px,
+            surface_only=job.feature_mode == "auto",
+            select=job.feature_mode != "all",
+        ),
     )
 
 
@@ -354,22 +356,26 @@ def lay_out(
         laid = vplace.layout(
             scene,
             views,
+            vplace.LayoutParams(
+                budget=n,
+                alpha=job.alpha,
+                cell_px=job.cell_px,
+                iterate=job.iterations > 0,
+                iterations=max(job.iterations, 1),
+                seed=job.seed,
+                stride=stride,
+                **kind,
+            ),
             fit=fitted,
-            budget=n,
-            alpha=job.alpha,
-            cell_px=job.cell_px,
-            iterate=job.iterations > 0,
-            iterations=max(job.iterations, 1),
-            seed=job.seed,
-            stride=stride,
             progress=progress,
-            **kind,
         )
     out = Laid(laid.vpls, layout=laid, layout_seconds=time.perf_counter() - start)
     if job.method == "vplace+refit" and all(v.has_indirect for v in views):
         with timer.stage("refit VPL powers"):
             start = time.perf_counter()
-            out.refit = vplace.refit(scene, views, laid.vpls, stride=stride, progress=progress)
+            out.refit = vplace.refit(
+                scene, views, laid.vpls, vplace.RefitParams(stride=stride), progress=progress
+            )
             out.refit_seconds = time.perf_counter() - start
         out.vpls = out.refit.vpls
     return out

@@ -7,8 +7,8 @@ use pyo3::types::PyDict;
 use std::sync::Arc;
 use vplace_core::{
     fit::features::{
-        self, CellFeatures, CellModel, FeatureInput, StrongestLight, ViewFit, FEATURES,
-        FEATURE_COUNT,
+        self, CellFeatures, CellModel, FeatureInput, StrongestLight, ViewFit, ViewFitParams,
+        FEATURES, FEATURE_COUNT,
     },
     fit::model::{light_to_tuple, Fitted, Model},
     fit::regression::{self, Fit, FitParams},
@@ -17,6 +17,7 @@ use vplace_core::{
 
 use crate::arrays::{array, slice, Dim};
 use crate::errors::{input_error, run};
+use crate::params::PyFitParams;
 use crate::scene::PyScene;
 use crate::view::{views_of, PyView};
 
@@ -362,51 +363,91 @@ impl PyFit {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
-fn fit_params(
-    folds: usize,
-    select: bool,
-    min_cv_gain: f64,
-    collinear_rtol: f64,
-    rank_rtol: Option<f64>,
-    ridge_above: f64,
-    seed: u64,
-) -> FitParams {
-    FitParams {
-        folds,
-        select,
-        min_cv_gain,
-        collinear_rtol,
-        rank_rtol,
-        ridge_above,
-        seed,
-    }
-}
-
 fn registry_names() -> Vec<String> {
     FEATURES.iter().map(|f| f.name.to_owned()).collect()
 }
 
-fn cells_to_dict(py: Python<'_>, c: CellFeatures) -> PyResult<Bound<'_, PyDict>> {
-    let n = c.cells.len();
-    let d = PyDict::new(py);
-    d.set_item("names", registry_names())?;
-    d.set_item("cell_px", c.cell_px)?;
-    d.set_item("cells_x", c.cells_x)?;
-    d.set_item("cells_y", c.cells_y)?;
-    let cells: Vec<i64> = c.cells.iter().map(|&i| i as i64).collect();
-    d.set_item("cells", PyArray1::from_vec(py, cells))?;
-    d.set_item(
-        "values",
-        PyArray1::from_vec(py, c.values).reshape([n, FEATURE_COUNT])?,
-    )?;
-    d.set_item("label", c.label.map(|l| PyArray1::from_vec(py, l)))?;
-    let pixels: Vec<i64> = c.pixels.iter().map(|&i| i64::from(i)).collect();
-    d.set_item("pixels", PyArray1::from_vec(py, pixels))?;
-    d.set_item("empty_cells", c.empty_cells)?;
-    d.set_item("masked_pixels", c.masked_pixels)?;
-    d.set_item("available", c.available.to_vec())?;
-    Ok(d)
+/// The per-cell features of one view (`vplace.extract_features`).
+#[pyclass(name = "CellFeatures", module = "vplace._native", frozen)]
+pub struct PyCellFeatures {
+    inner: CellFeatures,
+}
+
+#[pymethods]
+impl PyCellFeatures {
+    /// The feature names, in column order.
+    #[getter]
+    fn names(&self) -> Vec<String> {
+        registry_names()
+    }
+    /// Cell size, pixels.
+    #[getter]
+    fn cell_px(&self) -> usize {
+        self.inner.cell_px
+    }
+    /// Cells per image row.
+    #[getter]
+    fn cells_x(&self) -> usize {
+        self.inner.cells_x
+    }
+    /// Cells per image column.
+    #[getter]
+    fn cells_y(&self) -> usize {
+        self.inner.cells_y
+    }
+    /// Flat grid index (row-major, row 0 at the top) of every non-empty cell, int64.
+    #[getter]
+    fn cells<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<i64>> {
+        let cells: Vec<i64> = self.inner.cells.iter().map(|&i| i as i64).collect();
+        PyArray1::from_vec(py, cells)
+    }
+    /// Raw per-cell values, float64 (cells, features).
+    #[getter]
+    fn values<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let n = self.inner.cells.len();
+        Ok(PyArray1::from_slice(py, &self.inner.values)
+            .reshape([n, FEATURE_COUNT])?
+            .into_any())
+    }
+    /// The label per listed cell (float64), or None without an indirect image.
+    #[getter]
+    fn label<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        self.inner
+            .label
+            .as_ref()
+            .map(|l| PyArray1::from_slice(py, l))
+    }
+    /// Usable pixels per listed cell, int64.
+    #[getter]
+    fn pixels<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<i64>> {
+        let pixels: Vec<i64> = self.inner.pixels.iter().map(|&i| i64::from(i)).collect();
+        PyArray1::from_vec(py, pixels)
+    }
+    /// Cells of the grid without a usable pixel.
+    #[getter]
+    fn empty_cells(&self) -> usize {
+        self.inner.empty_cells
+    }
+    /// Covered pixels dropped for a non-finite pass.
+    #[getter]
+    fn masked_pixels(&self) -> usize {
+        self.inner.masked_pixels
+    }
+    /// Per feature: false when its input was not given.
+    #[getter]
+    fn available(&self) -> Vec<bool> {
+        self.inner.available.to_vec()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "CellFeatures({} cells of {} px, {} x {} grid)",
+            self.inner.cells.len(),
+            self.inner.cell_px,
+            self.inner.cells_x,
+            self.inner.cells_y
+        )
+    }
 }
 
 /// The strongest light of `scene` for `views`.
@@ -418,76 +459,49 @@ fn light_for(scene: &PyScene, views: &[Arc<View>]) -> Option<StrongestLight> {
 /// Per-cell features of one view (see `vplace.extract_features`).
 #[pyfunction]
 #[pyo3(signature = (scene, view, *, cell_px = 16))]
-fn extract_features<'py>(
-    py: Python<'py>,
+fn extract_features(
+    py: Python<'_>,
     scene: &PyScene,
     view: &PyView,
     cell_px: usize,
-) -> PyResult<Bound<'py, PyDict>> {
+) -> PyResult<PyCellFeatures> {
     let v = Arc::clone(&view.inner);
     let light = light_for(scene, std::slice::from_ref(&v));
-    let cells = run(py, move || {
+    let inner = run(py, move || {
         features::extract_features(&FeatureInput::of(&v, light), cell_px)
     })?;
-    cells_to_dict(py, cells)
+    Ok(PyCellFeatures { inner })
 }
 
 /// Fits one model on the cells of every view (see `vplace.fit`).
 #[pyfunction]
-#[pyo3(signature = (scene, views, *, cell_px = 16, surface_only = true, folds = 5,
-    select = true, min_cv_gain = 1e-3, collinear_rtol = 1e-6, rank_rtol = None,
-    ridge_above = 1e6, seed = 0x5eed))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (scene, views, params = None))]
 fn fit(
     py: Python<'_>,
     scene: &PyScene,
     views: Vec<Bound<'_, PyView>>,
-    cell_px: usize,
-    surface_only: bool,
-    folds: usize,
-    select: bool,
-    min_cv_gain: f64,
-    collinear_rtol: f64,
-    rank_rtol: Option<f64>,
-    ridge_above: f64,
-    seed: u64,
+    params: Option<&PyFitParams>,
 ) -> PyResult<PyFit> {
     let views = views_of(&views);
     let light = light_for(scene, &views);
-    let params = fit_params(
-        folds,
-        select,
-        min_cv_gain,
-        collinear_rtol,
-        rank_rtol,
-        ridge_above,
-        seed,
-    );
+    let p = params.map_or(ViewFitParams::DEFAULT, |p| p.inner);
     let model = run(py, move || {
         let refs: Vec<&View> = views.iter().map(|v| v.as_ref()).collect();
-        features::fit_views(&refs, light, cell_px, surface_only, &params)
+        features::fit_views(&refs, light, p.cell_px, p.surface_only, &p.regression)
     })?;
     Ok(PyFit::new(registry_names(), Fitted::Views(model)))
 }
 
 /// Fits `y` (float64 (n,)) on the columns of `x` (float64 (n, p)) with the solver of `fit`
-/// (see `vplace.fit_design`).
+/// (see `vplace.fit_design`; only the regression's settings of `params` are read).
 #[pyfunction]
-#[pyo3(signature = (x, y, *, names = None, folds = 5, select = true, min_cv_gain = 1e-3,
-    collinear_rtol = 1e-6, rank_rtol = None, ridge_above = 1e6, seed = 0x5eed))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (x, y, params = None, *, names = None))]
 fn fit_design(
     py: Python<'_>,
     x: &Bound<'_, PyAny>,
     y: &Bound<'_, PyAny>,
+    params: Option<&PyFitParams>,
     names: Option<Vec<String>>,
-    folds: usize,
-    select: bool,
-    min_cv_gain: f64,
-    collinear_rtol: f64,
-    rank_rtol: Option<f64>,
-    ridge_above: f64,
-    seed: u64,
 ) -> PyResult<PyFit> {
     let xa = array::<f64>(x, "x", &[Dim::Any, Dim::Any], "float64")?;
     let (n, p) = (xa.shape()[0], xa.shape()[1]);
@@ -500,15 +514,7 @@ fn fit_design(
         )));
     }
     let (xs, ys) = (slice(&xa, "x")?, slice(&ya, "y")?);
-    let params = fit_params(
-        folds,
-        select,
-        min_cv_gain,
-        collinear_rtol,
-        rank_rtol,
-        ridge_above,
-        seed,
-    );
+    let params = params.map_or(FitParams::DEFAULT, |p| p.inner.regression);
     let f = run(py, move || regression::fit(xs, ys, p, &params))?;
     Ok(PyFit::new(names, Fitted::Design(f)))
 }
@@ -516,6 +522,7 @@ fn fit_design(
 /// Registers this file's classes and functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyFit>()?;
+    m.add_class::<PyCellFeatures>()?;
     m.add_function(wrap_pyfunction!(feature_registry, m)?)?;
     m.add_function(wrap_pyfunction!(extract_features, m)?)?;
     m.add_function(wrap_pyfunction!(fit, m)?)?;

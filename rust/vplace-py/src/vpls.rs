@@ -26,7 +26,7 @@ pub fn parse_profile(profile: &str) -> PyResult<Profile> {
     }
 }
 
-fn profile_name(p: Profile) -> &'static str {
+pub fn profile_name(p: Profile) -> &'static str {
     match p {
         Profile::Cosine => "cosine",
         Profile::Omni => "omni",

@@ -744,6 +744,40 @@ pub fn fit_cells(
     })
 }
 
+/// Settings of a fit on views: the cells, the choice of features and the regression's own.
+/// `Copy`, with named presets.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ViewFitParams {
+    /// Cell size in pixels (`>= 1`).
+    pub cell_px: usize,
+    /// Fit only the features of the surface (the same from every view), so that the model
+    /// holds from views it was not fitted on.
+    pub surface_only: bool,
+    /// The regression (selection, tolerances, ridge, folds).
+    pub regression: FitParams,
+}
+
+impl ViewFitParams {
+    /// 16-pixel cells, surface features only, [`FitParams::DEFAULT`].
+    pub const DEFAULT: Self = Self {
+        cell_px: 16,
+        surface_only: true,
+        regression: FitParams::DEFAULT,
+    };
+    /// Every feature, plain OLS ([`FitParams::PLAIN_OLS`]): what `numpy.linalg.lstsq` fits.
+    pub const PLAIN_OLS: Self = Self {
+        cell_px: 16,
+        surface_only: false,
+        regression: FitParams::PLAIN_OLS,
+    };
+}
+
+impl Default for ViewFitParams {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
 /// Fits one model on the cells of every view of `views` (each needs its indirect image), with
 /// `light` for the light-cosine feature (see [`strongest_light`]) and, with `surface_only`,
 /// only the features of the surface (see [`fit_cells`]).

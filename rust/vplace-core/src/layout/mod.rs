@@ -38,6 +38,7 @@
 
 pub mod refine;
 pub mod refit;
+pub mod request;
 pub mod rsm;
 
 use glam::{Mat4, Vec3};
@@ -385,28 +386,7 @@ pub fn build_strata(
     predicted: Option<&[Vec<f64>]>,
     params: &LayoutParams,
 ) -> Result<Strata> {
-    if views.is_empty() {
-        return Err(VplaceError::Empty {
-            what: "views".into(),
-            hint: "give at least one view to lay out VPLs for".into(),
-        });
-    }
-    if params.cell_px == 0 {
-        return Err(VplaceError::OutOfRange {
-            what: "cell_px".into(),
-            value: "0".into(),
-            expected: ">= 1".into(),
-        });
-    }
-    if let Some(p) = predicted {
-        if p.len() != views.len() {
-            return Err(VplaceError::Shape {
-                what: "predicted".into(),
-                expected: format!("one prediction per view ({})", views.len()),
-                got: format!("{}", p.len()),
-            });
-        }
-    }
+    check_strata_input(views, predicted, params)?;
     let c = params.cell_px;
     let offset = Vpl::SURFACE_OFFSET * scene.diagonal();
     let occluded = |a: Vec3, b: Vec3| scene.occluded(a, b);
@@ -433,21 +413,7 @@ pub fn build_strata(
         grids.push(grid);
     }
     let cells = per.len();
-    let mut off: Vec<Emitter> = Vec::new();
-    let mut light_hits_on_screen = 0;
-    if params.light_rays > 0 && scene.has_emitters() {
-        for v in light_path_vpls(scene, params.light_rays, params.seed, params.bounces)? {
-            if views.iter().any(|view| view.sees(v.position, occluded)) {
-                light_hits_on_screen += 1;
-            } else if luminance(v.flux) > 0.0 {
-                off.push(Emitter {
-                    position: v.position,
-                    normal: v.normal,
-                    flux: v.flux,
-                });
-            }
-        }
-    }
+    let (off, light_hits_on_screen) = offscreen_emitters(scene, views, params)?;
     let samples: Vec<(Vec3, Vec3, f32)> = views.iter().flat_map(|v| view_samples(v)).collect();
     let radius = scene.near_field_radius();
     let on_screen: Vec<&Emitter> = per.iter().flatten().collect();
@@ -502,6 +468,63 @@ pub fn build_strata(
         shared_pixels,
         view_weight,
     })
+}
+
+/// The argument checks of [`build_strata`].
+fn check_strata_input(
+    views: &[&View],
+    predicted: Option<&[Vec<f64>]>,
+    params: &LayoutParams,
+) -> Result<()> {
+    if views.is_empty() {
+        return Err(VplaceError::Empty {
+            what: "views".into(),
+            hint: "give at least one view to lay out VPLs for".into(),
+        });
+    }
+    if params.cell_px == 0 {
+        return Err(VplaceError::OutOfRange {
+            what: "cell_px".into(),
+            value: "0".into(),
+            expected: ">= 1".into(),
+        });
+    }
+    if let Some(p) = predicted {
+        if p.len() != views.len() {
+            return Err(VplaceError::Shape {
+                what: "predicted".into(),
+                expected: format!("one prediction per view ({})", views.len()),
+                got: format!("{}", p.len()),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The light-path hits no view sees, as emitters of the off-screen strata, and how many hits a
+/// view sees (dropped: its pixels stand for them).
+fn offscreen_emitters(
+    scene: &Scene,
+    views: &[&View],
+    params: &LayoutParams,
+) -> Result<(Vec<Emitter>, usize)> {
+    let occluded = |a: Vec3, b: Vec3| scene.occluded(a, b);
+    let mut off: Vec<Emitter> = Vec::new();
+    let mut light_hits_on_screen = 0;
+    if params.light_rays > 0 && scene.has_emitters() {
+        for v in light_path_vpls(scene, params.light_rays, params.seed, params.bounces)? {
+            if views.iter().any(|view| view.sees(v.position, occluded)) {
+                light_hits_on_screen += 1;
+            } else if luminance(v.flux) > 0.0 {
+                off.push(Emitter {
+                    position: v.position,
+                    normal: v.normal,
+                    flux: v.flux,
+                });
+            }
+        }
+    }
+    Ok((off, light_hits_on_screen))
 }
 
 /// About [`VIEW_SAMPLES`] covered pixels of the view on a regular grid: (position, unit

@@ -736,6 +736,7 @@ impl Scene {
     /// non-finite tint, a non-finite UV, UV transform or alpha test; UVs of the wrong length,
     /// or none while a material reads a texture.
     pub fn new(input: SceneInput<'_>) -> Result<Self> {
+        check_input(&input)?;
         let SceneInput {
             vertices,
             triangles,
@@ -745,112 +746,14 @@ impl Scene {
             uvs,
             textures,
         } = input;
-        if triangles.is_empty() {
-            return Err(VplaceError::Empty {
-                what: "scene triangles".into(),
-                hint: "the scene needs at least one mesh triangle".into(),
-            });
-        }
-        if material_ids.len() != triangles.len() {
-            return Err(VplaceError::Shape {
-                what: "material_ids".into(),
-                expected: format!("({},) (one per triangle)", triangles.len()),
-                got: format!("({},)", material_ids.len()),
-            });
-        }
-        if materials.is_empty() {
-            return Err(VplaceError::Empty {
-                what: "albedo".into(),
-                hint: "pass at least one material".into(),
-            });
-        }
-        let flat: Vec<f32> = vertices.iter().flat_map(|v| v.to_array()).collect();
-        check_finite("vertices", &flat)?;
-        let flat: Vec<f32> = materials.iter().flat_map(|m| m.albedo.to_array()).collect();
-        check_finite("albedo", &flat)?;
-        if let Some(i) = flat.iter().position(|a| !(0.0..=1.0).contains(a)) {
-            return Err(VplaceError::OutOfRange {
-                what: format!("albedo[{}]", i / 3),
-                value: flat[i].to_string(),
-                expected: "[0, 1] in every channel".into(),
-            });
-        }
-        for (i, l) in lights.iter().enumerate() {
-            l.validate(i)?;
-        }
-        for (i, m) in materials.iter().enumerate() {
-            m.validate(i, textures.len())?;
-        }
-        if let Some(uv) = uvs {
-            if uv.len() != triangles.len() {
-                return Err(VplaceError::Shape {
-                    what: "uvs".into(),
-                    expected: format!("({}, 3, 2) (one UV per triangle corner)", triangles.len()),
-                    got: format!("({}, 3, 2)", uv.len()),
-                });
-            }
-            let corners = uv.iter().flatten();
-            if let Some(i) = corners
-                .flat_map(|c| c.to_array())
-                .position(|x| !x.is_finite())
-            {
-                return Err(VplaceError::NonFinite {
-                    what: "uvs".into(),
-                    index: i,
-                });
-            }
-        } else if let Some(i) = materials.iter().position(Material::reads_uvs) {
-            return Err(VplaceError::Invalid {
-                what: format!("materials[{i}]"),
-                reason: "it reads a texture, but the scene has no UVs: pass uvs".into(),
-            });
-        }
-        let nv = vertices.len();
-        let mut tris = Vec::with_capacity(triangles.len());
-        let mut normals = Vec::with_capacity(triangles.len());
-        let mut triangle_albedo = Vec::with_capacity(triangles.len());
-        let mut degenerate = 0;
-        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-        for (t, (idx, &m)) in triangles.iter().zip(material_ids).enumerate() {
-            for &i in idx {
-                if i as usize >= nv {
-                    return Err(VplaceError::IndexOutOfBounds {
-                        what: format!("triangles[{t}]"),
-                        index: i as usize,
-                        len: nv,
-                    });
-                }
-            }
-            if m as usize >= materials.len() {
-                return Err(VplaceError::IndexOutOfBounds {
-                    what: format!("material_ids[{t}]"),
-                    index: m as usize,
-                    len: materials.len(),
-                });
-            }
-            let [a, b, c] = idx.map(|i| vertices[i as usize]);
-            let n = (b - a).cross(c - a);
-            if n.length_squared() == 0.0 {
-                degenerate += 1;
-            }
-            for p in [a, b, c] {
-                lo = lo.min(p);
-                hi = hi.max(p);
-            }
-            normals.push(n.normalize_or_zero());
-            triangle_albedo.push(mean_albedo(&materials[m as usize], &textures));
-            tris.push(Triangle {
-                v0: a.into(),
-                v1: b.into(),
-                v2: c.into(),
-            });
-        }
-        if degenerate == tris.len() {
-            return Err(VplaceError::Invalid {
-                what: "scene triangles".into(),
-                reason: "every triangle has zero area".into(),
-            });
-        }
+        let Geometry {
+            tris,
+            normals,
+            triangle_albedo,
+            degenerate,
+            lo,
+            hi,
+        } = geometry(vertices, triangles, material_ids, materials, &textures)?;
         let emissive = EmissiveMesh::build(vertices, triangles, material_ids, materials)?;
         let bvh = build_cwbvh_from_tris(&tris, BVH_BUILD, &mut Duration::default());
         let shadow = ShadowBvh::new(&bvh);
@@ -1172,6 +1075,157 @@ impl Surfaces {
             bvh_alpha,
         }))
     }
+}
+
+/// The checks of [`Scene::new`] before any triangle is read: counts, finite vertices, albedo
+/// in `[0, 1]`, valid lights and materials, UVs when a material reads a texture.
+fn check_input(input: &SceneInput<'_>) -> Result<()> {
+    let SceneInput {
+        vertices,
+        triangles,
+        material_ids,
+        materials,
+        uvs,
+        ..
+    } = *input;
+    let (lights, textures) = (&input.lights, &input.textures);
+    if triangles.is_empty() {
+        return Err(VplaceError::Empty {
+            what: "scene triangles".into(),
+            hint: "the scene needs at least one mesh triangle".into(),
+        });
+    }
+    if material_ids.len() != triangles.len() {
+        return Err(VplaceError::Shape {
+            what: "material_ids".into(),
+            expected: format!("({},) (one per triangle)", triangles.len()),
+            got: format!("({},)", material_ids.len()),
+        });
+    }
+    if materials.is_empty() {
+        return Err(VplaceError::Empty {
+            what: "albedo".into(),
+            hint: "pass at least one material".into(),
+        });
+    }
+    let flat: Vec<f32> = vertices.iter().flat_map(|v| v.to_array()).collect();
+    check_finite("vertices", &flat)?;
+    let flat: Vec<f32> = materials.iter().flat_map(|m| m.albedo.to_array()).collect();
+    check_finite("albedo", &flat)?;
+    if let Some(i) = flat.iter().position(|a| !(0.0..=1.0).contains(a)) {
+        return Err(VplaceError::OutOfRange {
+            what: format!("albedo[{}]", i / 3),
+            value: flat[i].to_string(),
+            expected: "[0, 1] in every channel".into(),
+        });
+    }
+    for (i, l) in lights.iter().enumerate() {
+        l.validate(i)?;
+    }
+    for (i, m) in materials.iter().enumerate() {
+        m.validate(i, textures.len())?;
+    }
+    if let Some(uv) = uvs {
+        if uv.len() != triangles.len() {
+            return Err(VplaceError::Shape {
+                what: "uvs".into(),
+                expected: format!("({}, 3, 2) (one UV per triangle corner)", triangles.len()),
+                got: format!("({}, 3, 2)", uv.len()),
+            });
+        }
+        let corners = uv.iter().flatten();
+        if let Some(i) = corners
+            .flat_map(|c| c.to_array())
+            .position(|x| !x.is_finite())
+        {
+            return Err(VplaceError::NonFinite {
+                what: "uvs".into(),
+                index: i,
+            });
+        }
+    } else if let Some(i) = materials.iter().position(Material::reads_uvs) {
+        return Err(VplaceError::Invalid {
+            what: format!("materials[{i}]"),
+            reason: "it reads a texture, but the scene has no UVs: pass uvs".into(),
+        });
+    }
+    Ok(())
+}
+
+/// The triangles of a scene as the BVH takes them, with their normals, mean albedo, the
+/// degenerate count and the bounds.
+struct Geometry {
+    tris: Vec<Triangle>,
+    normals: Vec<Vec3>,
+    triangle_albedo: Vec<Vec3>,
+    degenerate: usize,
+    lo: Vec3,
+    hi: Vec3,
+}
+
+/// [`Geometry`] of checked input; errors on an index out of bounds or when every triangle is
+/// degenerate.
+fn geometry(
+    vertices: &[Vec3],
+    triangles: &[[u32; 3]],
+    material_ids: &[u32],
+    materials: &[Material],
+    textures: &[Texture],
+) -> Result<Geometry> {
+    let nv = vertices.len();
+    let mut tris = Vec::with_capacity(triangles.len());
+    let mut normals = Vec::with_capacity(triangles.len());
+    let mut triangle_albedo = Vec::with_capacity(triangles.len());
+    let mut degenerate = 0;
+    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    for (t, (idx, &m)) in triangles.iter().zip(material_ids).enumerate() {
+        for &i in idx {
+            if i as usize >= nv {
+                return Err(VplaceError::IndexOutOfBounds {
+                    what: format!("triangles[{t}]"),
+                    index: i as usize,
+                    len: nv,
+                });
+            }
+        }
+        if m as usize >= materials.len() {
+            return Err(VplaceError::IndexOutOfBounds {
+                what: format!("material_ids[{t}]"),
+                index: m as usize,
+                len: materials.len(),
+            });
+        }
+        let [a, b, c] = idx.map(|i| vertices[i as usize]);
+        let n = (b - a).cross(c - a);
+        if n.length_squared() == 0.0 {
+            degenerate += 1;
+        }
+        for p in [a, b, c] {
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+        normals.push(n.normalize_or_zero());
+        triangle_albedo.push(mean_albedo(&materials[m as usize], textures));
+        tris.push(Triangle {
+            v0: a.into(),
+            v1: b.into(),
+            v2: c.into(),
+        });
+    }
+    if degenerate == tris.len() {
+        return Err(VplaceError::Invalid {
+            what: "scene triangles".into(),
+            reason: "every triangle has zero area".into(),
+        });
+    }
+    Ok(Geometry {
+        tris,
+        normals,
+        triangle_albedo,
+        degenerate,
+        lo,
+        hi,
+    })
 }
 
 #[cfg(test)]

@@ -162,6 +162,47 @@ pub(crate) fn evaluate_cached(
     )
 }
 
+/// What one tile of [`evaluate_with`] hands back: `(pixel, radiance)` of its covered pixels,
+/// and per pixel its `known` then its `visible` shadow-cache words.
+type Tile = (Vec<(usize, Vec3)>, Vec<u64>);
+
+/// The argument checks of [`evaluate_with`].
+fn check_eval_input(gbuffer: &GBuffer, vpls: &[Vpl], params: &EvalParams) -> Result<()> {
+    gbuffer.validate()?;
+    validate_vpls(vpls)?;
+    check_radius(params.radius)?;
+    if params.tile == 0 {
+        return Err(VplaceError::OutOfRange {
+            what: "tile".into(),
+            value: "0".into(),
+            expected: ">= 1".into(),
+        });
+    }
+    Ok(())
+}
+
+/// The image (`H x W x 3`) and the shadow-cache bit rows (`known`, `visible`) of the tiles.
+fn assemble(
+    results: Vec<Option<Tile>>,
+    w: usize,
+    h: usize,
+    words: usize,
+) -> (Vec<f32>, Vec<u64>, Vec<u64>) {
+    let mut image = vec![0.0f32; w * h * 3];
+    let (mut known, mut visible) = (vec![0u64; w * h * words], vec![0u64; w * h * words]);
+    for (tile, bits) in results.into_iter().flatten() {
+        for (i, (p, c)) in tile.into_iter().enumerate() {
+            image[3 * p..3 * p + 3].copy_from_slice(&c.to_array());
+            if words > 0 {
+                let row = &bits[2 * words * i..2 * words * (i + 1)];
+                known[words * p..words * (p + 1)].copy_from_slice(&row[..words]);
+                visible[words * p..words * (p + 1)].copy_from_slice(&row[words..]);
+            }
+        }
+    }
+    (image, known, visible)
+}
+
 /// The evaluation: tiles of pixels in parallel, each pixel shaded by every VPL through the
 /// shading module with one traversal state per tile; `occluded` answers a shadow ray with it.
 fn evaluate_with(
@@ -173,16 +214,7 @@ fn evaluate_with(
     cache: Option<&mut ShadowCache>,
     occluded: impl Fn(&mut Traversal, &Ray) -> bool + Sync,
 ) -> Result<(Vec<f32>, EvalStats)> {
-    gbuffer.validate()?;
-    validate_vpls(vpls)?;
-    check_radius(params.radius)?;
-    if params.tile == 0 {
-        return Err(VplaceError::OutOfRange {
-            what: "tile".into(),
-            value: "0".into(),
-            expected: ">= 1".into(),
-        });
-    }
+    check_eval_input(gbuffer, vpls, params)?;
     let start = Instant::now();
     let (w, h, t) = (gbuffer.width, gbuffer.height, params.tile);
     let tiles: Vec<(usize, usize)> = (0..h.div_ceil(t))
@@ -206,7 +238,6 @@ fn evaluate_with(
     let eps = scene.ray_epsilon();
     let radius_sq = params.radius * params.radius;
     let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
-    type Tile = (Vec<(usize, Vec3)>, Vec<u64>);
     let results: Vec<Option<Tile>> = tiles
         .par_iter()
         .map(|&(x0, y0)| {
@@ -261,18 +292,7 @@ fn evaluate_with(
     if cancelled() {
         return Err(VplaceError::Cancelled);
     }
-    let mut image = vec![0.0f32; w * h * 3];
-    let (mut known, mut visible) = (vec![0u64; w * h * words], vec![0u64; w * h * words]);
-    for (tile, bits) in results.into_iter().flatten() {
-        for (i, (p, c)) in tile.into_iter().enumerate() {
-            image[3 * p..3 * p + 3].copy_from_slice(&c.to_array());
-            if words > 0 {
-                let row = &bits[2 * words * i..2 * words * (i + 1)];
-                known[words * p..words * (p + 1)].copy_from_slice(&row[..words]);
-                visible[words * p..words * (p + 1)].copy_from_slice(&row[words..]);
-            }
-        }
-    }
+    let (image, known, visible) = assemble(results, w, h, words);
     if let Some(cache) = cache {
         *cache = ShadowCache::new(vpls, w, h, known, visible, reused.into_inner());
     }
