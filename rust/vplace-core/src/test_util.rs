@@ -349,18 +349,12 @@ impl Passes {
     /// The feature extraction's view of the passes (indirect given, no specular pass).
     #[must_use]
     pub fn input(&self) -> FeatureInput<'_> {
-        let g = &self.gbuffer;
         FeatureInput {
-            width: g.width,
-            height: g.height,
-            position: &g.position,
-            normal: &g.normal,
-            albedo: &g.albedo,
+            gbuffer: self.gbuffer.gbuffer(),
             depth: &self.depth,
             direct: &self.direct,
             indirect: Some(&self.indirect),
             specular: None,
-            covered: &g.covered,
             light: Some(self.light),
         }
     }

@@ -29,7 +29,7 @@ use crate::color::LUMINANCE;
 use crate::error::{Result, VplaceError};
 use crate::fit::regression::{self, DropReason, Fit, FitParams};
 use crate::scene::{LightKind, Scene};
-use crate::view::{check_len, View};
+use crate::view::{check_len, GBuffer, View};
 
 /// Where a feature comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -163,16 +163,8 @@ pub enum StrongestLight {
 /// row 0 at the top; see DESIGN, Capture.
 #[derive(Debug, Clone, Copy)]
 pub struct FeatureInput<'a> {
-    /// Image width, pixels (at least 1).
-    pub width: usize,
-    /// Image height, pixels (at least 1).
-    pub height: usize,
-    /// World position per pixel.
-    pub position: &'a [f32],
-    /// Unit world normal per pixel.
-    pub normal: &'a [f32],
-    /// Diffuse albedo (Cycles DiffCol) per pixel.
-    pub albedo: &'a [f32],
+    /// Position, normal, albedo and coverage (the normal need not be unit length).
+    pub gbuffer: GBuffer<'a>,
     /// Planar camera depth (Cycles Z) per pixel; background values are ignored via `covered`.
     pub depth: &'a [f32],
     /// The direct image `D`.
@@ -182,8 +174,6 @@ pub struct FeatureInput<'a> {
     pub indirect: Option<&'a [f32]>,
     /// Specular colour (Cycles GlossCol); `None` makes [`REFLECTANCE`] unavailable.
     pub specular: Option<&'a [f32]>,
-    /// True where the pixel sees geometry.
-    pub covered: &'a [bool],
     /// The strongest light; `None` makes [`LIGHT_COSINE`] unavailable.
     pub light: Option<StrongestLight>,
 }
@@ -239,23 +229,12 @@ fn finite3(v: &[f32]) -> bool {
 }
 
 impl FeatureInput<'_> {
-    /// Checks every array's length, `cell_px` and the light.
+    /// Checks every array's length and the light. Non-finite values are not errors here: the
+    /// extraction masks such pixels and counts them.
     pub fn validate(&self) -> Result<()> {
-        let (h, w) = (self.height, self.width);
-        if h == 0 || w == 0 {
-            return Err(VplaceError::Empty {
-                what: "G-buffer".into(),
-                hint: "width and height must be at least 1".into(),
-            });
-        }
-        for (what, arr) in [
-            ("position", self.position),
-            ("normal", self.normal),
-            ("albedo", self.albedo),
-            ("direct", self.direct),
-        ] {
-            check_len(what, arr.len(), w, h, 3)?;
-        }
+        self.gbuffer.check_shape()?;
+        let (w, h) = (self.gbuffer.width, self.gbuffer.height);
+        check_len("direct", self.direct.len(), w, h, 3)?;
         if let Some(ind) = self.indirect {
             check_len("indirect", ind.len(), w, h, 3)?;
         }
@@ -263,7 +242,6 @@ impl FeatureInput<'_> {
             check_len("specular", s.len(), w, h, 3)?;
         }
         check_len("depth", self.depth.len(), w, h, 1)?;
-        check_len("covered", self.covered.len(), w, h, 1)?;
         match self.light {
             Some(StrongestLight::Position(p)) if !p.is_finite() => Err(VplaceError::NonFinite {
                 what: "light position".into(),
@@ -293,7 +271,7 @@ pub fn extract_features(input: &FeatureInput<'_>, cell_px: usize) -> Result<Cell
             expected: "at least 1".into(),
         });
     }
-    let (w, h) = (input.width, input.height);
+    let (w, h) = (input.gbuffer.width, input.gbuffer.height);
     let cells_x = w.div_ceil(cell_px);
     let cells_y = h.div_ceil(cell_px);
     let light = input.light.map(|l| match l {
@@ -377,19 +355,19 @@ fn accumulate_row(
     cells_x: usize,
     cy: usize,
 ) -> Vec<Acc> {
-    let w = input.width;
+    let w = input.gbuffer.width;
     let mut accs = vec![Acc::default(); cells_x];
     let y0 = cy * cell_px;
-    let y1 = (y0 + cell_px).min(input.height);
+    let y1 = (y0 + cell_px).min(input.gbuffer.height);
     for y in y0..y1 {
         let (r1, r3) = (y * w..(y + 1) * w, 3 * y * w..3 * (y + 1) * w);
         let row = Row {
-            pos: &input.position[r3.clone()],
-            nrm: &input.normal[r3.clone()],
-            alb: &input.albedo[r3.clone()],
+            pos: &input.gbuffer.position[r3.clone()],
+            nrm: &input.gbuffer.normal[r3.clone()],
+            alb: &input.gbuffer.albedo[r3.clone()],
             dir: &input.direct[r3.clone()],
             dep: &input.depth[r1.clone()],
-            cov: &input.covered[r1],
+            cov: &input.gbuffer.covered[r1],
             ind: input.indirect.map(|g| &g[r3.clone()]),
             spec: input.specular.map(|s| &s[r3.clone()]),
         };
@@ -548,16 +526,11 @@ impl<'a> FeatureInput<'a> {
     #[must_use]
     pub fn of(view: &'a View, light: Option<StrongestLight>) -> Self {
         Self {
-            width: view.width,
-            height: view.height,
-            position: &view.position,
-            normal: &view.normal,
-            albedo: &view.albedo,
+            gbuffer: view.gbuffer(),
             depth: &view.depth,
             direct: &view.direct,
             indirect: view.indirect.as_deref(),
             specular: view.specular.as_deref(),
-            covered: &view.covered,
             light,
         }
     }

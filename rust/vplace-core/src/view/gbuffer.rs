@@ -1,6 +1,9 @@
 //! The G-buffer contract: the borrowed per-pixel surface arrays every stage after the capture
-//! reads (the evaluator, the refit, the direct-light estimator), and the one shape check of an
-//! image.
+//! reads (the feature extraction, the evaluator, the refit, the direct-light estimator), and the
+//! one shape check of an image. A [`crate::view::View`] lends its own ([`View::gbuffer`]); tests
+//! and benches build one from `test_util::GBufferArrays`.
+//!
+//! [`View::gbuffer`]: crate::view::View::gbuffer
 
 use glam::Vec3;
 
@@ -24,10 +27,9 @@ pub struct GBuffer<'a> {
 }
 
 impl GBuffer<'_> {
-    /// Checks lengths and finiteness of the covered pixels.
-    pub fn validate(&self) -> Result<()> {
-        let n = self.width * self.height;
-        if n == 0 {
+    /// Checks that the image is not empty and every array has its size.
+    pub fn check_shape(&self) -> Result<()> {
+        if self.width * self.height == 0 {
             return Err(VplaceError::Empty {
                 what: "G-buffer".into(),
                 hint: "width and height must be at least 1".into(),
@@ -40,7 +42,13 @@ impl GBuffer<'_> {
         ] {
             check_len(what, arr.len(), self.width, self.height, 3)?;
         }
-        check_len("covered", self.covered.len(), self.width, self.height, 1)?;
+        check_len("covered", self.covered.len(), self.width, self.height, 1)
+    }
+
+    /// [`GBuffer::check_shape`], and the covered pixels finite (what a [`crate::view::View`]
+    /// guarantees; the evaluator, the refit and the direct-light estimator need it).
+    pub fn validate(&self) -> Result<()> {
+        self.check_shape()?;
         for (what, arr) in [
             ("position", self.position),
             ("normal", self.normal),

@@ -213,7 +213,7 @@ impl View {
         }
     }
 
-    /// The G-buffer of the view, for the evaluator.
+    /// The G-buffer of the view, for the feature extraction, the evaluator and the refit.
     #[must_use]
     pub fn gbuffer(&self) -> GBuffer<'_> {
         GBuffer {
