@@ -209,3 +209,40 @@ pub fn lay_out(
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Light;
+    use crate::test_util::{closed_box, FloorView};
+    use glam::Vec3;
+
+    const LIGHT: Vec3 = Vec3::new(0.3, -0.2, 1.0);
+
+    #[test]
+    fn resolve_fills_what_the_request_leaves_open() {
+        let scene = closed_box(vec![Light::point(LIGHT, Vec3::splat(20.0))]);
+        let fv = FloorView::new(8, LIGHT, 20.0);
+        let lit = fv.view_with(Some(&vec![0.0; 8 * 8 * 3]));
+        let unlit = fv.view();
+        let (p, it) = LayoutRequest::DEFAULT.resolve(&scene, &[&lit], None);
+        assert_eq!(it, Iteration::Runs);
+        assert_eq!((p.layout.cell_px, p.layout.bounces), (16, MAX_BOUNCES));
+        assert_eq!(p.eval.radius, scene.near_field_radius());
+        let single = LayoutRequest {
+            multi_bounce: false,
+            radius: Some(0.5),
+            cell_px: Some(4),
+            ..LayoutRequest::DEFAULT
+        };
+        let (p, _) = single.resolve(&scene, &[&lit], None);
+        assert_eq!(
+            (p.layout.cell_px, p.layout.bounces, p.eval.radius),
+            (4, 1, 0.5)
+        );
+        let (_, it) = LayoutRequest::DEFAULT.resolve(&scene, &[&lit, &unlit], None);
+        assert_eq!(it, Iteration::NoIndirect { view: 1 });
+        let (_, it) = LayoutRequest::SINGLE_PASS.resolve(&scene, &[&lit], None);
+        assert_eq!(it, Iteration::Off);
+    }
+}
