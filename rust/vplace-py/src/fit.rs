@@ -7,8 +7,8 @@ use pyo3::types::PyDict;
 use std::sync::Arc;
 use vplace_core::{
     fit::features::{
-        self, CellFeatures, CellModel, FeatureInput, StrongestLight, ViewFit, ViewFitParams,
-        FEATURES, FEATURE_COUNT,
+        self, CellFeatures, CellModel, StrongestLight, ViewFit, ViewFitParams, FEATURES,
+        FEATURE_COUNT,
     },
     fit::model::{light_to_tuple, Fitted, Model},
     fit::regression::{self, Fit, FitParams},
@@ -468,7 +468,7 @@ fn extract_features(
     let v = Arc::clone(&view.inner);
     let light = light_for(scene, std::slice::from_ref(&v));
     let inner = run(py, move || {
-        features::extract_features(&FeatureInput::of(&v, light), cell_px)
+        features::extract_view_features(&v, light, cell_px)
     })?;
     Ok(PyCellFeatures { inner })
 }

@@ -242,6 +242,11 @@ impl FeatureInput<'_> {
             check_len("specular", s.len(), w, h, 3)?;
         }
         check_len("depth", self.depth.len(), w, h, 1)?;
+        self.check_light()
+    }
+
+    /// Checks the light: a finite position, or a finite non-zero direction.
+    fn check_light(&self) -> Result<()> {
         match self.light {
             Some(StrongestLight::Position(p)) if !p.is_finite() => Err(VplaceError::NonFinite {
                 what: "light position".into(),
@@ -264,6 +269,23 @@ impl FeatureInput<'_> {
 /// pixel at all.
 pub fn extract_features(input: &FeatureInput<'_>, cell_px: usize) -> Result<CellFeatures> {
     input.validate()?;
+    extract_checked(input, cell_px)
+}
+
+/// [`extract_features`] of `view` with `light`: the view's arrays were checked when it was made
+/// ([`View::new`]), so only the light and `cell_px` are.
+pub fn extract_view_features(
+    view: &View,
+    light: Option<StrongestLight>,
+    cell_px: usize,
+) -> Result<CellFeatures> {
+    let input = FeatureInput::of(view, light);
+    input.check_light()?;
+    extract_checked(&input, cell_px)
+}
+
+/// The extraction of an input whose arrays have their sizes.
+fn extract_checked(input: &FeatureInput<'_>, cell_px: usize) -> Result<CellFeatures> {
     if cell_px == 0 {
         return Err(VplaceError::OutOfRange {
             what: "cell_px".into(),
@@ -772,7 +794,7 @@ pub fn fit_views(
     }
     let cells = views
         .iter()
-        .map(|v| extract_features(&FeatureInput::of(v, light), cell_px))
+        .map(|v| extract_view_features(v, light, cell_px))
         .collect::<Result<Vec<_>>>()?;
     let names: Vec<&str> = views.iter().map(|v| v.name.as_str()).collect();
     let mut model = fit_cells(&cells, &names, light, surface_only, params)?;
@@ -804,7 +826,7 @@ impl CellModel {
 
     /// The predicted label of every cell of `view`, with the model's cell size and light.
     pub fn predict_view(&self, view: &View) -> Result<Vec<f64>> {
-        let cells = extract_features(&FeatureInput::of(view, self.light), self.cell_px)?;
+        let cells = extract_view_features(view, self.light, self.cell_px)?;
         Ok(self.predict(&cells))
     }
 
@@ -831,7 +853,7 @@ impl CellModel {
 
     /// [`CellModel::out_of_range`] for the cells of `view`.
     pub fn out_of_range_view(&self, view: &View) -> Result<Vec<(usize, f64)>> {
-        let cells = extract_features(&FeatureInput::of(view, self.light), self.cell_px)?;
+        let cells = extract_view_features(view, self.light, self.cell_px)?;
         Ok(self.out_of_range(&cells))
     }
 }
