@@ -228,12 +228,7 @@ impl FloorView {
         let depth = vec![self.camera.z; g.width * g.height];
         View::new(&ViewInput {
             name: "floor",
-            width: g.width,
-            height: g.height,
-            position: &g.position,
-            normal: &g.normal,
-            albedo: &g.albedo,
-            covered: &g.covered,
+            gbuffer: g.gbuffer(),
             depth: &depth,
             direct: &direct,
             diffuse_direct: &self.diffuse_direct,

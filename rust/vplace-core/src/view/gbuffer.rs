@@ -18,7 +18,8 @@ pub struct GBuffer<'a> {
     pub height: usize,
     /// World position per pixel (`H x W x 3`).
     pub position: &'a [f32],
-    /// Unit world-space shading normal per pixel (`H x W x 3`).
+    /// World-space shading normal per pixel (`H x W x 3`); need not be unit length (a pixel that
+    /// straddles two surfaces averages their normals; the shading normalizes it).
     pub normal: &'a [f32],
     /// Diffuse albedo per pixel (`H x W x 3`).
     pub albedo: &'a [f32],
