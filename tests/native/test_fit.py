@@ -63,7 +63,7 @@ def rng_design(n, p, seed):
 
 def fit_capture(cap, **kw):
     """The fit on the one view of a synthetic capture."""
-    return vplace.fit(light_scene(cap), [synthetic_view(cap)], **kw)
+    return vplace.fit(light_scene(cap), [synthetic_view(cap)], vplace.FitParams(**kw))
 
 
 def features(cap, **kw):
@@ -85,12 +85,12 @@ def test_extraction_matches_numpy():
     cap = synthetic_capture(203, 117)
     nat = features(cap, cell_px=16)
     ref = numpy_extract(cap, 16)
-    assert np.array_equal(nat["cells"], ref["cells"])
-    assert (nat["cells_x"], nat["cells_y"]) == (13, 8)
-    np.testing.assert_allclose(nat["values"], ref["values"], rtol=1e-6, atol=1e-6)
-    np.testing.assert_allclose(nat["label"], ref["label"], rtol=1e-6, atol=1e-7)
-    assert nat["masked_pixels"] == 0
-    assert nat["empty_cells"] == 13 * 8 - len(nat["cells"]) > 0
+    assert np.array_equal(nat.cells, ref["cells"])
+    assert (nat.cells_x, nat.cells_y) == (13, 8)
+    np.testing.assert_allclose(nat.values, ref["values"], rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(nat.label, ref["label"], rtol=1e-6, atol=1e-7)
+    assert nat.masked_pixels == 0
+    assert nat.empty_cells == 13 * 8 - len(nat.cells) > 0
 
 
 def test_fit_capture_table_json_predict():
@@ -115,8 +115,8 @@ def test_fit_capture_table_json_predict():
     grid = back.predict(synthetic_view(cap, indirect=False))
     cells = features(cap)
     assert grid.shape == (13, 20)
-    np.testing.assert_allclose(grid.reshape(-1)[cells["cells"]], r.fitted, rtol=1e-9, atol=1e-12)
-    empty = np.setdiff1d(np.arange(grid.size), cells["cells"])
+    np.testing.assert_allclose(grid.reshape(-1)[cells.cells], r.fitted, rtol=1e-9, atol=1e-12)
+    empty = np.setdiff1d(np.arange(grid.size), cells.cells)
     assert np.all(grid.reshape(-1)[empty] == 0)
 
 
@@ -124,7 +124,7 @@ def test_fit_capture_matches_numpy_plain_ols():
     cap = synthetic_capture(256, 160)
     r = fit_capture(cap, **EVERY)
     cells = features(cap)  # the same input (extraction is compared above)
-    ref = numpy_fit(cells["values"], cells["label"])
+    ref = numpy_fit(cells.values, cells.label)
     # Plain OLS keeps every non-constant feature; compare with lstsq on the same columns.
     cond = r.condition_number
     tol = 100 * cond * EPS * max(1.0, np.abs(ref["coefficients"]).max())
@@ -159,25 +159,23 @@ def test_one_fit_over_several_views():
     b = synthetic_capture(64, 96, seed=2)
     scene = light_scene(a)
     va, vb = synthetic_view({**a, "name": "a"}), synthetic_view({**b, "name": "b"})
-    both = vplace.fit(scene, [va, vb], **EVERY)
+    both = vplace.fit(scene, [va, vb], vplace.FitParams(**EVERY))
     check_invariants(both)
     ca, cb = vplace.extract_features(scene, va), vplace.extract_features(scene, vb)
-    assert both.n_cells == len(ca["cells"]) + len(cb["cells"])
+    assert both.n_cells == len(ca.cells) + len(cb.cells)
     assert both.view_names == ["a", "b"]
     # One design matrix: the same fit as numpy's on the stacked cells, one Min-Max range.
-    ref = numpy_fit(
-        np.vstack([ca["values"], cb["values"]]), np.concatenate([ca["label"], cb["label"]])
-    )
+    ref = numpy_fit(np.vstack([ca.values, cb.values]), np.concatenate([ca.label, cb.label]))
     assert abs(both.r2 - ref["r2"]) < 1e-9
-    lo = np.minimum(ca["values"].min(0), cb["values"].min(0))
+    lo = np.minimum(ca.values.min(0), cb.values.min(0))
     np.testing.assert_allclose(both.feature_min, lo)
     # R^2 per view, over each view's own cells.
     fitted = both.fitted
     for name, c, part in (
-        ("a", ca, fitted[: len(ca["cells"])]),
-        ("b", cb, fitted[len(ca["cells"]) :]),
+        ("a", ca, fitted[: len(ca.cells)]),
+        ("b", cb, fitted[len(ca.cells) :]),
     ):
-        y = c["label"]
+        y = c.label
         r2 = 1 - ((y - part) ** 2).sum() / ((y - y.mean()) ** 2).sum()
         assert both.view_r2[name] == pytest.approx(r2, abs=1e-12)
     with pytest.raises(vplace.InputError, match="views is empty"):
@@ -193,7 +191,7 @@ def test_constant_feature():
     x, rng = rng_design(80, 3, 1)
     x[:, 1] = 4.5
     y = x @ [1.0, 0.0, -2.0] + 0.3 + 0.01 * rng.standard_normal(80)
-    r = vplace.fit_design(x, y, **PLAIN)
+    r = vplace.fit_design(x, y, vplace.FitParams(**PLAIN))
     check_invariants(r)
     assert r.dropped == {"x1": "constant over the cells"}
     b0, b, _ = lstsq(x[:, [0, 2]], y)
@@ -210,7 +208,7 @@ def test_duplicated_and_collinear_feature(kind):
     else:
         x[:, 2] = x[:, 0] + x[:, 1]
     y = x[:, 0] - 0.5 * x[:, 1] + 0.05 * rng.standard_normal(120)
-    r = vplace.fit_design(x, y, select=False)
+    r = vplace.fit_design(x, y, vplace.FitParams(select=False))
     check_invariants(r)
     assert r.kept == ["x0", "x1"]
     assert r.dropped["x2"].startswith("collinear with x0")
@@ -220,7 +218,7 @@ def test_duplicated_and_collinear_feature(kind):
     np.testing.assert_allclose(coef_vector(r)[:2], b_red, atol=1e3 * r.condition_number * EPS)
     # Without the collinearity check the solver still answers finitely (the basic solution of
     # the pivoted QR, whose fitted values equal lstsq's minimum-norm ones).
-    plain = vplace.fit_design(x, y, **PLAIN)
+    plain = vplace.fit_design(x, y, vplace.FitParams(**PLAIN))
     check_invariants(plain)
     assert plain.rank == 2 and math.isinf(plain.condition_number)
     np.testing.assert_allclose(plain.fitted, fitted, atol=1e-10)
@@ -230,7 +228,7 @@ def test_duplicated_and_collinear_feature(kind):
 def test_more_features_than_cells(params):
     x, rng = rng_design(6, 12, 3)
     y = rng.standard_normal(6)
-    r = vplace.fit_design(x, y, **params)
+    r = vplace.fit_design(x, y, vplace.FitParams(**params))
     check_invariants(r)
     assert r.adjusted_r2 is None or len(r.kept) < 5
     if not params:
@@ -308,7 +306,7 @@ def test_features_spanning_1e_8_to_1e8():
     scale = np.array([1e-8, 1e-4, 1.0, 1e4, 1e8])
     xs = x * scale
     y = x @ [1.0, -1.0, 2.0, 0.5, -0.25] + 0.01 * rng.standard_normal(200)
-    r = vplace.fit_design(xs, y, **PLAIN)
+    r = vplace.fit_design(xs, y, vplace.FitParams(**PLAIN))
     check_invariants(r)
     assert r.condition_number < 10  # standardized columns: well posed
     _, b, fitted = lstsq(x, y)  # the same problem on unit-scale columns
@@ -325,7 +323,7 @@ def test_condition_number_1e12():
     cond_ref = standardized_cond(x)
     assert 1e11 < cond_ref < 1e14
     # Plain OLS: coefficients equal lstsq's within a tolerance derived from the condition number.
-    r = vplace.fit_design(x, y, **PLAIN)
+    r = vplace.fit_design(x, y, vplace.FitParams(**PLAIN))
     check_invariants(r)
     assert r.condition_number == pytest.approx(cond_ref, rel=1e-2)
     _, b, _ = lstsq(x, y)
@@ -333,7 +331,7 @@ def test_condition_number_1e12():
     np.testing.assert_allclose(coef_vector(r), b, rtol=0, atol=tol)
     np.testing.assert_allclose(coef_vector(r), [2, 3, 1], rtol=0, atol=tol)
     # The ridge fallback above 1e6: a capped condition, the same predictions.
-    ridge = vplace.fit_design(x, y, select=False, collinear_rtol=0.0)
+    ridge = vplace.fit_design(x, y, vplace.FitParams(select=False, collinear_rtol=0.0))
     check_invariants(ridge)
     assert ridge.ridge_lambda > 0
     np.testing.assert_allclose(ridge.fitted, y, atol=1e-6 * np.abs(y).max())
@@ -357,11 +355,11 @@ def test_cells_with_no_geometry():
 def test_one_pixel_cells():
     cap = synthetic_capture(24, 16)
     cells = features(cap, cell_px=1)
-    assert (cells["cells_x"], cells["cells_y"]) == (24, 16)
-    assert np.all(cells["pixels"] == 1)
-    ys, xs = np.divmod(cells["cells"], 24)
-    np.testing.assert_allclose(cells["values"][:, 5], cap["position"][ys, xs, 0], rtol=1e-7)
-    assert np.all(cells["values"][:, [12, 13]] == 0)  # variances of one pixel
+    assert (cells.cells_x, cells.cells_y) == (24, 16)
+    assert np.all(cells.pixels == 1)
+    ys, xs = np.divmod(cells.cells, 24)
+    np.testing.assert_allclose(cells.values[:, 5], cap["position"][ys, xs, 0], rtol=1e-7)
+    assert np.all(cells.values[:, [12, 13]] == 0)  # variances of one pixel
     r = fit_capture(cap, cell_px=1)
     check_invariants(r)
     assert "coverage" in r.dropped  # every non-empty one-pixel cell is fully covered
@@ -374,7 +372,7 @@ def test_bad_arguments_are_input_errors():
     with pytest.raises(vplace.InputError, match=r"y must have shape \(10,\)"):
         _native.fit_design(x, np.ones(9))
     with pytest.raises(vplace.InputError, match="ridge_above"):
-        vplace.fit_design(x, np.ones(10), ridge_above=0.5)
+        vplace.fit_design(x, np.ones(10), vplace.FitParams(ridge_above=0.5))
     cap = synthetic_capture(8, 8)
     with pytest.raises(vplace.InputError, match="cell_px"):
         fit_capture(cap, cell_px=0)
@@ -404,7 +402,7 @@ def test_random_well_conditioned_problems_match_lstsq(n, p, seed, log_scale):
     y = x @ rng.standard_normal(p) + rng.standard_normal(n)
     cond = standardized_cond(x)
     assume(cond < 1e4)
-    r = vplace.fit_design(x, y, **PLAIN)
+    r = vplace.fit_design(x, y, vplace.FitParams(**PLAIN))
     check_invariants(r)
     _, b, fitted = lstsq(x, y)
     assert r.condition_number == pytest.approx(cond, rel=1e-6)
@@ -432,7 +430,7 @@ def test_the_default_fit_keeps_to_the_surface_and_holds_other_views_to_its_range
     far = {**cap, "position": cap["position"] + np.float32([0, 0, 100])}
     view = synthetic_view(far, indirect=False)
     grid = model.predict(view)
-    top = features(cap)["label"].max()
+    top = features(cap).label.max()
     assert 0.0 <= grid.min() and grid.max() <= top
     outside = dict(model.out_of_range(view))
     assert outside["position_z"] == 1.0

@@ -79,8 +79,8 @@ def setup():
     return scene, d
 
 
-def lay_out(scene, d, **kw):
-    return vplace.layout(scene, [view(d)], **kw)
+def lay_out(scene, d, fit=None, **kw):
+    return vplace.layout(scene, [view(d)], vplace.LayoutParams(**kw), fit=fit)
 
 
 def test_budget_energy_and_determinism(setup):
@@ -113,7 +113,7 @@ def test_guided_allocation_follows_the_prediction(setup):
     ys, xs = np.mgrid[0:32, 0:32]
     corner = np.exp(-((xs / 8.0) ** 2 + (ys / 8.0) ** 2))[..., None]
     lit = {**d, "indirect": np.repeat(corner, 3, -1).astype(np.float32)}
-    fitted = vplace.fit(scene, [view(lit)], cell_px=8)
+    fitted = vplace.fit(scene, [view(lit)], vplace.FitParams(cell_px=8))
     pred = fitted.predict(view(lit).without_indirect())
     assert pred.shape == (4, 4) and pred[0, 0] == pred.max()
     kw = {"budget": 64, "cell_px": 8, "light_rays": 0, "iterate": False}
@@ -134,7 +134,11 @@ def test_iteration_returns_its_best(setup):
     assert len(out) == 32
     assert len(out.seconds) == len(out.shadow_rays) == len(out.errors)
     # A view without its indirect image gives the one-shot layout.
-    once = vplace.layout(scene, [view(d).without_indirect()], budget=32, cell_px=8, light_rays=300)
+    once = vplace.layout(
+        scene,
+        [view(d).without_indirect()],
+        vplace.LayoutParams(budget=32, cell_px=8, light_rays=300),
+    )
     assert once.errors == [] and once.best is None
 
 
@@ -179,7 +183,7 @@ def test_two_views_share_one_vpl_set(setup):
     one = lay_out(scene, d, **kw)
     # The same view twice: its surfaces are counted once, so the emitters and their flux are
     # those of one view.
-    twice = vplace.layout(scene, [view(d, "a"), view(d, "b")], **kw)
+    twice = vplace.layout(scene, [view(d, "a"), view(d, "b")], vplace.LayoutParams(**kw))
     assert len(twice.counts) == 2 and twice.shared_pixels == 32 * 32
     assert twice.candidates == one.candidates
     flux = lambda out: sum(float(f.astype(np.float64).sum()) for f in out.strata_flux)  # noqa: E731
@@ -188,7 +192,9 @@ def test_two_views_share_one_vpl_set(setup):
     # Two views of different halves of the floor: each holds what only it sees.
     left = floor_view(16, cam=(-0.5, 0.0, 0.95), half=0.5)
     right = floor_view(16, cam=(0.5, 0.0, 0.95), half=0.5)
-    both = vplace.layout(scene, [view(left, "left"), view(right, "right")], **kw)
+    both = vplace.layout(
+        scene, [view(left, "left"), view(right, "right")], vplace.LayoutParams(**kw)
+    )
     assert both.shared_pixels == 0
     alone = [lay_out(scene, v, **kw) for v in (left, right)]
     for i in range(2):
@@ -206,9 +212,11 @@ def test_iteration_and_refit_over_two_views(setup):
     for name, v in (("left", left), ("right", right)):
         v["indirect"], _ = vplace.evaluate(scene, view(v), ref)
         views.append(view(v, name))
-    out = vplace.layout(scene, views, budget=48, cell_px=8, light_rays=300, stride=2)
+    out = vplace.layout(
+        scene, views, vplace.LayoutParams(budget=48, cell_px=8, light_rays=300, stride=2)
+    )
     assert out.errors and out.error <= out.errors[0]
-    r = vplace.refit(scene, views, out.vpls, stride=2)
+    r = vplace.refit(scene, views, out.vpls, vplace.RefitParams(stride=2))
     assert r.error_after <= r.error_before
     # The refit's pixels are both views' strided pixels.
     assert r.pixels == 2 * 8 * 8
@@ -283,8 +291,8 @@ def test_layout_with_a_fit_on_the_benchmark_room():
     ref = vplace.uniform_vpls(scene, 256, seed=11)
     ind, _ = vplace.evaluate(scene, view(cap), ref)
     v = view(cap, indirect=ind)
-    model = vplace.fit(scene, [v], cell_px=16)
-    out = vplace.layout(scene, [v], fit=model, budget=48, light_rays=500)
+    model = vplace.fit(scene, [v], vplace.FitParams(cell_px=16))
+    out = vplace.layout(scene, [v], vplace.LayoutParams(budget=48, light_rays=500), fit=model)
     assert len(out) == 48
     assert out.counts[0].shape == (4, 6)
     assert out.error == min(out.errors)
@@ -330,12 +338,12 @@ def test_predicted_indirect_irradiance_of_a_held_out_view(setup):
     # irradiance max(0, prediction_k) / (mean albedo luminance of cell k).
     scene, d = setup
     flat = {**d, "diffuse_direct": np.full_like(d["diffuse_direct"], 0.1)}
-    fitted = vplace.fit(scene, [view(flat)], cell_px=8)
+    fitted = vplace.fit(scene, [view(flat)], vplace.FitParams(cell_px=8))
     held = view(flat).without_indirect()
     pred = np.maximum(fitted.predict(held), 0.0)
     kw = {"budget": 64, "cell_px": 8, "light_rays": 0, "iterate": False}
-    out = vplace.layout(scene, [held], fit=fitted, **kw)
-    single = vplace.layout(scene, [held], multi_bounce=False, **kw)
+    out = vplace.layout(scene, [held], vplace.LayoutParams(**kw), fit=fitted)
+    single = vplace.layout(scene, [held], vplace.LayoutParams(multi_bounce=False, **kw))
     assert out.indirect_source == ["predicted"]
     albedo = (d["albedo"] @ LUM).reshape(4, 8, 4, 8).mean((1, 3))
     ratio = (out.strata_flux[0].astype(np.float64) @ LUM) / (single.strata_flux[0] @ LUM)

@@ -41,7 +41,7 @@ def test_recovers_known_scales(setup):
         scene, view(d), base.with_flux((base.flux * truth[:, None]).astype("f4"))
     )
     v = view(d, indirect=target)
-    out = vplace.refit(scene, [v], base, stride=2, ridge=0.0)
+    out = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, ridge=0.0))
     assert isinstance(out, vplace.Refit)
     assert len(out) == 7 and out.pixels == 16 * 16
     np.testing.assert_allclose(out.scales[:6], truth[:6], atol=1e-4)
@@ -56,8 +56,8 @@ def test_recovers_known_scales(setup):
     assert out.shadow_rays == 6 * out.pixels and out.seconds > 0
     # The default ridge pulls toward 1 (a trade: less error reduction on this tiny case, no
     # overfitting on real views), and a weaker one lands closer to the truth.
-    near = vplace.refit(scene, [v], base, stride=2)
-    weak = vplace.refit(scene, [v], base, stride=2, ridge=1e-3)
+    near = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2))
+    weak = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, ridge=1e-3))
     assert weak.error_after < near.error_after < near.error_before
     np.testing.assert_allclose(weak.scales[:6], truth[:6], atol=0.05)
     assert np.abs(near.scales[:6] - 1).sum() < np.abs(weak.scales[:6] - 1).sum()
@@ -68,8 +68,8 @@ def test_never_worse_and_deterministic(setup):
     vpls = vplace.uniform_vpls(scene, 48, seed=2)
     v = view(d)
     for ridge in (0.0, 1e-3, 1.0):
-        a = vplace.refit(scene, [v], vpls, ridge=ridge)
-        b = vplace.refit(scene, [v], vpls, ridge=ridge)
+        a = vplace.refit(scene, [v], vpls, vplace.RefitParams(ridge=ridge))
+        b = vplace.refit(scene, [v], vpls, vplace.RefitParams(ridge=ridge))
         assert a.error_after <= a.error_before
         assert np.array_equal(a.scales, b.scales) and a.error_after == b.error_after
     # The first bounce of 3000 VPLs from 48: the refit helps.
@@ -92,8 +92,10 @@ def test_scales_stay_non_negative(setup):
 def test_a_layout_passes_through(setup):
     scene, d = setup
     v = view(d)
-    lay = vplace.layout(scene, [v], budget=32, cell_px=8, light_rays=300, iterations=2)
-    out = vplace.refit(scene, [v], lay.vpls, stride=2)
+    lay = vplace.layout(
+        scene, [v], vplace.LayoutParams(budget=32, cell_px=8, light_rays=300, iterations=2)
+    )
+    out = vplace.refit(scene, [v], lay.vpls, vplace.RefitParams(stride=2))
     assert len(out) == len(lay) == 32
     assert np.array_equal(out.vpls.position, lay.vpls.position)
     np.testing.assert_allclose(out.vpls.flux, lay.vpls.flux * out.scales[:, None], rtol=1e-6)
@@ -125,11 +127,11 @@ def test_input_errors(setup):
     nan[3, 5, 1] = np.nan
     masked = view(d, indirect=nan)
     assert masked.masked_pixels == 1
-    assert vplace.refit(scene, [masked], vpls, stride=1).pixels == 32 * 32 - 1
+    assert vplace.refit(scene, [masked], vpls, vplace.RefitParams(stride=1)).pixels == 32 * 32 - 1
     empty = np.zeros((0, 3), np.float32)
     with pytest.raises(vplace.InputError, match="VPLs is empty"):
         vplace.refit(scene, [v], vplace.VplSet(empty, empty, empty))
     with pytest.raises(vplace.InputError, match="stride"):
-        vplace.refit(scene, [v], vpls, stride=0)
+        vplace.refit(scene, [v], vpls, vplace.RefitParams(stride=0))
     with pytest.raises(vplace.InputError, match="ridge"):
-        vplace.refit(scene, [v], vpls, ridge=-1.0)
+        vplace.refit(scene, [v], vpls, vplace.RefitParams(ridge=-1.0))

@@ -8,8 +8,8 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use std::hint::black_box;
 use vplace_core::{
-    features::{extract_features, fit_cells, FEATURE_COUNT},
-    regression::{fit, FitParams},
+    fit::features::{extract_features, fit_cells, FEATURE_COUNT},
+    fit::regression::{fit, FitParams},
     test_util::{linear_design, Passes},
 };
 

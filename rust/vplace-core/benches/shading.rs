@@ -9,10 +9,10 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use glam::Vec3;
 use std::hint::black_box;
 use vplace_core::{
-    evaluator::{evaluate, EvalParams},
+    layout::refit::{refit, RefitParams},
     layout::{view_efficiency, Emitter},
-    refit::{refit, RefitParams},
     rng::Rng,
+    shade::evaluator::{evaluate, EvalParams},
     test_util::{box_with, inward_point, FloorView, BLOCKER},
     vpl::Vpl,
 };

@@ -12,8 +12,8 @@
 use glam::DVec2;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::time::{Duration, Instant};
+use vplace_core::fit::regression::{fit, FitParams};
 use vplace_core::par2d::{Method, Scene2d};
-use vplace_core::regression::{fit, FitParams};
 use vplace_core::rng::Rng;
 
 fn hostile(r: &mut Rng) -> f64 {

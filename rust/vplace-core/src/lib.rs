@@ -7,21 +7,32 @@
 //! `H x W x C` order with row 0 at the top, in Blender world space (Z up, metres).
 //! Every entry point checks its input once and returns [`Result`]; a panic is a bug.
 //!
-//! The pipeline (see `ARCHITECTURE.md` in the repository):
-//! 1. [`scene::Scene`]: triangles, per-triangle albedo and the scene's lights, with an obvhs BVH.
-//! 2. [`vpl::uniform_vpls`]: Keller's instant radiosity: rays from the lights, first hits become
-//!    VPLs carrying `P / n * albedo`.
-//! 3. [`evaluator::evaluate`]: the indirect image of a VPL set over a captured G-buffer, every
-//!    pixel shaded by the one VPL-to-pixel term of [`shading`] (also used by the refit and the
-//!    layout's view efficiency).
-//! 4. [`metrics`]: RMSE and relative MSE against a reference, SSIM on the display luminance.
-//! 5. [`layout`]: candidate emitters (lit pixels and off-screen light-ray hits), strata (image
-//!    cells plus an off-screen stratum), the budget split `N * lerp(u_k, m_k, alpha)` by largest
-//!    remainder, flux-proportional draws that keep the total flux; [`refine`]: the iteration that
-//!    evaluates the layout, compares it per cell with the indirect image and moves budget toward
-//!    high residuals, returning the best layout; [`rsm`]: the reflective-shadow-map baseline.
-//! 6. [`refit`]: the optional non-negative least-squares refit of the VPL powers against the
-//!    indirect image.
+//! The pipeline, one module per stage (see `ARCHITECTURE.md` in the repository). A stage imports
+//! only the foundations ([`error`], [`color`], [`rng`], [`progress`]) and the stages before it,
+//! never one after it:
+//! 1. [`scene`]: [`scene::Scene`], triangles, materials ([`scene::texture`]) and the scene's
+//!    lights, with an obvhs BVH; [`scene::emitters`] samples every light source (lights, the
+//!    world, emissive triangles) by power.
+//! 2. [`view`]: one captured [`view::View`] (G-buffer, lighting passes, camera), checked once, and
+//!    [`view::GBuffer`], the borrowed per-pixel contract the later stages read.
+//! 3. [`vpl`]: [`vpl::Vpl`], [`vpl::Profile`] and Keller's instant radiosity
+//!    ([`vpl::uniform_vpls`]): light paths from every emitter, a VPL at each surface hit.
+//! 4. [`shade`]: the one VPL-to-pixel term ([`shade::shading`]); [`shade::evaluator::evaluate`],
+//!    the indirect image of a VPL set over a G-buffer with shadow rays (also used by the refit
+//!    and the layout's view efficiency); [`shade::direct`], the direct light of the scene's own
+//!    emitters.
+//! 5. [`fit`]: per-cell features and label of views ([`fit::features`]) and the least-squares
+//!    model with feature selection ([`fit::regression`]).
+//! 6. [`layout`]: candidate emitters (lit pixels and off-screen light-ray hits), strata (image
+//!    cells plus off-screen strata), the budget split `N * lerp(u_k, m_k, alpha)` by largest
+//!    remainder, flux-proportional draws that keep the total flux; [`layout::refine`]: the
+//!    iteration that evaluates the layout, compares it per cell with the indirect image and
+//!    moves budget toward high residuals, returning the best layout; [`layout::refit`]: the
+//!    optional non-negative least-squares refit of the VPL powers; [`layout::rsm`]: the
+//!    reflective-shadow-map baseline.
+//!
+//! Beside the pipeline: [`metrics`] (RMSE and relative MSE against a reference, SSIM on the
+//! display luminance) and [`par2d`] (analytic 2D direct lighting).
 //!
 //! Luminance is Rec. 709's everywhere ([`luminance`]). The `test-util` feature exposes
 //! `test_util`: the procedural scenes and views of the tests, for benches and examples.
@@ -40,28 +51,26 @@
 //! # let _ = Profile::Cosine;
 //! ```
 
+// Foundations: no stage imported.
 pub mod color;
-pub mod direct;
-pub mod emitters;
 pub mod error;
-pub mod evaluator;
-pub mod features;
-pub mod layout;
-pub mod metrics;
-pub mod par2d;
-pub mod refine;
-pub mod refit;
-pub mod regression;
+pub mod progress;
 pub mod rng;
-pub mod rsm;
+
+// The stages, each importing only those above it.
+pub mod fit;
+pub mod layout;
 pub mod scene;
-pub mod shading;
-mod shadow_cache;
-#[cfg(any(test, feature = "test-util"))]
-pub mod test_util;
-pub mod texture;
+pub mod shade;
 pub mod view;
 pub mod vpl;
 
+// Beside the pipeline.
+pub mod metrics;
+pub mod par2d;
+#[cfg(any(test, feature = "test-util"))]
+pub mod test_util;
+
 pub use color::{luminance, LUMINANCE};
 pub use error::{Result, VplaceError};
+pub use progress::Progress;

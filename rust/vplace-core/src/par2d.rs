@@ -68,7 +68,7 @@ pub use geometry::Polygon;
 use geometry::View;
 
 use crate::error::{Result, VplaceError};
-use crate::evaluator::Progress;
+use crate::progress::Progress;
 use crate::rng::Rng;
 
 /// The algorithm answering a query. Copy settings; see the module doc for what each computes.

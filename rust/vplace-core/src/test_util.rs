@@ -5,15 +5,15 @@
 //! deterministic; the fixtures are fixed data, so a failed build of one is a bug in this module
 //! and panics.
 
-use glam::{Mat4, Vec3, Vec4};
+use glam::{Mat4, Vec2, Vec3, Vec4};
 use std::f32::consts::PI;
 
-use crate::evaluator::GBuffer;
-use crate::features::{FeatureInput, StrongestLight, FEATURE_COUNT};
+use crate::fit::features::{FeatureInput, StrongestLight, FEATURE_COUNT};
 use crate::rng::Rng;
-use crate::scene::{Light, Scene};
-use crate::shading::irradiance_per_flux;
-use crate::view::{Camera, View, ViewInput};
+use crate::scene::texture::{Texture, TextureRef};
+use crate::scene::{Light, Material, Scene, SceneInput};
+use crate::shade::shading::irradiance_per_flux;
+use crate::view::{Camera, GBuffer, View, ViewInput};
 use crate::vpl::{Profile, Vpl};
 
 /// An open box `[-1, 1]^2 x [0, 2]` (floor, four walls, ceiling) with inward-facing
@@ -228,12 +228,7 @@ impl FloorView {
         let depth = vec![self.camera.z; g.width * g.height];
         View::new(&ViewInput {
             name: "floor",
-            width: g.width,
-            height: g.height,
-            position: &g.position,
-            normal: &g.normal,
-            albedo: &g.albedo,
-            covered: &g.covered,
+            gbuffer: g.gbuffer(),
             depth: &depth,
             direct: &direct,
             diffuse_direct: &self.diffuse_direct,
@@ -349,18 +344,12 @@ impl Passes {
     /// The feature extraction's view of the passes (indirect given, no specular pass).
     #[must_use]
     pub fn input(&self) -> FeatureInput<'_> {
-        let g = &self.gbuffer;
         FeatureInput {
-            width: g.width,
-            height: g.height,
-            position: &g.position,
-            normal: &g.normal,
-            albedo: &g.albedo,
+            gbuffer: self.gbuffer.gbuffer(),
             depth: &self.depth,
             direct: &self.direct,
             indirect: Some(&self.indirect),
             specular: None,
-            covered: &g.covered,
             light: Some(self.light),
         }
     }
@@ -543,4 +532,43 @@ pub fn shading_cases() -> (Scene, GBufferArrays, Vec<Vpl>) {
         vpl(Vec3::new(0.0, 0.0, 1.99), Vec3::NEG_Z, Vec3::splat(1.5)),
     ]);
     (scene, g, vpls)
+}
+
+/// [`box_geometry`] with a card (the unit square at height 1, material 1 `card`, UVs over
+/// it) and a 2 x 1 texture: red then green, alpha 0 then 1.
+#[must_use]
+pub fn card_scene(card: Material, lights: Vec<Light>) -> Scene {
+    let corners = [
+        Vec3::new(-0.5, -0.5, 1.0),
+        Vec3::new(0.5, -0.5, 1.0),
+        Vec3::new(0.5, 0.5, 1.0),
+        Vec3::new(-0.5, 0.5, 1.0),
+    ];
+    let (v, t) = box_geometry(&[corners]);
+    let mut ids = vec![0u32; t.len()];
+    let mut uvs = vec![[Vec2::ZERO; 3]; t.len()];
+    let (a, b, c, d) = (Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y);
+    ids[12..].fill(1);
+    uvs[12] = [a, b, c];
+    uvs[13] = [a, c, d];
+    let texture = Texture::new("t", 2, 1, 4, &[1., 0., 0., 0., 0., 1., 0., 1.]).unwrap();
+    Scene::new(SceneInput {
+        vertices: &v,
+        triangles: &t,
+        material_ids: &ids,
+        materials: &[Material::diffuse(Vec3::splat(0.5)), card],
+        lights,
+        uvs: Some(&uvs),
+        textures: vec![texture],
+    })
+    .unwrap()
+}
+
+/// A texture reference with Extend wrapping.
+#[must_use]
+pub fn extend(texture: u32) -> TextureRef {
+    TextureRef {
+        wrap: crate::scene::texture::Wrap::Extend,
+        ..TextureRef::new(texture)
+    }
 }

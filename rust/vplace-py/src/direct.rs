@@ -3,7 +3,7 @@
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use std::sync::Arc;
-use vplace_core::direct::{self, DirectParams};
+use vplace_core::shade::direct::{self, DirectParams};
 
 use crate::errors::run;
 use crate::scene::{PyProgress, PyScene};

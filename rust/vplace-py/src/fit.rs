@@ -1,28 +1,25 @@
 //! Features and regression: the registry, per-cell extraction, and the `Fit` model (fitted on
 //! views or on a given design matrix).
 
-use glam::Vec3;
 use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::PyDict;
 use std::sync::Arc;
 use vplace_core::{
-    features::{
-        self, CellFeatures, CellModel, FeatureInput, MinMax, StrongestLight, ViewFit, FEATURES,
+    fit::features::{
+        self, CellFeatures, CellModel, StrongestLight, ViewFit, ViewFitParams, FEATURES,
         FEATURE_COUNT,
     },
-    regression::{self, DropReason, Fit, FitParams},
+    fit::model::{light_to_tuple, Fitted, Model},
+    fit::regression::{self, Fit, FitParams},
     view::View,
 };
 
 use crate::arrays::{array, slice, Dim};
 use crate::errors::{input_error, run};
+use crate::params::PyFitParams;
 use crate::scene::PyScene;
 use crate::view::{views_of, PyView};
-
-/// Saved-model format name and version (`Fit.to_json`).
-const FORMAT: &str = "vplace.fit";
-const VERSION: u32 = 3;
 
 /// The feature registry: a list of `(name, doc, origin, surface)` in column order, with origin
 /// `"paper"` or `"ours"` and `surface` true for a property of the surface (the same from every
@@ -41,85 +38,32 @@ fn feature_registry() -> Vec<(&'static str, &'static str, &'static str, bool)> {
         .collect()
 }
 
-/// What a model is fitted on.
-#[derive(Clone)]
-enum Model {
-    /// The cells of captured views: predicts other views.
-    Views(CellModel),
-    /// A given design matrix.
-    Design(Fit),
-}
-
-/// A fitted linear model of the per-cell label (or of a given design) and its diagnostics.
+/// A fitted linear model of the per-cell label (or of a given design) and its diagnostics: the
+/// core's [`Model`].
 #[pyclass(name = "Fit", module = "vplace._native", frozen)]
 pub struct PyFit {
-    names: Vec<String>,
     model: Model,
-    /// `(name, why)` of every dropped column, in the order they were dropped.
-    dropped: Vec<(String, String)>,
-}
-
-fn reason_text(r: &DropReason, names: &[String]) -> String {
-    match r {
-        DropReason::Unavailable(why) => format!("unavailable: {why}"),
-        DropReason::Excluded(why) => format!("excluded: {why}"),
-        DropReason::Constant => "constant over the cells".into(),
-        DropReason::ConstantLabel => "the label is constant".into(),
-        DropReason::Collinear { residual, with } => {
-            let with: Vec<&str> = with.iter().map(|&j| names[j].as_str()).collect();
-            let with = if with.is_empty() {
-                "the intercept".to_owned()
-            } else {
-                with.join(", ")
-            };
-            format!("collinear with {with} (residual {residual:.1e})")
-        }
-        DropReason::NoCvGain {
-            cv_r2_with,
-            cv_r2_without,
-        } => format!("no CV gain (CV R^2 {cv_r2_with:.4} with, {cv_r2_without:.4} without)"),
-    }
 }
 
 impl PyFit {
-    fn new(names: Vec<String>, model: Model) -> Self {
-        let fit = match &model {
-            Model::Views(m) => &m.fit,
-            Model::Design(f) => f,
-        };
-        let dropped = fit
-            .dropped
-            .iter()
-            .map(|(j, r)| (names[*j].clone(), reason_text(r, &names)))
-            .collect();
+    fn new(names: Vec<String>, fitted: Fitted) -> Self {
         Self {
-            names,
-            model,
-            dropped,
+            model: Model::new(names, fitted),
         }
     }
 
     fn fit(&self) -> &Fit {
-        match &self.model {
-            Model::Views(m) => &m.fit,
-            Model::Design(f) => f,
-        }
+        self.model.fit()
     }
 
     fn cells(&self) -> PyResult<&CellModel> {
-        match &self.model {
-            Model::Views(m) => Ok(m),
-            Model::Design(_) => Err(input_error(
-                "this model was fitted on a design matrix; use predict_design",
-            )),
-        }
+        self.model.cells().ok_or_else(|| {
+            input_error("this model was fitted on a design matrix; use predict_design")
+        })
     }
 
     fn views(&self) -> &[ViewFit] {
-        match &self.model {
-            Model::Views(m) => &m.views,
-            Model::Design(_) => &[],
-        }
+        self.model.views()
     }
 
     /// The core model, for the layout.
@@ -128,19 +72,12 @@ impl PyFit {
     }
 }
 
-fn light_tuple(l: StrongestLight) -> (&'static str, [f32; 3]) {
-    match l {
-        StrongestLight::Position(p) => ("position", p.to_array()),
-        StrongestLight::Direction(d) => ("direction", d.to_array()),
-    }
-}
-
 #[pymethods]
 impl PyFit {
     /// Names of every design column (the feature registry for a fit on views).
     #[getter]
     fn feature_names(&self) -> Vec<String> {
-        self.names.clone()
+        self.model.names.clone()
     }
 
     /// The kept columns, in registry order.
@@ -149,7 +86,7 @@ impl PyFit {
         self.fit()
             .kept
             .iter()
-            .map(|&j| self.names[j].clone())
+            .map(|&j| self.model.names[j].clone())
             .collect()
     }
 
@@ -157,7 +94,7 @@ impl PyFit {
     #[getter]
     fn dropped<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
-        for (name, why) in &self.dropped {
+        for (name, why) in &self.model.dropped {
             d.set_item(name, why)?;
         }
         Ok(d)
@@ -175,7 +112,7 @@ impl PyFit {
         let f = self.fit();
         let d = PyDict::new(py);
         for &j in &f.kept {
-            d.set_item(&self.names[j], f.coefficients[j])?;
+            d.set_item(&self.model.names[j], f.coefficients[j])?;
         }
         Ok(d)
     }
@@ -186,7 +123,7 @@ impl PyFit {
         let f = self.fit();
         let d = PyDict::new(py);
         for &j in &f.kept {
-            d.set_item(&self.names[j], f.weights[j])?;
+            d.set_item(&self.model.names[j], f.weights[j])?;
         }
         Ok(d)
     }
@@ -254,7 +191,7 @@ impl PyFit {
     /// The light of the light-cosine feature, `("position" | "direction", xyz)`, or None.
     #[getter]
     fn light(&self) -> Option<(&'static str, [f32; 3])> {
-        self.cells().ok().and_then(|m| m.light).map(light_tuple)
+        self.cells().ok().and_then(|m| m.light).map(light_to_tuple)
     }
 
     /// Names of the views fitted on, in order.
@@ -316,7 +253,7 @@ impl PyFit {
         let out = run(py, move || model.out_of_range_view(&v))?;
         Ok(out
             .into_iter()
-            .map(|(j, f)| (self.names[j].clone(), f))
+            .map(|(j, f)| (self.model.names[j].clone(), f))
             .collect())
     }
 
@@ -326,160 +263,23 @@ impl PyFit {
         py: Python<'py>,
         x: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let p = self.names.len();
+        let p = self.model.names.len();
         let xa = array::<f64>(x, "x", &[Dim::Any, Dim::Is(p)], "float64")?;
         let xs = slice(&xa, "x")?;
         let f = self.fit().clone();
         Ok(PyArray1::from_vec(py, run(py, move || f.predict(xs))?))
     }
 
-    /// The model as JSON (everything but the fitted values).
-    fn to_json(&self, py: Python<'_>) -> PyResult<String> {
-        let f = self.fit();
-        let d = PyDict::new(py);
-        d.set_item("format", FORMAT)?;
-        d.set_item("version", VERSION)?;
-        d.set_item("feature_names", &self.names)?;
-        d.set_item("n", f.n)?;
-        d.set_item("intercept", f.intercept)?;
-        d.set_item("coefficients", &f.coefficients)?;
-        d.set_item("weights", &f.weights)?;
-        d.set_item("kept", &f.kept)?;
-        d.set_item("dropped", self.dropped.clone())?;
-        d.set_item("r2", f.r2)?;
-        d.set_item("adjusted_r2", f.adjusted_r2)?;
-        d.set_item("cv_r2", f.cv_r2)?;
-        d.set_item("folds", f.folds)?;
-        let cond = f.condition_number;
-        d.set_item("condition_number", cond.is_finite().then_some(cond))?;
-        d.set_item("rank", f.rank)?;
-        d.set_item("ridge_lambda", f.ridge_lambda)?;
-        if let Model::Views(m) = &self.model {
-            d.set_item("cell_px", m.cell_px)?;
-            d.set_item("feature_min", &m.ranges.min)?;
-            d.set_item("feature_max", &m.ranges.max)?;
-            d.set_item("light", m.light.map(light_tuple))?;
-            d.set_item("label_max", m.label_max)?;
-            let views = PyList::empty(py);
-            for v in &m.views {
-                let e = PyDict::new(py);
-                e.set_item("name", &v.name)?;
-                e.set_item("cells", v.cells)?;
-                e.set_item("empty_cells", v.empty_cells)?;
-                e.set_item("masked_pixels", v.masked_pixels)?;
-                e.set_item("r2", v.r2)?;
-                views.append(e)?;
-            }
-            d.set_item("views", views)?;
-        }
-        let json = py.import("json")?;
-        json.call_method1("dumps", (d,))?.extract()
+    /// The model as JSON (everything but the fitted values; the core's document).
+    fn to_json(&self) -> String {
+        self.model.to_json()
     }
 
     /// Loads a model saved by `to_json`.
     #[staticmethod]
-    fn from_json(py: Python<'_>, text: &str) -> PyResult<Self> {
-        let bad =
-            |what: &str| input_error(format!("not a {FORMAT} version {VERSION} document: {what}"));
-        let json = py.import("json")?;
-        let d = json
-            .call_method1("loads", (text,))
-            .map_err(|_| bad("invalid JSON"))?;
-        let d = d.cast::<PyDict>().map_err(|_| bad("not an object"))?;
-        let get = |k: &str| -> PyResult<Bound<'_, PyAny>> {
-            d.get_item(k)?.ok_or_else(|| bad(&format!("no {k:?}")))
-        };
-        if get("format")?.extract::<String>().ok().as_deref() != Some(FORMAT)
-            || get("version")?.extract::<u32>().ok() != Some(VERSION)
-        {
-            return Err(bad("wrong format or version"));
-        }
-        let ex = |k: &str| -> PyResult<Bound<'_, PyAny>> { get(k) };
-        let names: Vec<String> = ex("feature_names")?.extract()?;
-        let p = names.len();
-        let coefficients: Vec<f64> = ex("coefficients")?.extract()?;
-        let weights: Vec<f64> = ex("weights")?.extract()?;
-        let kept: Vec<usize> = ex("kept")?.extract()?;
-        if coefficients.len() != p || weights.len() != p || kept.iter().any(|&j| j >= p) {
-            return Err(bad("columns do not match the feature names"));
-        }
-        let cond: Option<f64> = ex("condition_number")?.extract()?;
-        let fit = Fit {
-            p,
-            n: ex("n")?.extract()?,
-            intercept: ex("intercept")?.extract()?,
-            coefficients,
-            weights,
-            kept,
-            dropped: Vec::new(),
-            r2: ex("r2")?.extract()?,
-            adjusted_r2: ex("adjusted_r2")?.extract()?,
-            cv_r2: ex("cv_r2")?.extract()?,
-            folds: ex("folds")?.extract()?,
-            condition_number: cond.unwrap_or(f64::INFINITY),
-            rank: ex("rank")?.extract()?,
-            ridge_lambda: ex("ridge_lambda")?.extract()?,
-            fitted: Vec::new(),
-        };
-        let dropped: Vec<(String, String)> = ex("dropped")?
-            .extract::<Vec<Vec<String>>>()?
-            .into_iter()
-            .map(|pair| match <[String; 2]>::try_from(pair) {
-                Ok([name, why]) => Ok((name, why)),
-                Err(_) => Err(bad("dropped entries must be [name, reason]")),
-            })
-            .collect::<PyResult<_>>()?;
-        let model = if d.contains("cell_px")? {
-            if p != FEATURE_COUNT {
-                return Err(bad("a view model needs every registered feature"));
-            }
-            let light = ex("light")?;
-            let light = if light.is_none() {
-                None
-            } else {
-                let (k, v): (String, [f32; 3]) =
-                    (light.get_item(0)?.extract()?, light.get_item(1)?.extract()?);
-                match k.as_str() {
-                    "position" => Some(StrongestLight::Position(Vec3::from_array(v))),
-                    "direction" => Some(StrongestLight::Direction(Vec3::from_array(v))),
-                    _ => return Err(bad("light kind")),
-                }
-            };
-            let mut views = Vec::new();
-            for v in ex("views")?.cast::<PyList>()?.iter() {
-                let v = v.cast::<PyDict>()?;
-                let item = |k: &str| -> PyResult<Bound<'_, PyAny>> {
-                    v.get_item(k)?
-                        .ok_or_else(|| bad(&format!("view without {k:?}")))
-                };
-                views.push(ViewFit {
-                    name: item("name")?.extract()?,
-                    cells: item("cells")?.extract()?,
-                    empty_cells: item("empty_cells")?.extract()?,
-                    masked_pixels: item("masked_pixels")?.extract()?,
-                    r2: item("r2")?.extract()?,
-                });
-            }
-            let min: Vec<f64> = ex("feature_min")?.extract()?;
-            let max: Vec<f64> = ex("feature_max")?.extract()?;
-            if min.len() != p || max.len() != p {
-                return Err(bad("feature ranges"));
-            }
-            Model::Views(CellModel {
-                ranges: MinMax { min, max },
-                fit,
-                cell_px: ex("cell_px")?.extract()?,
-                light,
-                views,
-                label_max: ex("label_max")?.extract()?,
-            })
-        } else {
-            Model::Design(fit)
-        };
+    fn from_json(text: &str) -> PyResult<Self> {
         Ok(Self {
-            names,
-            model,
-            dropped,
+            model: Model::from_json(text).map_err(crate::errors::to_py)?,
         })
     }
 
@@ -488,7 +288,7 @@ impl PyFit {
         let f = self.fit();
         let num = |v: Option<f64>| v.map_or("n/a".to_owned(), |v| format!("{v:.4}"));
         let mut head = format!("vplace fit: {} cells", f.n);
-        if let Model::Views(m) = &self.model {
+        if let Fitted::Views(m) = &self.model.fitted {
             head += &format!(
                 " of {} px from {} view(s) ({} without geometry excluded, {} non-finite pixels masked)",
                 m.cell_px,
@@ -540,13 +340,13 @@ impl PyFit {
         for j in order {
             lines.push(format!(
                 "{:<20} {:>14.6e} {:>8.4}",
-                self.names[j], f.coefficients[j], f.weights[j]
+                self.model.names[j], f.coefficients[j], f.weights[j]
             ));
         }
-        if !self.dropped.is_empty() {
+        if !self.model.dropped.is_empty() {
             lines.push(String::new());
             lines.push("dropped:".to_owned());
-            for (name, why) in &self.dropped {
+            for (name, why) in &self.model.dropped {
                 lines.push(format!("  {name:<20} {why}"));
             }
         }
@@ -563,51 +363,91 @@ impl PyFit {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
-fn fit_params(
-    folds: usize,
-    select: bool,
-    min_cv_gain: f64,
-    collinear_rtol: f64,
-    rank_rtol: Option<f64>,
-    ridge_above: f64,
-    seed: u64,
-) -> FitParams {
-    FitParams {
-        folds,
-        select,
-        min_cv_gain,
-        collinear_rtol,
-        rank_rtol,
-        ridge_above,
-        seed,
-    }
-}
-
 fn registry_names() -> Vec<String> {
     FEATURES.iter().map(|f| f.name.to_owned()).collect()
 }
 
-fn cells_to_dict(py: Python<'_>, c: CellFeatures) -> PyResult<Bound<'_, PyDict>> {
-    let n = c.cells.len();
-    let d = PyDict::new(py);
-    d.set_item("names", registry_names())?;
-    d.set_item("cell_px", c.cell_px)?;
-    d.set_item("cells_x", c.cells_x)?;
-    d.set_item("cells_y", c.cells_y)?;
-    let cells: Vec<i64> = c.cells.iter().map(|&i| i as i64).collect();
-    d.set_item("cells", PyArray1::from_vec(py, cells))?;
-    d.set_item(
-        "values",
-        PyArray1::from_vec(py, c.values).reshape([n, FEATURE_COUNT])?,
-    )?;
-    d.set_item("label", c.label.map(|l| PyArray1::from_vec(py, l)))?;
-    let pixels: Vec<i64> = c.pixels.iter().map(|&i| i64::from(i)).collect();
-    d.set_item("pixels", PyArray1::from_vec(py, pixels))?;
-    d.set_item("empty_cells", c.empty_cells)?;
-    d.set_item("masked_pixels", c.masked_pixels)?;
-    d.set_item("available", c.available.to_vec())?;
-    Ok(d)
+/// The per-cell features of one view (`vplace.extract_features`).
+#[pyclass(name = "CellFeatures", module = "vplace._native", frozen)]
+pub struct PyCellFeatures {
+    inner: CellFeatures,
+}
+
+#[pymethods]
+impl PyCellFeatures {
+    /// The feature names, in column order.
+    #[getter]
+    fn names(&self) -> Vec<String> {
+        registry_names()
+    }
+    /// Cell size, pixels.
+    #[getter]
+    fn cell_px(&self) -> usize {
+        self.inner.cell_px
+    }
+    /// Cells per image row.
+    #[getter]
+    fn cells_x(&self) -> usize {
+        self.inner.cells_x
+    }
+    /// Cells per image column.
+    #[getter]
+    fn cells_y(&self) -> usize {
+        self.inner.cells_y
+    }
+    /// Flat grid index (row-major, row 0 at the top) of every non-empty cell, int64.
+    #[getter]
+    fn cells<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<i64>> {
+        let cells: Vec<i64> = self.inner.cells.iter().map(|&i| i as i64).collect();
+        PyArray1::from_vec(py, cells)
+    }
+    /// Raw per-cell values, float64 (cells, features).
+    #[getter]
+    fn values<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let n = self.inner.cells.len();
+        Ok(PyArray1::from_slice(py, &self.inner.values)
+            .reshape([n, FEATURE_COUNT])?
+            .into_any())
+    }
+    /// The label per listed cell (float64), or None without an indirect image.
+    #[getter]
+    fn label<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        self.inner
+            .label
+            .as_ref()
+            .map(|l| PyArray1::from_slice(py, l))
+    }
+    /// Usable pixels per listed cell, int64.
+    #[getter]
+    fn pixels<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<i64>> {
+        let pixels: Vec<i64> = self.inner.pixels.iter().map(|&i| i64::from(i)).collect();
+        PyArray1::from_vec(py, pixels)
+    }
+    /// Cells of the grid without a usable pixel.
+    #[getter]
+    fn empty_cells(&self) -> usize {
+        self.inner.empty_cells
+    }
+    /// Covered pixels dropped for a non-finite pass.
+    #[getter]
+    fn masked_pixels(&self) -> usize {
+        self.inner.masked_pixels
+    }
+    /// Per feature: false when its input was not given.
+    #[getter]
+    fn available(&self) -> Vec<bool> {
+        self.inner.available.to_vec()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "CellFeatures({} cells of {} px, {} x {} grid)",
+            self.inner.cells.len(),
+            self.inner.cell_px,
+            self.inner.cells_x,
+            self.inner.cells_y
+        )
+    }
 }
 
 /// The strongest light of `scene` for `views`.
@@ -619,76 +459,49 @@ fn light_for(scene: &PyScene, views: &[Arc<View>]) -> Option<StrongestLight> {
 /// Per-cell features of one view (see `vplace.extract_features`).
 #[pyfunction]
 #[pyo3(signature = (scene, view, *, cell_px = 16))]
-fn extract_features<'py>(
-    py: Python<'py>,
+fn extract_features(
+    py: Python<'_>,
     scene: &PyScene,
     view: &PyView,
     cell_px: usize,
-) -> PyResult<Bound<'py, PyDict>> {
+) -> PyResult<PyCellFeatures> {
     let v = Arc::clone(&view.inner);
     let light = light_for(scene, std::slice::from_ref(&v));
-    let cells = run(py, move || {
-        features::extract_features(&FeatureInput::of(&v, light), cell_px)
+    let inner = run(py, move || {
+        features::extract_view_features(&v, light, cell_px)
     })?;
-    cells_to_dict(py, cells)
+    Ok(PyCellFeatures { inner })
 }
 
 /// Fits one model on the cells of every view (see `vplace.fit`).
 #[pyfunction]
-#[pyo3(signature = (scene, views, *, cell_px = 16, surface_only = true, folds = 5,
-    select = true, min_cv_gain = 1e-3, collinear_rtol = 1e-6, rank_rtol = None,
-    ridge_above = 1e6, seed = 0x5eed))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (scene, views, params = None))]
 fn fit(
     py: Python<'_>,
     scene: &PyScene,
     views: Vec<Bound<'_, PyView>>,
-    cell_px: usize,
-    surface_only: bool,
-    folds: usize,
-    select: bool,
-    min_cv_gain: f64,
-    collinear_rtol: f64,
-    rank_rtol: Option<f64>,
-    ridge_above: f64,
-    seed: u64,
+    params: Option<&PyFitParams>,
 ) -> PyResult<PyFit> {
     let views = views_of(&views);
     let light = light_for(scene, &views);
-    let params = fit_params(
-        folds,
-        select,
-        min_cv_gain,
-        collinear_rtol,
-        rank_rtol,
-        ridge_above,
-        seed,
-    );
+    let p = params.map_or(ViewFitParams::DEFAULT, |p| p.inner);
     let model = run(py, move || {
         let refs: Vec<&View> = views.iter().map(|v| v.as_ref()).collect();
-        features::fit_views(&refs, light, cell_px, surface_only, &params)
+        features::fit_views(&refs, light, p.cell_px, p.surface_only, &p.regression)
     })?;
-    Ok(PyFit::new(registry_names(), Model::Views(model)))
+    Ok(PyFit::new(registry_names(), Fitted::Views(model)))
 }
 
 /// Fits `y` (float64 (n,)) on the columns of `x` (float64 (n, p)) with the solver of `fit`
-/// (see `vplace.fit_design`).
+/// (see `vplace.fit_design`; only the regression's settings of `params` are read).
 #[pyfunction]
-#[pyo3(signature = (x, y, *, names = None, folds = 5, select = true, min_cv_gain = 1e-3,
-    collinear_rtol = 1e-6, rank_rtol = None, ridge_above = 1e6, seed = 0x5eed))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (x, y, params = None, *, names = None))]
 fn fit_design(
     py: Python<'_>,
     x: &Bound<'_, PyAny>,
     y: &Bound<'_, PyAny>,
+    params: Option<&PyFitParams>,
     names: Option<Vec<String>>,
-    folds: usize,
-    select: bool,
-    min_cv_gain: f64,
-    collinear_rtol: f64,
-    rank_rtol: Option<f64>,
-    ridge_above: f64,
-    seed: u64,
 ) -> PyResult<PyFit> {
     let xa = array::<f64>(x, "x", &[Dim::Any, Dim::Any], "float64")?;
     let (n, p) = (xa.shape()[0], xa.shape()[1]);
@@ -701,22 +514,15 @@ fn fit_design(
         )));
     }
     let (xs, ys) = (slice(&xa, "x")?, slice(&ya, "y")?);
-    let params = fit_params(
-        folds,
-        select,
-        min_cv_gain,
-        collinear_rtol,
-        rank_rtol,
-        ridge_above,
-        seed,
-    );
+    let params = params.map_or(FitParams::DEFAULT, |p| p.inner.regression);
     let f = run(py, move || regression::fit(xs, ys, p, &params))?;
-    Ok(PyFit::new(names, Model::Design(f)))
+    Ok(PyFit::new(names, Fitted::Design(f)))
 }
 
 /// Registers this file's classes and functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyFit>()?;
+    m.add_class::<PyCellFeatures>()?;
     m.add_function(wrap_pyfunction!(feature_registry, m)?)?;
     m.add_function(wrap_pyfunction!(extract_features, m)?)?;
     m.add_function(wrap_pyfunction!(fit, m)?)?;

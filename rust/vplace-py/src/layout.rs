@@ -4,18 +4,17 @@ use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use std::sync::Arc;
 use vplace_core::{
-    evaluator::EvalParams,
-    layout::{Allocation, IndirectSource, LayoutParams, Strata},
-    refine,
+    layout::request::{lay_out, Iteration, LayoutRequest},
+    layout::{Allocation, IndirectSource, Strata},
     view::View,
-    vpl,
 };
 
 use crate::errors::{input_error, run};
 use crate::fit::PyFit;
+use crate::params::PyLayoutParams;
 use crate::scene::{PyProgress, PyScene};
 use crate::view::{views_of, PyView};
-use crate::vpls::{default_radius, parse_profile, PyVplSet};
+use crate::vpls::PyVplSet;
 
 /// A VPL layout for one or more views, and how it was reached.
 #[pyclass(name = "Layout", module = "vplace._native", frozen)]
@@ -28,6 +27,7 @@ pub struct PyLayout {
     seconds: Vec<f64>,
     shadow_rays: Vec<u64>,
     reused_rays: Vec<u64>,
+    iteration: Iteration,
 }
 
 impl PyLayout {
@@ -175,6 +175,17 @@ impl PyLayout {
             .collect()
     }
 
+    /// Whether the iteration ran: `"ran"`, `"off"` (not asked for) or `"no indirect image in
+    /// view <i>"` (asked for, but a view had no indirect image to compare with).
+    #[getter]
+    fn iteration(&self) -> String {
+        match self.iteration {
+            Iteration::Runs => "ran".to_owned(),
+            Iteration::Off => "off".to_owned(),
+            Iteration::NoIndirect { view } => format!("no indirect image in view {view}"),
+        }
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "Layout({} VPLs over {} view(s), best error {:?})",
@@ -185,127 +196,42 @@ impl PyLayout {
     }
 }
 
-/// Lays out `budget` VPLs for `views` (see `vplace.layout`).
+/// Lays out VPLs for `views` as `params` asks (see `vplace.layout`); the core resolves what
+/// `params` leaves open and says whether the iteration ran (`Layout.iteration`).
 #[pyfunction]
-#[pyo3(signature = (scene, views, *, fit = None, budget = 256, alpha = 1.0, cell_px = None,
-    iterate = true, light_rays = 4096, bounces = None, seed = 0, stride = 4,
-    iterations = 3, tolerance = 0.01, step = 0.5, profile = "cosine", radius = None,
-    multi_bounce = true, tile = 16, progress = None))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (scene, views, params = None, *, fit = None, progress = None))]
 fn layout(
     py: Python<'_>,
     scene: &PyScene,
     views: Vec<Bound<'_, PyView>>,
+    params: Option<&PyLayoutParams>,
     fit: Option<&PyFit>,
-    budget: usize,
-    alpha: f32,
-    cell_px: Option<usize>,
-    iterate: bool,
-    light_rays: usize,
-    bounces: Option<usize>,
-    seed: u64,
-    stride: usize,
-    iterations: usize,
-    tolerance: f64,
-    step: f64,
-    profile: &str,
-    radius: Option<f32>,
-    multi_bounce: bool,
-    tile: usize,
     progress: Option<&PyProgress>,
 ) -> PyResult<PyLayout> {
-    let profile = parse_profile(profile)?;
     if views.is_empty() {
         return Err(input_error("views: give at least one View"));
     }
+    let request = params.map_or(LayoutRequest::DEFAULT, |p| p.inner);
     let views = views_of(&views);
     let model = fit.map(PyFit::cell_model).transpose()?.cloned();
-    let cell_px = cell_px.unwrap_or_else(|| model.as_ref().map_or(16, |m| m.cell_px));
-    let radius = default_radius(scene, radius);
-    let params = refine::RefineParams {
-        layout: LayoutParams {
-            budget,
-            alpha,
-            cell_px,
-            light_rays,
-            seed,
-            // Multi-bounce layouts trace every bounce of the off-screen light paths too.
-            bounces: bounces.unwrap_or(if multi_bounce { vpl::MAX_BOUNCES } else { 1 }),
-            multi_bounce,
-        },
-        eval: EvalParams {
-            profile,
-            radius,
-            tile,
-        },
-        stride,
-        max_iterations: iterations,
-        tolerance,
-        step,
-    };
     let s = Arc::clone(&scene.inner);
     let prog = progress.map(|p| Arc::clone(&p.inner));
-    let iterate = iterate && views.iter().all(|v| v.indirect.is_some());
     let out = run(py, move || {
         let refs: Vec<&View> = views.iter().map(|v| v.as_ref()).collect();
-        let predicted = model
-            .as_ref()
-            .map(|m| {
-                refs.iter()
-                    .map(|v| m.predict_view(v))
-                    .collect::<Result<Vec<_>, _>>()
-            })
-            .transpose()?;
-        if iterate {
-            let r = refine::refine(&s, &refs, predicted.as_deref(), &params, prog.as_deref())?;
-            let best = r.iterations[r.best].allocation.clone();
-            Ok(PyLayoutParts {
-                vpls: r.vpls,
-                strata: r.strata,
-                allocation: best,
-                errors: r.iterations.iter().map(|i| i.error).collect(),
-                best: Some(r.best),
-                seconds: r.iterations.iter().map(|i| i.seconds).collect(),
-                shadow_rays: r.iterations.iter().map(|i| i.shadow_rays).collect(),
-                reused_rays: r.iterations.iter().map(|i| i.reused_rays).collect(),
-            })
-        } else {
-            let (vpls, allocation, strata) =
-                vplace_core::layout::layout(&s, &refs, predicted.as_deref(), &params.layout)?;
-            Ok(PyLayoutParts {
-                vpls,
-                strata,
-                allocation,
-                errors: Vec::new(),
-                best: None,
-                seconds: Vec::new(),
-                shadow_rays: Vec::new(),
-                reused_rays: Vec::new(),
-            })
-        }
+        lay_out(&s, &refs, model.as_ref(), &request, prog.as_deref())
     })?;
+    let eval = out.params.eval;
     Ok(PyLayout {
-        vpls: PyVplSet::new_checked(out.vpls, profile, radius)?,
+        vpls: PyVplSet::new_checked(out.vpls, eval.profile, eval.radius)?,
         strata: out.strata,
         allocation: out.allocation,
-        errors: out.errors,
+        errors: out.iterations.iter().map(|i| i.error).collect(),
         best: out.best,
-        seconds: out.seconds,
-        shadow_rays: out.shadow_rays,
-        reused_rays: out.reused_rays,
+        seconds: out.iterations.iter().map(|i| i.seconds).collect(),
+        shadow_rays: out.iterations.iter().map(|i| i.shadow_rays).collect(),
+        reused_rays: out.iterations.iter().map(|i| i.reused_rays).collect(),
+        iteration: out.iteration,
     })
-}
-
-/// What the GIL-free part of `layout` hands back.
-struct PyLayoutParts {
-    vpls: Vec<vpl::Vpl>,
-    strata: Strata,
-    allocation: Allocation,
-    errors: Vec<f64>,
-    best: Option<usize>,
-    seconds: Vec<f64>,
-    shadow_rays: Vec<u64>,
-    reused_rays: Vec<u64>,
 }
 
 /// Registers this file's classes and functions.

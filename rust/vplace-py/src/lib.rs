@@ -13,6 +13,7 @@ mod fit;
 mod layout;
 mod materials;
 mod par2d;
+mod params;
 mod refit;
 mod scene;
 mod view;
@@ -22,6 +23,7 @@ mod vpls;
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     errors::register(m)?;
+    params::register(m)?;
     scene::register(m)?;
     materials::register(m)?;
     view::register(m)?;

@@ -5,8 +5,8 @@ use glam::{Vec2, Vec3};
 use numpy::PyUntypedArrayMethods;
 use pyo3::prelude::*;
 use vplace_core::{
+    scene::texture::{AlphaSource, AlphaTest, Texture, TextureRef, Wrap},
     scene::Material,
-    texture::{AlphaSource, AlphaTest, Texture, TextureRef, Wrap},
 };
 
 use crate::arrays::{array, slice, Dim};

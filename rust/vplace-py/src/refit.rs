@@ -4,11 +4,12 @@ use numpy::PyArray1;
 use pyo3::prelude::*;
 use std::sync::Arc;
 use vplace_core::{
-    refit::{refit as refit_vpls, RefitParams, Refitted},
+    layout::refit::{refit as refit_vpls, RefitParams, Refitted},
     view::View,
 };
 
 use crate::errors::{input_error, run};
+use crate::params::PyRefitParams;
 use crate::scene::{PyProgress, PyScene};
 use crate::view::{views_of, PyView};
 use crate::vpls::PyVplSet;
@@ -87,14 +88,13 @@ impl PyRefit {
 /// Non-negative least squares on the VPL powers against every view's indirect image (see
 /// `vplace.refit`).
 #[pyfunction]
-#[pyo3(signature = (scene, views, vpls, *, stride = 4, ridge = 0.1, progress = None))]
+#[pyo3(signature = (scene, views, vpls, params = None, *, progress = None))]
 fn refit(
     py: Python<'_>,
     scene: &PyScene,
     views: Vec<Bound<'_, PyView>>,
     vpls: &PyVplSet,
-    stride: usize,
-    ridge: f64,
+    params: Option<&PyRefitParams>,
     progress: Option<&PyProgress>,
 ) -> PyResult<PyRefit> {
     if views.is_empty() {
@@ -104,8 +104,7 @@ fn refit(
     let params = RefitParams {
         profile: vpls.profile,
         radius: vpls.radius,
-        stride,
-        ridge,
+        ..params.map_or(RefitParams::DEFAULT, |p| p.inner)
     };
     let s = Arc::clone(&scene.inner);
     let set = Arc::clone(&vpls.vpls);

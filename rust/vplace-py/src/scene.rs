@@ -6,8 +6,8 @@ use pyo3::prelude::*;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use vplace_core::{
-    emitters::{emitter_power, Emitter, EnvironmentMap},
-    evaluator, metrics,
+    metrics,
+    scene::emitters::{emitter_power, Emitter, EnvironmentMap},
     scene::{Light, LightKind, Material, Scene, SceneInput},
     LUMINANCE,
 };
@@ -508,7 +508,7 @@ impl PyScene {
 #[pyclass(name = "Progress", module = "vplace._native", frozen)]
 #[derive(Default)]
 pub struct PyProgress {
-    pub inner: Arc<evaluator::Progress>,
+    pub inner: Arc<vplace_core::Progress>,
 }
 
 #[pymethods]
@@ -631,7 +631,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("LUMINANCE", LUMINANCE.to_array())?;
     m.add(
         "NEAR_FIELD_FRACTION",
-        vplace_core::shading::NEAR_FIELD_FRACTION,
+        vplace_core::scene::NEAR_FIELD_FRACTION,
     )?;
     Ok(())
 }

@@ -4,7 +4,7 @@ use glam::{Mat4, Vec3};
 use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use std::sync::Arc;
-use vplace_core::view::{Camera, View, ViewInput};
+use vplace_core::view::{Camera, GBuffer, View, ViewInput};
 
 use crate::arrays::{array, slice, Dim};
 use crate::errors::run;
@@ -79,12 +79,14 @@ impl PyView {
         let spec = optional(specular, "specular")?;
         let input = ViewInput {
             name,
-            width: w,
-            height: h,
-            position: slice(&pos, "position")?,
-            normal: slice(&nrm, "normal")?,
-            albedo: slice(&alb, "albedo")?,
-            covered: slice(&cov, "covered")?,
+            gbuffer: GBuffer {
+                width: w,
+                height: h,
+                position: slice(&pos, "position")?,
+                normal: slice(&nrm, "normal")?,
+                albedo: slice(&alb, "albedo")?,
+                covered: slice(&cov, "covered")?,
+            },
             depth: slice(&dep, "depth")?,
             direct: slice(&dir, "direct")?,
             diffuse_direct: slice(&dd, "diffuse_direct")?,

@@ -5,8 +5,8 @@ use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use std::sync::Arc;
 use vplace_core::{
-    evaluator::{self, validate_vpls, EvalParams, EvalStats},
-    rsm,
+    layout::rsm,
+    shade::evaluator::{self, validate_vpls, EvalParams, EvalStats},
     vpl::{self, Profile, Vpl},
 };
 
@@ -26,7 +26,7 @@ pub fn parse_profile(profile: &str) -> PyResult<Profile> {
     }
 }
 
-fn profile_name(p: Profile) -> &'static str {
+pub fn profile_name(p: Profile) -> &'static str {
     match p {
         Profile::Cosine => "cosine",
         Profile::Omni => "omni",

@@ -520,7 +520,7 @@ fn par2d_bad_input_is_an_error() {
         s.light_map(b, 0, 4, Method::Exact, None),
         Err(VplaceError::OutOfRange { .. })
     ));
-    let progress = crate::evaluator::Progress::default();
+    let progress = crate::progress::Progress::default();
     progress
         .cancel
         .store(true, std::sync::atomic::Ordering::Relaxed);

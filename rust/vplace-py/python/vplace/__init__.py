@@ -17,6 +17,10 @@ The pieces, in pipeline order:
   value masks the pixel and is counted in ``View.masked_pixels``). A view's ``indirect`` image
   is the light the VPLs must reproduce; a view without it (``View.without_indirect()``) is one
   the model has not seen.
+- Each stage's settings are a frozen class with the core's defaults and named presets:
+  :class:`FitParams`, :class:`LayoutParams` (``LayoutParams(budget=64, seed=1)``,
+  ``LayoutParams.SINGLE_PASS``), :class:`RefitParams`; a call takes them as its third (fourth for
+  :func:`refit`) argument.
 - :func:`fit` fits one regression of the per-cell indirect luminance on the cells of every
   view; the :class:`Fit` predicts other views (``Fit.predict``), prints as a table and saves as
   JSON. :func:`fit_design` runs the same solver on a given design matrix.
@@ -45,14 +49,18 @@ from vplace._native import (
     VPL_SURFACE_OFFSET,
     AlphaTest,
     CancelledError,
+    CellFeatures,
     EvalStats,
     Fit,
+    FitParams,
     InputError,
     InternalError,
     Layout,
+    LayoutParams,
     Light,
     Progress,
     Refit,
+    RefitParams,
     Scene,
     TextureMap,
     View,
@@ -84,14 +92,18 @@ __all__ = [
     "VPL_SURFACE_OFFSET",
     "AlphaTest",
     "CancelledError",
+    "CellFeatures",
     "EvalStats",
     "Fit",
+    "FitParams",
     "InputError",
     "InternalError",
     "Layout",
+    "LayoutParams",
     "Light",
     "Progress",
     "Refit",
+    "RefitParams",
     "Scene",
     "TextureMap",
     "View",

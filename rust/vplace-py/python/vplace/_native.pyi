@@ -323,33 +323,76 @@ class Fit:
     def from_json(text: str) -> Fit: ...
 
 def feature_registry() -> list[tuple[str, str, str, bool]]: ...
-def extract_features(scene: Scene, view: View, *, cell_px: int = 16) -> dict[str, Any]: ...
-def fit(
-    scene: Scene,
-    views: Sequence[View],
-    *,
-    cell_px: int = 16,
-    surface_only: bool = True,
-    folds: int = 5,
-    select: bool = True,
-    min_cv_gain: float = 1e-3,
-    collinear_rtol: float = 1e-6,
-    rank_rtol: float | None = None,
-    ridge_above: float = 1e6,
-    seed: int = 0x5EED,
-) -> Fit: ...
+
+@final
+class FitParams:
+    def __new__(
+        cls,
+        *,
+        cell_px: int | None = None,
+        surface_only: bool | None = None,
+        folds: int | None = None,
+        select: bool | None = None,
+        min_cv_gain: float | None = None,
+        collinear_rtol: float | None = None,
+        rank_rtol: float | None = None,
+        ridge_above: float | None = None,
+        seed: int | None = None,
+    ) -> FitParams: ...
+    DEFAULT: FitParams
+    PLAIN_OLS: FitParams
+    @property
+    def cell_px(self) -> int: ...
+    @property
+    def surface_only(self) -> bool: ...
+    @property
+    def folds(self) -> int: ...
+    @property
+    def select(self) -> bool: ...
+    @property
+    def min_cv_gain(self) -> float: ...
+    @property
+    def collinear_rtol(self) -> float: ...
+    @property
+    def rank_rtol(self) -> float | None: ...
+    @property
+    def ridge_above(self) -> float: ...
+    @property
+    def seed(self) -> int: ...
+
+@final
+class CellFeatures:
+    @property
+    def names(self) -> list[str]: ...
+    @property
+    def cell_px(self) -> int: ...
+    @property
+    def cells_x(self) -> int: ...
+    @property
+    def cells_y(self) -> int: ...
+    @property
+    def cells(self) -> npt.NDArray[np.int64]: ...
+    @property
+    def values(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def label(self) -> npt.NDArray[np.float64] | None: ...
+    @property
+    def pixels(self) -> npt.NDArray[np.int64]: ...
+    @property
+    def empty_cells(self) -> int: ...
+    @property
+    def masked_pixels(self) -> int: ...
+    @property
+    def available(self) -> list[bool]: ...
+
+def extract_features(scene: Scene, view: View, *, cell_px: int = 16) -> CellFeatures: ...
+def fit(scene: Scene, views: Sequence[View], params: FitParams | None = None) -> Fit: ...
 def fit_design(
     x: npt.NDArray[np.float64],
     y: npt.NDArray[np.float64],
+    params: FitParams | None = None,
     *,
     names: list[str] | None = None,
-    folds: int = 5,
-    select: bool = True,
-    min_cv_gain: float = 1e-3,
-    collinear_rtol: float = 1e-6,
-    rank_rtol: float | None = None,
-    ridge_above: float = 1e6,
-    seed: int = 0x5EED,
 ) -> Fit: ...
 
 # --- PAR 2D (par2d.rs) --------------------------------------------------------------------
@@ -424,27 +467,69 @@ class Layout:
     def shared_pixels(self) -> int: ...
     @property
     def indirect_source(self) -> list[str]: ...
+    @property
+    def iteration(self) -> str: ...
+
+@final
+class LayoutParams:
+    def __new__(
+        cls,
+        *,
+        budget: int | None = None,
+        alpha: float | None = None,
+        cell_px: int | None = None,
+        light_rays: int | None = None,
+        bounces: int | None = None,
+        seed: int | None = None,
+        multi_bounce: bool | None = None,
+        stride: int | None = None,
+        iterations: int | None = None,
+        tolerance: float | None = None,
+        step: float | None = None,
+        iterate: bool | None = None,
+        profile: str | None = None,
+        radius: float | None = None,
+        tile: int | None = None,
+    ) -> LayoutParams: ...
+    DEFAULT: LayoutParams
+    SINGLE_PASS: LayoutParams
+    @property
+    def budget(self) -> int: ...
+    @property
+    def alpha(self) -> float: ...
+    @property
+    def cell_px(self) -> int | None: ...
+    @property
+    def light_rays(self) -> int: ...
+    @property
+    def bounces(self) -> int | None: ...
+    @property
+    def seed(self) -> int: ...
+    @property
+    def multi_bounce(self) -> bool: ...
+    @property
+    def stride(self) -> int: ...
+    @property
+    def iterations(self) -> int: ...
+    @property
+    def tolerance(self) -> float: ...
+    @property
+    def step(self) -> float: ...
+    @property
+    def iterate(self) -> bool: ...
+    @property
+    def profile(self) -> str: ...
+    @property
+    def radius(self) -> float | None: ...
+    @property
+    def tile(self) -> int: ...
 
 def layout(
     scene: Scene,
     views: Sequence[View],
+    params: LayoutParams | None = None,
     *,
     fit: Fit | None = None,
-    budget: int = 256,
-    alpha: float = 1.0,
-    cell_px: int | None = None,
-    iterate: bool = True,
-    light_rays: int = 4096,
-    bounces: int | None = None,
-    seed: int = 0,
-    stride: int = 4,
-    iterations: int = 3,
-    tolerance: float = 0.01,
-    step: float = 0.5,
-    profile: str = "cosine",
-    radius: float | None = None,
-    multi_bounce: bool = True,
-    tile: int = 16,
     progress: Progress | None = None,
 ) -> Layout: ...
 
@@ -469,13 +554,21 @@ class Refit:
     @property
     def seconds(self) -> float: ...
 
+@final
+class RefitParams:
+    def __new__(cls, *, stride: int | None = None, ridge: float | None = None) -> RefitParams: ...
+    DEFAULT: RefitParams
+    @property
+    def stride(self) -> int: ...
+    @property
+    def ridge(self) -> float: ...
+
 def refit(
     scene: Scene,
     views: Sequence[View],
     vpls: VplSet,
+    params: RefitParams | None = None,
     *,
-    stride: int = 4,
-    ridge: float = 0.1,
     progress: Progress | None = None,
 ) -> Refit: ...
 

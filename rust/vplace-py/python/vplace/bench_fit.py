@@ -180,10 +180,10 @@ def main() -> None:
         return _native.extract_features(scene, view, cell_px=args.cell_px)
 
     cells = native_extract()
-    lo, hi = cells["values"].min(0), cells["values"].max(0)
-    x = np.where(hi > lo, (cells["values"] - lo) / np.where(hi > lo, hi - lo, 1), 0.0)
+    lo, hi = cells.values.min(0), cells.values.max(0)
+    x = np.where(hi > lo, (cells.values - lo) / np.where(hi > lo, hi - lo, 1), 0.0)
     x = np.ascontiguousarray(x)
-    y = np.ascontiguousarray(cells["label"])
+    y = np.ascontiguousarray(cells.label)
     plain = {"select": False, "collinear_rtol": 0.0, "ridge_above": float("inf")}
     rows = [
         (
@@ -193,8 +193,10 @@ def main() -> None:
         ),
         (
             f"plain OLS fit {x.shape[0]} x {x.shape[1]}",
-            _median_ms(lambda: _native.fit_design(x, y, **plain), args.repeat * 4),
-            _median_ms(lambda: numpy_fit(cells["values"], y), args.repeat * 4),
+            _median_ms(
+                lambda: _native.fit_design(x, y, _native.FitParams(**plain)), args.repeat * 4
+            ),
+            _median_ms(lambda: numpy_fit(cells.values, y), args.repeat * 4),
         ),
         (
             "full fit (collinear + 5-fold CV selection)",

@@ -260,7 +260,7 @@ def main(argv: list[str] | None = None) -> None:
     before = peak_memory_mb()
 
     def fit() -> vplace.Fit:
-        return vplace.fit(scene, views, cell_px=16)
+        return vplace.fit(scene, views, vplace.FitParams(cell_px=16))
 
     t_fit, model = median_time(fit, args.repeat)
 
@@ -268,15 +268,20 @@ def main(argv: list[str] | None = None) -> None:
 
     def lay_out(at: int = stride) -> vplace.Layout:
         return vplace.layout(
-            scene, views, fit=fit(), budget=args.budget, iterations=3, tolerance=0.0, stride=at
+            scene,
+            views,
+            vplace.LayoutParams(budget=args.budget, iterations=3, tolerance=0.0, stride=at),
+            fit=fit(),
         )
 
     def lay_out_and_refit(at: int = stride) -> tuple[vplace.Layout, vplace.Refit]:
         laid = lay_out(at)
-        return laid, vplace.refit(scene, views, laid.vpls, stride=at)
+        return laid, vplace.refit(scene, views, laid.vpls, vplace.RefitParams(stride=at))
 
     t_alloc, _ = median_time(
-        lambda: vplace.layout(scene, views, fit=model, budget=args.budget, iterate=False),
+        lambda: vplace.layout(
+            scene, views, vplace.LayoutParams(budget=args.budget, iterate=False), fit=model
+        ),
         args.repeat,
     )
     t_whole, out = median_time(lay_out, args.repeat)
@@ -288,7 +293,9 @@ def main(argv: list[str] | None = None) -> None:
                for at in sorted({stride, vplace.budget.MIN_STRIDE})}  # fmt: skip
 
     vpls = vplace.uniform_vpls(scene, args.budget, seed=3)
-    t_refit, fitted = median_time(lambda: vplace.refit(scene, views, vpls, stride=4), args.repeat)
+    t_refit, fitted = median_time(
+        lambda: vplace.refit(scene, views, vpls, vplace.RefitParams(stride=4)), args.repeat
+    )
     first = views[0]
     t_bvh, (_, st_bvh) = median_time(lambda: vplace.evaluate(scene, first, vpls), args.repeat)
     s = args.brute_stride

@@ -17,74 +17,14 @@ RMSE is over all pixels and the three channels.
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import time
-from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
-from vplace.par2d import Method, Scene2D
+from vplace.par2d_measure import BOUNDS, measure, random_scene, rmse, timed_map
 
-BOUNDS = (-1.0, -1.0, 1.0, 1.0)
 TARGET_RMSE = 1e-3
-
-
-def random_scene(lights: int, occluders: int, seed: int) -> Scene2D:
-    """Random regular n-gons in ``[-1, 1]^2``: lights of radius 0.03-0.08, emission 0.5-2,
-    occluders of radius 0.01 to ``0.6 / sqrt(occluders)`` (they may overlap)."""
-    rng = np.random.default_rng(seed)
-    polys = []
-    emission = np.zeros((lights + occluders, 3))
-    max_r = 0.6 / math.sqrt(max(occluders, 1))
-    for k in range(lights + occluders):
-        light = k < lights
-        c = rng.uniform(-0.9, 0.9, size=2)
-        r = rng.uniform(0.03, 0.08) if light else rng.uniform(0.01, max(max_r, 0.01))
-        n = int(rng.integers(3, 9))
-        a = rng.uniform(0.0, 2.0 * math.pi) + 2.0 * math.pi * np.arange(n) / n
-        polys.append(c + r * np.stack([np.cos(a), np.sin(a)], axis=1))
-        if light:
-            emission[k] = rng.uniform(0.5, 2.0, size=3)
-    return Scene2D(polys, emission)
-
-
-def _timed_map(
-    scene: Scene2D, size: int, method: Method, rays: int = 1
-) -> tuple[float, npt.NDArray[np.float64]]:
-    t0 = time.perf_counter()
-    img = scene.light_map(BOUNDS, size, size, method, rays=rays, seed=7)
-    return time.perf_counter() - t0, img
-
-
-def _rmse(a: npt.NDArray[np.float64], b: npt.NDArray[np.float64]) -> float:
-    return float(np.sqrt(np.mean((a - b) ** 2)))
-
-
-def measure(
-    size: int = 256, rays: tuple[int, ...] = (16, 64, 256), seed: int = 1
-) -> tuple[list[dict[str, Any]], npt.NDArray[np.float64]]:
-    """Speed against error on a ``size`` x ``size`` map of the 8-light, 64-occluder scene: one
-    row per method (``exact``, ``par``, ``monte_carlo`` at each ray count) with ``seconds`` and
-    ``rmse`` against ``exact``; and the exact map."""
-    scene = random_scene(8, 64, seed=seed)
-    t_exact, exact = _timed_map(scene, size, "exact")
-    rows: list[dict[str, Any]] = [
-        {"method": "exact", "rays": None, "pixels": size * size, "seconds": t_exact, "rmse": 0.0}
-    ]
-    t_par, par = _timed_map(scene, size, "par")
-    rows.append(
-        {"method": "par", "rays": None, "pixels": size * size, "seconds": t_par,
-         "rmse": _rmse(par, exact)}
-    )  # fmt: skip
-    for n in rays:
-        t, img = _timed_map(scene, size, "monte_carlo", n)
-        rows.append(
-            {"method": "monte_carlo", "rays": n, "pixels": size * size, "seconds": t,
-             "rmse": _rmse(img, exact)}
-        )  # fmt: skip
-    return rows, exact
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -102,13 +42,13 @@ def main(argv: list[str] | None = None) -> None:
     print()
     print(f"{'method':<14}{'rays':>9}{'pixels':>10}{'time [s]':>12}{'RMSE vs exact':>16}  note")
     rows, exact = measure(size, tuple(args.full_rays), seed=1)
-    t_exact = rows[0]["seconds"]
+    t_exact = rows[0].seconds
     reached: tuple[int, float] | None = None
     above: tuple[int, float, float] | None = None  # last (rays, time, rmse) above the target
     for row in rows:
-        rays, t, err = row["rays"], row["seconds"], row["rmse"]
-        print(f"{row['method']:<14}{rays or '-':>9}{size * size:>10}{t:>12.3f}{err:>16.3e}")
-        if row["method"] != "monte_carlo":
+        rays, t, err = row.rays, row.seconds, row.rmse
+        print(f"{row.method:<14}{rays or '-':>9}{size * size:>10}{t:>12.3f}{err:>16.3e}")
+        if row.method != "monte_carlo":
             continue
         if reached is None and err <= TARGET_RMSE:
             reached = (rays, t)
@@ -127,7 +67,7 @@ def main(argv: list[str] | None = None) -> None:
         t0 = time.perf_counter()
         est = scene.irradiance(pts, "monte_carlo", rays=rays, seed=7)
         t = (time.perf_counter() - t0) * scale
-        err = _rmse(est, ref)
+        err = rmse(est, ref)
         note = f"subset 1/{s}^2, time x{scale:.0f}"
         print(f"{'monte_carlo':<14}{rays:>9}{len(pts):>10}{t:>12.3f}{err:>16.3e}  {note}")
         if err <= TARGET_RMSE:
@@ -157,7 +97,7 @@ def main(argv: list[str] | None = None) -> None:
     print(f"{'occluders':>10}{'time [s]':>12}{'per pixel [us]':>16}")
     for n in (64, 256, 1024):
         sc = random_scene(8, n, seed=2)
-        t, _ = _timed_map(sc, size, "exact")
+        t, _ = timed_map(sc, size, "exact")
         print(f"{n:>10}{t:>12.3f}{t / (size * size) * 1e6:>16.2f}")
 
 

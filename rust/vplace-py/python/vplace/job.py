@@ -86,9 +86,11 @@ def fit(scene: vplace.Scene, views: Sequence[vplace.View], settings: LayoutSetti
     return vplace.fit(
         scene,
         list(views),
-        cell_px=settings.cell_px,
-        surface_only=settings.feature_mode == "auto",
-        select=settings.feature_mode != "all",
+        vplace.FitParams(
+            cell_px=settings.cell_px,
+            surface_only=settings.feature_mode == "auto",
+            select=settings.feature_mode != "all",
+        ),
     )
 
 
@@ -146,23 +148,27 @@ def lay_out(
         laid = vplace.layout(
             scene,
             views,
+            vplace.LayoutParams(
+                budget=n,
+                alpha=settings.alpha,
+                cell_px=settings.cell_px,
+                iterate=settings.iterations > 0,
+                iterations=max(settings.iterations, 1),
+                seed=settings.seed,
+                stride=stride,
+                profile=profile,
+                radius=radius,
+            ),
             fit=fitted,
-            budget=n,
-            alpha=settings.alpha,
-            cell_px=settings.cell_px,
-            iterate=settings.iterations > 0,
-            iterations=max(settings.iterations, 1),
-            seed=settings.seed,
-            stride=stride,
             progress=progress,
-            profile=profile,
-            radius=radius,
         )
     out = Laid(laid.vpls, layout=laid, layout_seconds=time.perf_counter() - start)
     if settings.method == "vplace+refit" and all(v.has_indirect for v in views):
         with timer.stage("refit VPL powers"):
             start = time.perf_counter()
-            out.refit = vplace.refit(scene, views, laid.vpls, stride=stride, progress=progress)
+            out.refit = vplace.refit(
+                scene, views, laid.vpls, vplace.RefitParams(stride=stride), progress=progress
+            )
             out.refit_seconds = time.perf_counter() - start
         out.vpls = out.refit.vpls
     return out

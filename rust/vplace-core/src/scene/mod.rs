@@ -11,6 +11,12 @@
 //! filter in the traversal. A scene without any texture or alpha test keeps no per-hit material
 //! data at all and traverses exactly as before.
 
+pub mod emitters;
+mod light;
+mod material;
+mod shadow_bvh;
+pub mod texture;
+
 use glam::{UVec2, Vec2, Vec3, Vec3A};
 use obvhs::{
     cwbvh::{
@@ -25,11 +31,15 @@ use obvhs::{
 use std::sync::Arc;
 use std::time::Duration;
 
-use crate::emitters::{EmissiveMesh, EnvironmentMap};
 use crate::error::{check_finite, Result, VplaceError};
-use crate::shading::NEAR_FIELD_FRACTION;
-use crate::texture::{AlphaTest, Texture, TextureRef};
+use crate::scene::emitters::{EmissiveMesh, EnvironmentMap};
+use crate::scene::texture::{AlphaTest, Texture, TextureRef};
 
+/// The default near-field radius `radius` as a fraction of the scene diagonal
+/// ([`Scene::near_field_radius`]; the shading kernel, `shade::shading`, bounds
+/// the `1 / r^2` of a cosine VPL with the disk of this radius): VPL spacing grows with the scene, so the radius
+/// within which a VPL's `1 / r^2` is bounded does too.
+pub const NEAR_FIELD_FRACTION: f32 = 0.01;
 /// obvhs's `medium_build` with the full PLOC search distance from the first pass
 /// (`search_depth_threshold: 0`; the preset uses distance 1 for the first 3 passes). On rooms of
 /// large coplanar triangles (walls subdivided in grids: the Cornell box, the layout benchmark)
@@ -41,457 +51,9 @@ const BVH_BUILD: BvhBuildParams = BvhBuildParams {
     ..BvhBuildParams::medium_build()
 };
 
-/// The emitting shape of a [`Light`]. Radiometry follows Blender's Cycles exactly (see DESIGN,
-/// Coordinates and units, and the module docs of [`crate::emitters`], which sample them).
-#[derive(Debug, Clone, PartialEq)]
-pub enum LightKind {
-    /// Blender POINT of power `P`: intensity `P / (4 pi)` in every direction. With a `radius`
-    /// (Blender's `shadow_soft_size`) it is a sphere of that radius (`soft_falloff` off) or a
-    /// disk of that radius always facing the receiver (`soft_falloff` on, Blender's default),
-    /// of radiance `P / (4 pi^2 radius^2)`.
-    Point {
-        /// Radius of the emitting sphere or disk, metres (`>= 0`; 0: a point).
-        radius: f32,
-        /// Blender's `use_soft_falloff`: a disk facing the receiver instead of a sphere.
-        soft_falloff: bool,
-    },
-    /// Blender SPOT: the point light (with its radius) cut by the cone of half angle
-    /// `half_angle` about `direction`, with Blender's smoothstep `blend` over the outer part of
-    /// the cone. Emitted power is `P (1 - cos half_angle) (1 - blend / 2) / 2`.
-    Spot {
-        /// Half of Blender's `spot_size`, radians, in `(0, pi]`.
-        half_angle: f32,
-        /// Blender's `spot_blend`, in `[0, 1]`: the smoothstep covers this fraction of the
-        /// cone's `1 - cos` range, from its edge inwards.
-        blend: f32,
-        /// Radius of the emitting sphere or disk, metres (`>= 0`).
-        radius: f32,
-        /// Blender's `use_soft_falloff` (see [`LightKind::Point`]).
-        soft_falloff: bool,
-    },
-    /// Blender AREA light (normalize on): a one-sided emitter of total power `P` and radiance
-    /// `P / (pi A) g(theta)` about `direction`, `A` its area, `g` Blender's spread attenuation
-    /// (1 for a spread of pi: a cosine emitter). `size_x`, `size_y` along `tangent` and
-    /// `direction x tangent`.
-    Area {
-        /// Elliptical (Blender DISK or ELLIPSE, diameters `size_x` and `size_y`) or
-        /// rectangular (RECTANGLE or SQUARE).
-        disk: bool,
-        /// Extent along `tangent`, metres (`> 0`).
-        size_x: f32,
-        /// Extent along `direction x tangent`, metres (`> 0`; `size_x` for a square or a disk).
-        size_y: f32,
-        /// Blender's `spread`, radians in `[0, pi]`: the full angle of the cone the light leaves
-        /// in, through a soft-box grid of that angle (pi: no grid; 0: a collimated beam).
-        spread: f32,
-    },
-    /// Blender SUN: light travelling along `direction` with irradiance `power` (W/m^2) on a
-    /// plane perpendicular to it, from a disk of directions of full angle `angle`, of radiance
-    /// `power / (pi sin^2(angle / 2))`.
-    Sun {
-        /// Blender's `angle`, radians in `[0, pi]` (0: parallel light).
-        angle: f32,
-    },
-    /// The world: light of radiance `power * map(w)` (W/(m^2 sr) per channel) arriving from
-    /// every direction `w`; `map` an equirectangular image (Blender's Environment Texture), or 1
-    /// (a uniform world colour) without one.
-    World {
-        /// The environment image, or `None` for a uniform colour.
-        map: Option<Arc<EnvironmentMap>>,
-    },
-}
-
-/// A light of the scene.
-///
-/// Invariants (checked by [`Light::validate`]): finite fields, non-negative `power`, unit
-/// `direction` and `tangent`, perpendicular to each other; the kind's parameters in range.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Light {
-    /// The emitter shape.
-    pub kind: LightKind,
-    /// World position (centre of an area light); unused for a sun and the world.
-    pub position: Vec3,
-    /// Unit emission axis: the direction light leaves an area light or a spot, or travels for a sun.
-    pub direction: Vec3,
-    /// Unit tangent orienting an area light's `size_x` axis; perpendicular to `direction`.
-    pub tangent: Vec3,
-    /// Colour times power, W per channel (W/m^2 for a sun, W/(m^2 sr) for the world).
-    pub power: Vec3,
-}
-
-impl Light {
-    /// A POINT light of `power` (RGB watts), radius 0 (see [`Light::with_radius`]).
-    #[must_use]
-    pub fn point(position: Vec3, power: Vec3) -> Self {
-        Self {
-            kind: LightKind::Point {
-                radius: 0.0,
-                soft_falloff: true,
-            },
-            position,
-            direction: Vec3::NEG_Z,
-            tangent: Vec3::X,
-            power,
-        }
-    }
-
-    /// A SPOT light with cone half angle `half_angle` (radians) about `direction`, blend 0 and
-    /// radius 0 (see [`Light::with_blend`], [`Light::with_radius`]).
-    #[must_use]
-    pub fn spot(position: Vec3, direction: Vec3, half_angle: f32, power: Vec3) -> Self {
-        let direction = direction.normalize_or_zero();
-        Self {
-            kind: LightKind::Spot {
-                half_angle,
-                blend: 0.0,
-                radius: 0.0,
-                soft_falloff: true,
-            },
-            position,
-            direction,
-            tangent: direction.any_orthonormal_vector(),
-            power,
-        }
-    }
-
-    /// An AREA light emitting along `direction`, `size_x` along `tangent`, spread pi (see
-    /// [`Light::with_spread`]). A `disk` with `size_y <= 0` is round (`size_y = size_x`).
-    #[must_use]
-    pub fn area(
-        position: Vec3,
-        direction: Vec3,
-        tangent: Vec3,
-        disk: bool,
-        size_x: f32,
-        size_y: f32,
-        power: Vec3,
-    ) -> Self {
-        let size_y = if disk && size_y <= 0.0 {
-            size_x
-        } else {
-            size_y
-        };
-        Self {
-            kind: LightKind::Area {
-                disk,
-                size_x,
-                size_y,
-                spread: std::f32::consts::PI,
-            },
-            position,
-            direction: direction.normalize_or_zero(),
-            tangent: tangent.normalize_or_zero(),
-            power,
-        }
-    }
-
-    /// A SUN travelling along `direction` with `irradiance` (RGB W/m^2), angle 0 (see
-    /// [`Light::with_angle`]).
-    #[must_use]
-    pub fn sun(direction: Vec3, irradiance: Vec3) -> Self {
-        let direction = direction.normalize_or_zero();
-        Self {
-            kind: LightKind::Sun { angle: 0.0 },
-            position: Vec3::ZERO,
-            direction,
-            tangent: direction.any_orthonormal_vector(),
-            power: irradiance,
-        }
-    }
-
-    /// The world: radiance `radiance` (RGB W/(m^2 sr), Blender's background colour times
-    /// strength) times `map` where one is given.
-    #[must_use]
-    pub fn world(radiance: Vec3, map: Option<Arc<EnvironmentMap>>) -> Self {
-        Self {
-            kind: LightKind::World { map },
-            position: Vec3::ZERO,
-            direction: Vec3::NEG_Z,
-            tangent: Vec3::X,
-            power: radiance,
-        }
-    }
-
-    /// The light with Blender's `shadow_soft_size` `radius` and `use_soft_falloff`; no effect
-    /// on lights other than points and spots.
-    #[must_use]
-    pub fn with_radius(mut self, radius_m: f32, soft: bool) -> Self {
-        if let LightKind::Point {
-            radius,
-            soft_falloff,
-        }
-        | LightKind::Spot {
-            radius,
-            soft_falloff,
-            ..
-        } = &mut self.kind
-        {
-            *radius = radius_m;
-            *soft_falloff = soft;
-        }
-        self
-    }
-
-    /// The spot with Blender's `spot_blend`; no effect on other lights.
-    #[must_use]
-    pub fn with_blend(mut self, spot_blend: f32) -> Self {
-        if let LightKind::Spot { blend, .. } = &mut self.kind {
-            *blend = spot_blend;
-        }
-        self
-    }
-
-    /// The area light with Blender's `spread` (radians); no effect on other lights.
-    #[must_use]
-    pub fn with_spread(mut self, area_spread: f32) -> Self {
-        if let LightKind::Area { spread, .. } = &mut self.kind {
-            *spread = area_spread;
-        }
-        self
-    }
-
-    /// The sun with Blender's `angle` (radians); no effect on other lights.
-    #[must_use]
-    pub fn with_angle(mut self, sun_angle: f32) -> Self {
-        if let LightKind::Sun { angle } = &mut self.kind {
-            *angle = sun_angle;
-        }
-        self
-    }
-
-    /// Checks the invariants; `index` names the light in the error.
-    pub fn validate(&self, index: usize) -> Result<()> {
-        self.validate_as(&format!("lights[{index}]"))
-    }
-
-    /// Checks the invariants; `what` names the light in the error.
-    pub fn validate_as(&self, what: &str) -> Result<()> {
-        let v = self;
-        let flat = [
-            v.position.to_array(),
-            v.direction.to_array(),
-            v.tangent.to_array(),
-            v.power.to_array(),
-        ]
-        .concat();
-        check_finite(what, &flat)?;
-        if v.power.min_element() < 0.0 {
-            return Err(VplaceError::OutOfRange {
-                what: format!("{what}.power"),
-                value: format!("{:?}", v.power.to_array()),
-                expected: "every channel >= 0".into(),
-            });
-        }
-        if (v.direction.length() - 1.0).abs() > 1e-3 || (v.tangent.length() - 1.0).abs() > 1e-3 {
-            return Err(VplaceError::Invalid {
-                what: what.to_owned(),
-                reason: "direction and tangent must be non-zero vectors".into(),
-            });
-        }
-        let range = |name: &str, value: f32, ok: bool, expected: &str| {
-            if ok {
-                Ok(())
-            } else {
-                Err(VplaceError::OutOfRange {
-                    what: format!("{what}.{name}"),
-                    value: value.to_string(),
-                    expected: expected.into(),
-                })
-            }
-        };
-        let pi = std::f32::consts::PI;
-        match &v.kind {
-            LightKind::Point { radius, .. } => range(
-                "radius",
-                *radius,
-                *radius >= 0.0 && radius.is_finite(),
-                ">= 0",
-            ),
-            LightKind::Spot {
-                half_angle,
-                blend,
-                radius,
-                ..
-            } => {
-                range(
-                    "half_angle",
-                    *half_angle,
-                    *half_angle > 0.0 && *half_angle <= pi,
-                    "(0, pi]",
-                )?;
-                range("blend", *blend, (0.0..=1.0).contains(blend), "[0, 1]")?;
-                range(
-                    "radius",
-                    *radius,
-                    *radius >= 0.0 && radius.is_finite(),
-                    ">= 0",
-                )
-            }
-            LightKind::Area {
-                size_x,
-                size_y,
-                spread,
-                ..
-            } => {
-                if !(*size_x > 0.0 && *size_y > 0.0 && size_x.is_finite() && size_y.is_finite()) {
-                    return Err(VplaceError::OutOfRange {
-                        what: format!("{what}.size"),
-                        value: format!("({size_x}, {size_y})"),
-                        expected: "> 0".into(),
-                    });
-                }
-                range("spread", *spread, (0.0..=pi).contains(spread), "[0, pi]")
-            }
-            LightKind::Sun { angle } => {
-                range("angle", *angle, (0.0..=pi).contains(angle), "[0, pi]")
-            }
-            LightKind::World { .. } => Ok(()),
-        }
-    }
-}
-
-/// A CWBVH node for shadow rays: the fields obvhs's `traverse!` reads, and the child planes
-/// converted from bytes to `f32` once instead of at every node test (the conversion was most of
-/// a node test). The test is obvhs's `CwBvhNode::intersect_ray_simd` on the converted planes: the
-/// same operations on the same values, so the same children are visited.
-#[derive(Clone, Copy)]
-#[repr(C, align(16))]
-struct ShadowNode {
-    /// Child planes, `[min_x, max_x, min_y, max_y, min_z, max_z]`, 8 children each.
-    planes: [[f32; 8]; 6],
-    p: Vec3A,
-    extent: Vec3A,
-    child_meta: [u8; 8],
-    child_base_idx: u32,
-    primitive_base_idx: u32,
-    imask: u8,
-}
-
-/// The node tests of obvhs's CWBVH clamp the entry distance at this (its `EPSILON`).
-const NODE_TMIN: f32 = 0.0001;
-
-impl ShadowNode {
-    fn new(n: &CwBvhNode) -> Self {
-        let f = |q: &[u8; 8]| q.map(f32::from);
-        Self {
-            planes: [
-                f(&n.child_min_x),
-                f(&n.child_max_x),
-                f(&n.child_min_y),
-                f(&n.child_max_y),
-                f(&n.child_min_z),
-                f(&n.child_max_z),
-            ],
-            p: Vec3A::from(n.p),
-            extent: n.compute_extent(),
-            child_meta: n.child_meta,
-            child_base_idx: n.child_base_idx,
-            primitive_base_idx: n.primitive_base_idx,
-            imask: n.imask,
-        }
-    }
-
-    /// The hit mask of the children `ray` enters (obvhs's layout: internal children in the
-    /// high byte, leaf primitives in the low 24 bits).
-    #[inline(always)]
-    fn intersect(&self, ray: &Ray, oct_inv4: u32) -> u32 {
-        let adj_dir_inv = self.extent * ray.inv_direction;
-        let adj_origin = (self.p - ray.origin) * ray.inv_direction;
-        let (child_bits8, bit_index8) = CwBvhNode {
-            child_meta: self.child_meta,
-            ..CwBvhNode::default()
-        }
-        .get_child_and_index_bits(oct_inv4);
-        // The slabs' near side follows the sign of `inv_direction`, which obvhs takes from
-        // the direction's sign bit: a -0.0 component (a sun straight down, negated) has a
-        // negative inverse although `-0.0 < 0.0` is false.
-        let neg = [
-            ray.inv_direction.x < 0.0,
-            ray.inv_direction.y < 0.0,
-            ray.inv_direction.z < 0.0,
-        ];
-        let mut hit_mask = 0u32;
-        for i in 0..2 {
-            let mask = self.children4(i, &neg, adj_dir_inv, adj_origin, ray.tmax);
-            for j in 0..4 {
-                if mask & (1 << j) != 0 {
-                    let child_bits = extract_byte64(child_bits8, i * 4 + j);
-                    let bit_index = extract_byte64(bit_index8, i * 4 + j);
-                    hit_mask |= child_bits << bit_index;
-                }
-            }
-        }
-        hit_mask
-    }
-
-    /// Which of children `4 i .. 4 i + 4` the ray enters, a 4-bit mask.
-    #[cfg(target_arch = "x86_64")]
-    #[inline(always)]
-    fn children4(&self, i: usize, neg: &[bool; 3], dir: Vec3A, orig: Vec3A, tmax: f32) -> u32 {
-        use std::arch::x86_64::*;
-        let slab = |axis: usize, d: f32, o: f32| {
-            // SAFETY: SSE2 is part of x86_64; each load reads floats 4 i .. 4 i + 4 of 8.
-            unsafe {
-                let lo = _mm_loadu_ps(self.planes[2 * axis].as_ptr().add(4 * i));
-                let hi = _mm_loadu_ps(self.planes[2 * axis + 1].as_ptr().add(4 * i));
-                let (near, far) = if neg[axis] { (hi, lo) } else { (lo, hi) };
-                let (d, o) = (_mm_set1_ps(d), _mm_set1_ps(o));
-                (
-                    _mm_add_ps(_mm_mul_ps(near, d), o),
-                    _mm_add_ps(_mm_mul_ps(far, d), o),
-                )
-            }
-        };
-        let (tmin_x, tmax_x) = slab(0, dir.x, orig.x);
-        let (tmin_y, tmax_y) = slab(1, dir.y, orig.y);
-        let (tmin_z, tmax_z) = slab(2, dir.z, orig.z);
-        // SAFETY: SSE2 is part of x86_64.
-        unsafe {
-            let t0 = _mm_max_ps(tmin_x, _mm_max_ps(tmin_y, tmin_z));
-            let t1 = _mm_min_ps(tmax_x, _mm_min_ps(tmax_y, tmax_z));
-            let t0 = _mm_max_ps(t0, _mm_set1_ps(NODE_TMIN));
-            let t1 = _mm_min_ps(t1, _mm_set1_ps(tmax));
-            _mm_movemask_ps(_mm_cmple_ps(t0, t1)) as u32
-        }
-    }
-
-    /// Which of children `4 i .. 4 i + 4` the ray enters, a 4-bit mask (scalar fallback, the
-    /// same operations lane by lane; `_mm_max_ps(a, b)` is `if a > b { a } else { b }`).
-    #[cfg(not(target_arch = "x86_64"))]
-    #[inline(always)]
-    fn children4(&self, i: usize, neg: &[bool; 3], dir: Vec3A, orig: Vec3A, tmax: f32) -> u32 {
-        let max = |a: f32, b: f32| if a > b { a } else { b };
-        let min = |a: f32, b: f32| if a < b { a } else { b };
-        let (d, o) = ([dir.x, dir.y, dir.z], [orig.x, orig.y, orig.z]);
-        let mut mask = 0;
-        for j in 0..4 {
-            let c = 4 * i + j;
-            let t = |axis: usize| {
-                let (lo, hi) = (self.planes[2 * axis][c], self.planes[2 * axis + 1][c]);
-                let (near, far) = if neg[axis] { (hi, lo) } else { (lo, hi) };
-                (near * d[axis] + o[axis], far * d[axis] + o[axis])
-            };
-            let ((x0, x1), (y0, y1), (z0, z1)) = (t(0), t(1), t(2));
-            let t0 = max(max(x0, max(y0, z0)), NODE_TMIN);
-            let t1 = min(min(x1, min(y1, z1)), tmax);
-            mask |= u32::from(t0 <= t1) << j;
-        }
-        mask
-    }
-}
-
-/// The shadow-ray copy of the BVH's nodes, indexed like `CwBvh::nodes`.
-struct ShadowBvh {
-    nodes: Vec<ShadowNode>,
-}
-
-impl ShadowBvh {
-    fn new(bvh: &CwBvh) -> Self {
-        Self {
-            nodes: bvh.nodes.iter().map(ShadowNode::new).collect(),
-        }
-    }
-}
+pub use light::{Light, LightKind};
+pub use material::Material;
+use shadow_bvh::ShadowBvh;
 
 /// A surface hit: distance along the ray and the original triangle index.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -527,7 +89,7 @@ pub struct Scene {
     bounds_max: Vec3,
     /// Number of zero-area triangles (kept, never hit).
     pub degenerate_triangles: usize,
-    /// The triangles whose material emits, sampled by power ([`crate::emitters`]).
+    /// The triangles whose material emits, sampled by power ([`crate::scene::emitters`]).
     emissive: EmissiveMesh,
     /// Textures, UVs and alpha tests; `None` when no material has a texture or an alpha test
     /// (then nothing per hit is looked up).
@@ -576,104 +138,6 @@ impl std::fmt::Debug for Scene {
             .field("bounds_min", &self.bounds_min)
             .field("bounds_max", &self.bounds_max)
             .finish()
-    }
-}
-
-/// The surface of one material.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Material {
-    /// Diffuse albedo, every channel in `[0, 1]`; with a `texture`, the constant that the
-    /// tinted texture is added to.
-    pub albedo: Vec3,
-    /// Emitted radiance, W/(m^2 sr) per channel, finite and `>= 0`, from both sides of the
-    /// surface (Blender's Emission shader or Principled emission: colour times strength).
-    pub emission: Vec3,
-    /// A base-colour texture: the albedo at a hit is `albedo + texture_tint * rgb`, clamped to
-    /// `[0, 1]` ([`Scene::albedo_at`]).
-    pub texture: Option<TextureRef>,
-    /// Multiplies the texture's RGB; finite, `>= 0`.
-    pub texture_tint: Vec3,
-    /// Where the surface is cut away for every ray ([`AlphaTest`]); `None`: opaque.
-    pub alpha_test: Option<AlphaTest>,
-}
-
-impl Material {
-    /// A plain diffuse material that does not emit.
-    #[must_use]
-    pub const fn diffuse(albedo: Vec3) -> Self {
-        Self {
-            albedo,
-            emission: Vec3::ZERO,
-            texture: None,
-            texture_tint: Vec3::ONE,
-            alpha_test: None,
-        }
-    }
-
-    /// The material emitting `radiance` (W/(m^2 sr) per channel) from both sides.
-    #[must_use]
-    pub const fn with_emission(mut self, radiance: Vec3) -> Self {
-        self.emission = radiance;
-        self
-    }
-
-    /// A diffuse material whose albedo is the texture `map` (times `tint`).
-    #[must_use]
-    pub const fn textured(map: TextureRef, tint: Vec3) -> Self {
-        Self {
-            albedo: Vec3::ZERO,
-            emission: Vec3::ZERO,
-            texture: Some(map),
-            texture_tint: tint,
-            alpha_test: None,
-        }
-    }
-
-    /// True when hits need the material's UVs (a texture or a textured alpha test).
-    #[must_use]
-    pub fn reads_uvs(&self) -> bool {
-        self.texture.is_some() || self.alpha_test.is_some_and(|a| a.texture.is_some())
-    }
-
-    /// Checks the texture references and values; `index` names the material in errors.
-    fn validate(&self, index: usize, textures: usize) -> Result<()> {
-        let what = format!("materials[{index}]");
-        let mut refs = Vec::new();
-        if let Some(map) = &self.texture {
-            refs.push(("texture", *map));
-            check_finite(
-                &format!("{what}.texture_tint"),
-                &self.texture_tint.to_array(),
-            )?;
-            if self.texture_tint.min_element() < 0.0 {
-                return Err(VplaceError::OutOfRange {
-                    what: format!("{what}.texture_tint"),
-                    value: format!("{:?}", self.texture_tint.to_array()),
-                    expected: "every channel >= 0".into(),
-                });
-            }
-        }
-        if let Some(a) = &self.alpha_test {
-            check_finite(
-                &format!("{what}.alpha_test"),
-                &[a.offset, a.scale, a.cutoff],
-            )?;
-            if let Some(map) = &a.texture {
-                refs.push(("alpha_test.texture", *map));
-            }
-        }
-        for (name, map) in refs {
-            if map.texture as usize >= textures {
-                return Err(VplaceError::IndexOutOfBounds {
-                    what: format!("{what}.{name}"),
-                    index: map.texture as usize,
-                    len: textures,
-                });
-            }
-            let flat = [map.uv_scale.to_array(), map.uv_offset.to_array()].concat();
-            check_finite(&format!("{what}.{name} UV transform"), &flat)?;
-        }
-        Ok(())
     }
 }
 
@@ -729,6 +193,7 @@ impl Scene {
     /// non-finite tint, a non-finite UV, UV transform or alpha test; UVs of the wrong length,
     /// or none while a material reads a texture.
     pub fn new(input: SceneInput<'_>) -> Result<Self> {
+        check_input(&input)?;
         let SceneInput {
             vertices,
             triangles,
@@ -738,112 +203,14 @@ impl Scene {
             uvs,
             textures,
         } = input;
-        if triangles.is_empty() {
-            return Err(VplaceError::Empty {
-                what: "scene triangles".into(),
-                hint: "the scene needs at least one mesh triangle".into(),
-            });
-        }
-        if material_ids.len() != triangles.len() {
-            return Err(VplaceError::Shape {
-                what: "material_ids".into(),
-                expected: format!("({},) (one per triangle)", triangles.len()),
-                got: format!("({},)", material_ids.len()),
-            });
-        }
-        if materials.is_empty() {
-            return Err(VplaceError::Empty {
-                what: "albedo".into(),
-                hint: "pass at least one material".into(),
-            });
-        }
-        let flat: Vec<f32> = vertices.iter().flat_map(|v| v.to_array()).collect();
-        check_finite("vertices", &flat)?;
-        let flat: Vec<f32> = materials.iter().flat_map(|m| m.albedo.to_array()).collect();
-        check_finite("albedo", &flat)?;
-        if let Some(i) = flat.iter().position(|a| !(0.0..=1.0).contains(a)) {
-            return Err(VplaceError::OutOfRange {
-                what: format!("albedo[{}]", i / 3),
-                value: flat[i].to_string(),
-                expected: "[0, 1] in every channel".into(),
-            });
-        }
-        for (i, l) in lights.iter().enumerate() {
-            l.validate(i)?;
-        }
-        for (i, m) in materials.iter().enumerate() {
-            m.validate(i, textures.len())?;
-        }
-        if let Some(uv) = uvs {
-            if uv.len() != triangles.len() {
-                return Err(VplaceError::Shape {
-                    what: "uvs".into(),
-                    expected: format!("({}, 3, 2) (one UV per triangle corner)", triangles.len()),
-                    got: format!("({}, 3, 2)", uv.len()),
-                });
-            }
-            let corners = uv.iter().flatten();
-            if let Some(i) = corners
-                .flat_map(|c| c.to_array())
-                .position(|x| !x.is_finite())
-            {
-                return Err(VplaceError::NonFinite {
-                    what: "uvs".into(),
-                    index: i,
-                });
-            }
-        } else if let Some(i) = materials.iter().position(Material::reads_uvs) {
-            return Err(VplaceError::Invalid {
-                what: format!("materials[{i}]"),
-                reason: "it reads a texture, but the scene has no UVs: pass uvs".into(),
-            });
-        }
-        let nv = vertices.len();
-        let mut tris = Vec::with_capacity(triangles.len());
-        let mut normals = Vec::with_capacity(triangles.len());
-        let mut triangle_albedo = Vec::with_capacity(triangles.len());
-        let mut degenerate = 0;
-        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-        for (t, (idx, &m)) in triangles.iter().zip(material_ids).enumerate() {
-            for &i in idx {
-                if i as usize >= nv {
-                    return Err(VplaceError::IndexOutOfBounds {
-                        what: format!("triangles[{t}]"),
-                        index: i as usize,
-                        len: nv,
-                    });
-                }
-            }
-            if m as usize >= materials.len() {
-                return Err(VplaceError::IndexOutOfBounds {
-                    what: format!("material_ids[{t}]"),
-                    index: m as usize,
-                    len: materials.len(),
-                });
-            }
-            let [a, b, c] = idx.map(|i| vertices[i as usize]);
-            let n = (b - a).cross(c - a);
-            if n.length_squared() == 0.0 {
-                degenerate += 1;
-            }
-            for p in [a, b, c] {
-                lo = lo.min(p);
-                hi = hi.max(p);
-            }
-            normals.push(n.normalize_or_zero());
-            triangle_albedo.push(mean_albedo(&materials[m as usize], &textures));
-            tris.push(Triangle {
-                v0: a.into(),
-                v1: b.into(),
-                v2: c.into(),
-            });
-        }
-        if degenerate == tris.len() {
-            return Err(VplaceError::Invalid {
-                what: "scene triangles".into(),
-                reason: "every triangle has zero area".into(),
-            });
-        }
+        let Geometry {
+            tris,
+            normals,
+            triangle_albedo,
+            degenerate,
+            lo,
+            hi,
+        } = geometry(vertices, triangles, material_ids, materials, &textures)?;
         let emissive = EmissiveMesh::build(vertices, triangles, material_ids, materials)?;
         let bvh = build_cwbvh_from_tris(&tris, BVH_BUILD, &mut Duration::default());
         let shadow = ShadowBvh::new(&bvh);
@@ -897,7 +264,7 @@ impl Scene {
     }
 
     /// The default near-field radius of the scene's VPLs: [`NEAR_FIELD_FRACTION`] of the
-    /// diagonal (VPL spacing grows with the scene; see [`crate::shading::near_field`]).
+    /// diagonal (VPL spacing grows with the scene; see `shade::shading::near_field`).
     #[must_use]
     pub fn near_field_radius(&self) -> f32 {
         NEAR_FIELD_FRACTION * self.diagonal()
@@ -1167,10 +534,161 @@ impl Surfaces {
     }
 }
 
+/// The checks of [`Scene::new`] before any triangle is read: counts, finite vertices, albedo
+/// in `[0, 1]`, valid lights and materials, UVs when a material reads a texture.
+fn check_input(input: &SceneInput<'_>) -> Result<()> {
+    let SceneInput {
+        vertices,
+        triangles,
+        material_ids,
+        materials,
+        uvs,
+        ..
+    } = *input;
+    let (lights, textures) = (&input.lights, &input.textures);
+    if triangles.is_empty() {
+        return Err(VplaceError::Empty {
+            what: "scene triangles".into(),
+            hint: "the scene needs at least one mesh triangle".into(),
+        });
+    }
+    if material_ids.len() != triangles.len() {
+        return Err(VplaceError::Shape {
+            what: "material_ids".into(),
+            expected: format!("({},) (one per triangle)", triangles.len()),
+            got: format!("({},)", material_ids.len()),
+        });
+    }
+    if materials.is_empty() {
+        return Err(VplaceError::Empty {
+            what: "albedo".into(),
+            hint: "pass at least one material".into(),
+        });
+    }
+    let flat: Vec<f32> = vertices.iter().flat_map(|v| v.to_array()).collect();
+    check_finite("vertices", &flat)?;
+    let flat: Vec<f32> = materials.iter().flat_map(|m| m.albedo.to_array()).collect();
+    check_finite("albedo", &flat)?;
+    if let Some(i) = flat.iter().position(|a| !(0.0..=1.0).contains(a)) {
+        return Err(VplaceError::OutOfRange {
+            what: format!("albedo[{}]", i / 3),
+            value: flat[i].to_string(),
+            expected: "[0, 1] in every channel".into(),
+        });
+    }
+    for (i, l) in lights.iter().enumerate() {
+        l.validate(i)?;
+    }
+    for (i, m) in materials.iter().enumerate() {
+        m.validate(i, textures.len())?;
+    }
+    if let Some(uv) = uvs {
+        if uv.len() != triangles.len() {
+            return Err(VplaceError::Shape {
+                what: "uvs".into(),
+                expected: format!("({}, 3, 2) (one UV per triangle corner)", triangles.len()),
+                got: format!("({}, 3, 2)", uv.len()),
+            });
+        }
+        let corners = uv.iter().flatten();
+        if let Some(i) = corners
+            .flat_map(|c| c.to_array())
+            .position(|x| !x.is_finite())
+        {
+            return Err(VplaceError::NonFinite {
+                what: "uvs".into(),
+                index: i,
+            });
+        }
+    } else if let Some(i) = materials.iter().position(Material::reads_uvs) {
+        return Err(VplaceError::Invalid {
+            what: format!("materials[{i}]"),
+            reason: "it reads a texture, but the scene has no UVs: pass uvs".into(),
+        });
+    }
+    Ok(())
+}
+
+/// The triangles of a scene as the BVH takes them, with their normals, mean albedo, the
+/// degenerate count and the bounds.
+struct Geometry {
+    tris: Vec<Triangle>,
+    normals: Vec<Vec3>,
+    triangle_albedo: Vec<Vec3>,
+    degenerate: usize,
+    lo: Vec3,
+    hi: Vec3,
+}
+
+/// [`Geometry`] of checked input; errors on an index out of bounds or when every triangle is
+/// degenerate.
+fn geometry(
+    vertices: &[Vec3],
+    triangles: &[[u32; 3]],
+    material_ids: &[u32],
+    materials: &[Material],
+    textures: &[Texture],
+) -> Result<Geometry> {
+    let nv = vertices.len();
+    let mut tris = Vec::with_capacity(triangles.len());
+    let mut normals = Vec::with_capacity(triangles.len());
+    let mut triangle_albedo = Vec::with_capacity(triangles.len());
+    let mut degenerate = 0;
+    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    for (t, (idx, &m)) in triangles.iter().zip(material_ids).enumerate() {
+        for &i in idx {
+            if i as usize >= nv {
+                return Err(VplaceError::IndexOutOfBounds {
+                    what: format!("triangles[{t}]"),
+                    index: i as usize,
+                    len: nv,
+                });
+            }
+        }
+        if m as usize >= materials.len() {
+            return Err(VplaceError::IndexOutOfBounds {
+                what: format!("material_ids[{t}]"),
+                index: m as usize,
+                len: materials.len(),
+            });
+        }
+        let [a, b, c] = idx.map(|i| vertices[i as usize]);
+        let n = (b - a).cross(c - a);
+        if n.length_squared() == 0.0 {
+            degenerate += 1;
+        }
+        for p in [a, b, c] {
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+        normals.push(n.normalize_or_zero());
+        triangle_albedo.push(mean_albedo(&materials[m as usize], textures));
+        tris.push(Triangle {
+            v0: a.into(),
+            v1: b.into(),
+            v2: c.into(),
+        });
+    }
+    if degenerate == tris.len() {
+        return Err(VplaceError::Invalid {
+            what: "scene triangles".into(),
+            reason: "every triangle has zero area".into(),
+        });
+    }
+    Ok(Geometry {
+        tris,
+        normals,
+        triangle_albedo,
+        degenerate,
+        lo,
+        hi,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_util::{box_with, closed_box};
+    use crate::test_util::{box_with, card_scene, closed_box, extend};
 
     #[test]
     fn closest_hit_and_occlusion() {
@@ -1284,40 +802,6 @@ mod tests {
     /// `(-0.5, -0.5)`, `(0.5, -0.5)`, `(0.5, 0.5)`, `(-0.5, 0.5)`, its UVs the unit square
     /// (`u` along x, `v` along y), material 1 = `card`; box UVs zero. Texture 0: 2 x 1 texels,
     /// left (u < 0.5) red with alpha 0, right green with alpha 1, read with `Extend`.
-    fn card_scene(card: Material, lights: Vec<Light>) -> Scene {
-        let corners = [
-            Vec3::new(-0.5, -0.5, 1.0),
-            Vec3::new(0.5, -0.5, 1.0),
-            Vec3::new(0.5, 0.5, 1.0),
-            Vec3::new(-0.5, 0.5, 1.0),
-        ];
-        let (v, t) = crate::test_util::box_geometry(&[corners]);
-        let mut ids = vec![0u32; t.len()];
-        let mut uvs = vec![[Vec2::ZERO; 3]; t.len()];
-        let (a, b, c, d) = (Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y);
-        ids[12..].fill(1);
-        uvs[12] = [a, b, c];
-        uvs[13] = [a, c, d];
-        let texture = Texture::new("t", 2, 1, 4, &[1., 0., 0., 0., 0., 1., 0., 1.]).unwrap();
-        Scene::new(SceneInput {
-            vertices: &v,
-            triangles: &t,
-            material_ids: &ids,
-            materials: &[Material::diffuse(Vec3::splat(0.5)), card],
-            lights,
-            uvs: Some(&uvs),
-            textures: vec![texture],
-        })
-        .unwrap()
-    }
-
-    fn extend(texture: u32) -> TextureRef {
-        TextureRef {
-            wrap: crate::texture::Wrap::Extend,
-            ..TextureRef::new(texture)
-        }
-    }
-
     #[test]
     fn albedo_at_hits_reads_the_texture() {
         let card = Material::textured(extend(0), Vec3::new(0.8, 0.6, 1.0));
@@ -1408,96 +892,6 @@ mod tests {
             };
             let s = card_scene(card, vec![]);
             assert_eq!(s.occluded(below(0.3), above(0.3)), blocked, "{alpha}");
-        }
-    }
-
-    #[test]
-    fn light_paths_pass_cut_texels_and_stop_at_opaque_ones() {
-        let light = Light::point(Vec3::new(0.0, 0.0, 1.9), Vec3::splat(10.0));
-        let card = Material {
-            alpha_test: Some(AlphaTest::texture(extend(0))),
-            ..Material::diffuse(Vec3::splat(0.5))
-        };
-        let s = card_scene(card, vec![light.clone()]);
-        let opaque = card_scene(Material::diffuse(Vec3::splat(0.5)), vec![light]);
-        let v = crate::vpl::uniform_vpls(&s, 4000, 3).unwrap();
-        let on_card = |v: &&crate::vpl::Vpl| {
-            (v.position.z - 1.0).abs() < 0.01
-                && v.position.x.abs() < 0.5
-                && v.position.y.abs() < 0.5
-        };
-        // Seen from the light, the card's point at x lies over the floor's point at x / 0.47:
-        // the cut part (x < -0.25) shades nothing beyond x < -0.53 on the floor, the opaque
-        // part (x > 0) shades the floor's x in (0, 1).
-        let under = |v: &&crate::vpl::Vpl, x0: f32, x1: f32| {
-            v.position.z < 0.01 && (x0..x1).contains(&v.position.x) && v.position.y.abs() < 0.8
-        };
-        let (cut, opaque_half) = ((-0.95, -0.6), (0.05, 0.9));
-        // No VPL on the cut half of the card; VPLs on its opaque half.
-        assert_eq!(
-            v.iter()
-                .filter(on_card)
-                .filter(|v| v.position.x < -0.25)
-                .count(),
-            0
-        );
-        assert!(
-            v.iter()
-                .filter(on_card)
-                .filter(|v| v.position.x > 0.0)
-                .count()
-                > 100
-        );
-        // The floor under the cut half is lit through it; under the opaque half it is not.
-        assert!(v.iter().filter(|v| under(v, cut.0, cut.1)).count() > 30);
-        assert_eq!(
-            v.iter()
-                .filter(|v| under(v, opaque_half.0, opaque_half.1))
-                .count(),
-            0
-        );
-        // The opaque card shadows both halves.
-        let w = crate::vpl::uniform_vpls(&opaque, 4000, 3).unwrap();
-        assert_eq!(w.iter().filter(|v| under(v, cut.0, cut.1)).count(), 0);
-        // RSM rays too.
-        let r = crate::rsm::rsm_vpls(&s, 2000).unwrap();
-        assert_eq!(
-            r.iter()
-                .filter(on_card)
-                .filter(|v| v.position.x < -0.25)
-                .count(),
-            0
-        );
-        assert!(r.iter().filter(|v| under(v, cut.0, cut.1)).count() > 10);
-        assert_eq!(
-            r.iter()
-                .filter(|v| under(v, opaque_half.0, opaque_half.1))
-                .count(),
-            0
-        );
-    }
-
-    #[test]
-    fn light_paths_reflect_the_textured_albedo() {
-        // A textured floor under a point light: VPLs on the red half carry red flux only.
-        let light = Light::point(Vec3::new(0.0, 0.0, 1.9), Vec3::splat(10.0));
-        let s = card_scene(Material::textured(extend(0), Vec3::ONE), vec![light]);
-        let v = crate::vpl::uniform_vpls(&s, 3000, 8).unwrap();
-        let card: Vec<_> = v
-            .iter()
-            .filter(|v| (v.position.z - 1.0).abs() < 0.01)
-            .filter(|v| v.position.x.abs() < 0.5 && v.position.y.abs() < 0.5)
-            .collect();
-        assert!(card.len() > 100);
-        for v in card {
-            let u = v.position.x + 0.5;
-            let g = ((u - 0.25) / 0.5).clamp(0.0, 1.0);
-            let ratio = v.flux / v.flux.max_element();
-            let expect = Vec3::new(1.0 - g, g, 0.0) / (1.0 - g).max(g);
-            assert!(
-                (ratio - expect).abs().max_element() < 1e-3,
-                "{u}: {ratio} {expect}"
-            );
         }
     }
 

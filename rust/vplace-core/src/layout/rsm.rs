@@ -15,9 +15,9 @@
 use glam::Vec3;
 use std::f32::consts::PI;
 
-use crate::emitters::{area_direction, basis, sample_emission, spot_attenuation, Emitter};
 use crate::error::Result;
 use crate::layout::largest_remainder;
+use crate::scene::emitters::{area_direction, basis, sample_emission, spot_attenuation, Emitter};
 use crate::scene::{LightKind, Scene};
 use crate::vpl::{light_powers, Vpl};
 
@@ -146,9 +146,12 @@ pub fn rsm_vpls(scene: &Scene, n: usize) -> Result<Vec<Vpl>> {
 mod tests {
     use super::*;
     use crate::scene::Light;
-    use crate::test_util::closed_box;
+    use crate::scene::{texture::AlphaTest, Material};
+    use crate::test_util::{card_scene, closed_box, extend};
     use crate::vpl::emitted_power;
+    use crate::vpl::uniform_vpls;
     use crate::VplaceError;
+    use glam::Vec3;
 
     #[test]
     fn closed_box_gets_n_vpls_reflecting_albedo_times_power() {
@@ -208,5 +211,97 @@ mod tests {
         assert!(rsm_vpls(&s, 0).is_err());
         let s = closed_box(vec![Light::point(Vec3::new(0., 0., 1.), Vec3::ZERO)]);
         assert!(matches!(rsm_vpls(&s, 4), Err(VplaceError::Invalid { .. })));
+    }
+
+    // Light paths and RSM rays through alpha-tested and textured materials (the scene stage
+    // cuts and reads the texels; these are its callers).
+    #[test]
+    fn light_paths_pass_cut_texels_and_stop_at_opaque_ones() {
+        let light = Light::point(Vec3::new(0.0, 0.0, 1.9), Vec3::splat(10.0));
+        let card = Material {
+            alpha_test: Some(AlphaTest::texture(extend(0))),
+            ..Material::diffuse(Vec3::splat(0.5))
+        };
+        let s = card_scene(card, vec![light.clone()]);
+        let opaque = card_scene(Material::diffuse(Vec3::splat(0.5)), vec![light]);
+        let v = uniform_vpls(&s, 4000, 3).unwrap();
+        let on_card = |v: &&Vpl| {
+            (v.position.z - 1.0).abs() < 0.01
+                && v.position.x.abs() < 0.5
+                && v.position.y.abs() < 0.5
+        };
+        // Seen from the light, the card's point at x lies over the floor's point at x / 0.47:
+        // the cut part (x < -0.25) shades nothing beyond x < -0.53 on the floor, the opaque
+        // part (x > 0) shades the floor's x in (0, 1).
+        let under = |v: &&Vpl, x0: f32, x1: f32| {
+            v.position.z < 0.01 && (x0..x1).contains(&v.position.x) && v.position.y.abs() < 0.8
+        };
+        let (cut, opaque_half) = ((-0.95, -0.6), (0.05, 0.9));
+        // No VPL on the cut half of the card; VPLs on its opaque half.
+        assert_eq!(
+            v.iter()
+                .filter(on_card)
+                .filter(|v| v.position.x < -0.25)
+                .count(),
+            0
+        );
+        assert!(
+            v.iter()
+                .filter(on_card)
+                .filter(|v| v.position.x > 0.0)
+                .count()
+                > 100
+        );
+        // The floor under the cut half is lit through it; under the opaque half it is not.
+        assert!(v.iter().filter(|v| under(v, cut.0, cut.1)).count() > 30);
+        assert_eq!(
+            v.iter()
+                .filter(|v| under(v, opaque_half.0, opaque_half.1))
+                .count(),
+            0
+        );
+        // The opaque card shadows both halves.
+        let w = uniform_vpls(&opaque, 4000, 3).unwrap();
+        assert_eq!(w.iter().filter(|v| under(v, cut.0, cut.1)).count(), 0);
+        // RSM rays too.
+        let r = rsm_vpls(&s, 2000).unwrap();
+        assert_eq!(
+            r.iter()
+                .filter(on_card)
+                .filter(|v| v.position.x < -0.25)
+                .count(),
+            0
+        );
+        assert!(r.iter().filter(|v| under(v, cut.0, cut.1)).count() > 10);
+        assert_eq!(
+            r.iter()
+                .filter(|v| under(v, opaque_half.0, opaque_half.1))
+                .count(),
+            0
+        );
+    }
+
+    #[test]
+    fn light_paths_reflect_the_textured_albedo() {
+        // A textured floor under a point light: VPLs on the red half carry red flux only.
+        let light = Light::point(Vec3::new(0.0, 0.0, 1.9), Vec3::splat(10.0));
+        let s = card_scene(Material::textured(extend(0), Vec3::ONE), vec![light]);
+        let v = uniform_vpls(&s, 3000, 8).unwrap();
+        let card: Vec<_> = v
+            .iter()
+            .filter(|v| (v.position.z - 1.0).abs() < 0.01)
+            .filter(|v| v.position.x.abs() < 0.5 && v.position.y.abs() < 0.5)
+            .collect();
+        assert!(card.len() > 100);
+        for v in card {
+            let u = v.position.x + 0.5;
+            let g = ((u - 0.25) / 0.5).clamp(0.0, 1.0);
+            let ratio = v.flux / v.flux.max_element();
+            let expect = Vec3::new(1.0 - g, g, 0.0) / (1.0 - g).max(g);
+            assert!(
+                (ratio - expect).abs().max_element() < 1e-3,
+                "{u}: {ratio} {expect}"
+            );
+        }
     }
 }

@@ -1,6 +1,6 @@
 //! The VPL evaluator: the indirect image of a VPL set over a captured G-buffer.
 //!
-//! Every covered pixel gets the sum over the VPLs of the shading term of [`crate::shading`]
+//! Every covered pixel gets the sum over the VPLs of the shading term of [`crate::shade::shading`]
 //! (`rho / pi * Phi * I(cos_e) * max(0, n . l) * F(r) * V`, `V` an any-hit shadow ray through the
 //! scene BVH). This module is the scheduling: square pixel tiles run in parallel with rayon,
 //! each with one traversal state reused by its shadow rays; each tile polls the cancel flag of
@@ -10,93 +10,16 @@
 use glam::Vec3;
 use obvhs::{cwbvh::Traversal, ray::Ray};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use crate::error::{check_finite, Result, VplaceError};
+use crate::progress::Progress;
 use crate::scene::Scene;
-use crate::shading::{Batch, Receiver, VplSoa};
-use crate::shadow_cache::{self, ShadowCache};
+use crate::shade::shading::{Batch, Receiver, VplSoa};
+use crate::shade::shadow_cache::{self, ShadowCache};
+use crate::view::GBuffer;
 use crate::vpl::{Profile, Vpl};
-
-/// A G-buffer view: `width x height` pixels, row 0 at the top, flat `H x W x 3` arrays.
-#[derive(Debug, Clone, Copy)]
-pub struct GBuffer<'a> {
-    /// Image width, pixels.
-    pub width: usize,
-    /// Image height, pixels.
-    pub height: usize,
-    /// World position per pixel (`H x W x 3`).
-    pub position: &'a [f32],
-    /// Unit world-space shading normal per pixel (`H x W x 3`).
-    pub normal: &'a [f32],
-    /// Diffuse albedo per pixel (`H x W x 3`).
-    pub albedo: &'a [f32],
-    /// True where the pixel sees geometry (`H x W`); uncovered pixels stay zero.
-    pub covered: &'a [bool],
-}
-
-impl GBuffer<'_> {
-    /// Checks lengths and finiteness of the covered pixels.
-    pub fn validate(&self) -> Result<()> {
-        let n = self.width * self.height;
-        if n == 0 {
-            return Err(VplaceError::Empty {
-                what: "G-buffer".into(),
-                hint: "width and height must be at least 1".into(),
-            });
-        }
-        for (what, arr, c) in [
-            ("position", self.position, 3),
-            ("normal", self.normal, 3),
-            ("albedo", self.albedo, 3),
-        ] {
-            if arr.len() != n * c {
-                return Err(VplaceError::Shape {
-                    what: what.into(),
-                    expected: format!("({}, {}, {c})", self.height, self.width),
-                    got: format!("{} values", arr.len()),
-                });
-            }
-        }
-        if self.covered.len() != n {
-            return Err(VplaceError::Shape {
-                what: "covered".into(),
-                expected: format!("({}, {})", self.height, self.width),
-                got: format!("{} values", self.covered.len()),
-            });
-        }
-        for (what, arr) in [
-            ("position", self.position),
-            ("normal", self.normal),
-            ("albedo", self.albedo),
-        ] {
-            for (p, _) in self.covered.iter().enumerate().filter(|(_, &c)| c) {
-                check_finite(what, &arr[3 * p..3 * p + 3]).map_err(|_| VplaceError::NonFinite {
-                    what: format!("{what} (covered pixel)"),
-                    index: 3 * p,
-                })?;
-            }
-        }
-        Ok(())
-    }
-
-    fn vec3(arr: &[f32], p: usize) -> Vec3 {
-        Vec3::new(arr[3 * p], arr[3 * p + 1], arr[3 * p + 2])
-    }
-
-    /// Pixel `p` as a receiver of VPL light; `eps` is [`Scene::ray_epsilon`].
-    #[inline]
-    #[must_use]
-    pub(crate) fn receiver(&self, p: usize, eps: f32) -> Receiver {
-        Receiver::new(
-            Self::vec3(self.position, p),
-            Self::vec3(self.normal, p),
-            Self::vec3(self.albedo, p),
-            eps,
-        )
-    }
-}
 
 /// Evaluator settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -123,17 +46,6 @@ impl Default for EvalParams {
     fn default() -> Self {
         Self::PREVIEW
     }
-}
-
-/// Progress and cancellation shared with the caller, polled between tiles.
-#[derive(Debug, Default)]
-pub struct Progress {
-    /// Work items finished (tiles for the evaluator).
-    pub done: AtomicUsize,
-    /// Work items in all, set when the work starts.
-    pub total: AtomicUsize,
-    /// Set by the caller to stop the work; the call then returns [`VplaceError::Cancelled`].
-    pub cancel: AtomicBool,
 }
 
 /// What an evaluation cost.
@@ -250,6 +162,47 @@ pub(crate) fn evaluate_cached(
     )
 }
 
+/// What one tile of [`evaluate_with`] hands back: `(pixel, radiance)` of its covered pixels,
+/// and per pixel its `known` then its `visible` shadow-cache words.
+type Tile = (Vec<(usize, Vec3)>, Vec<u64>);
+
+/// The argument checks of [`evaluate_with`].
+fn check_eval_input(gbuffer: &GBuffer, vpls: &[Vpl], params: &EvalParams) -> Result<()> {
+    gbuffer.validate()?;
+    validate_vpls(vpls)?;
+    check_radius(params.radius)?;
+    if params.tile == 0 {
+        return Err(VplaceError::OutOfRange {
+            what: "tile".into(),
+            value: "0".into(),
+            expected: ">= 1".into(),
+        });
+    }
+    Ok(())
+}
+
+/// The image (`H x W x 3`) and the shadow-cache bit rows (`known`, `visible`) of the tiles.
+fn assemble(
+    results: Vec<Option<Tile>>,
+    w: usize,
+    h: usize,
+    words: usize,
+) -> (Vec<f32>, Vec<u64>, Vec<u64>) {
+    let mut image = vec![0.0f32; w * h * 3];
+    let (mut known, mut visible) = (vec![0u64; w * h * words], vec![0u64; w * h * words]);
+    for (tile, bits) in results.into_iter().flatten() {
+        for (i, (p, c)) in tile.into_iter().enumerate() {
+            image[3 * p..3 * p + 3].copy_from_slice(&c.to_array());
+            if words > 0 {
+                let row = &bits[2 * words * i..2 * words * (i + 1)];
+                known[words * p..words * (p + 1)].copy_from_slice(&row[..words]);
+                visible[words * p..words * (p + 1)].copy_from_slice(&row[words..]);
+            }
+        }
+    }
+    (image, known, visible)
+}
+
 /// The evaluation: tiles of pixels in parallel, each pixel shaded by every VPL through the
 /// shading module with one traversal state per tile; `occluded` answers a shadow ray with it.
 fn evaluate_with(
@@ -261,16 +214,7 @@ fn evaluate_with(
     cache: Option<&mut ShadowCache>,
     occluded: impl Fn(&mut Traversal, &Ray) -> bool + Sync,
 ) -> Result<(Vec<f32>, EvalStats)> {
-    gbuffer.validate()?;
-    validate_vpls(vpls)?;
-    check_radius(params.radius)?;
-    if params.tile == 0 {
-        return Err(VplaceError::OutOfRange {
-            what: "tile".into(),
-            value: "0".into(),
-            expected: ">= 1".into(),
-        });
-    }
+    check_eval_input(gbuffer, vpls, params)?;
     let start = Instant::now();
     let (w, h, t) = (gbuffer.width, gbuffer.height, params.tile);
     let tiles: Vec<(usize, usize)> = (0..h.div_ceil(t))
@@ -294,7 +238,6 @@ fn evaluate_with(
     let eps = scene.ray_epsilon();
     let radius_sq = params.radius * params.radius;
     let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
-    type Tile = (Vec<(usize, Vec3)>, Vec<u64>);
     let results: Vec<Option<Tile>> = tiles
         .par_iter()
         .map(|&(x0, y0)| {
@@ -314,7 +257,7 @@ fn evaluate_with(
                     if !gbuffer.covered[p] {
                         continue;
                     }
-                    let recv = gbuffer.receiver(p, eps);
+                    let recv = Receiver::of_pixel(gbuffer, p, eps);
                     batch.prepare(&soa, &recv, params.profile, radius_sq);
                     let row = bits.len();
                     bits.resize(row + 2 * words, 0);
@@ -349,18 +292,7 @@ fn evaluate_with(
     if cancelled() {
         return Err(VplaceError::Cancelled);
     }
-    let mut image = vec![0.0f32; w * h * 3];
-    let (mut known, mut visible) = (vec![0u64; w * h * words], vec![0u64; w * h * words]);
-    for (tile, bits) in results.into_iter().flatten() {
-        for (i, (p, c)) in tile.into_iter().enumerate() {
-            image[3 * p..3 * p + 3].copy_from_slice(&c.to_array());
-            if words > 0 {
-                let row = &bits[2 * words * i..2 * words * (i + 1)];
-                known[words * p..words * (p + 1)].copy_from_slice(&row[..words]);
-                visible[words * p..words * (p + 1)].copy_from_slice(&row[words..]);
-            }
-        }
-    }
+    let (image, known, visible) = assemble(results, w, h, words);
     if let Some(cache) = cache {
         *cache = ShadowCache::new(vpls, w, h, known, visible, reused.into_inner());
     }

@@ -27,9 +27,9 @@ use rayon::prelude::*;
 use crate::color::luminance;
 use crate::color::LUMINANCE;
 use crate::error::{Result, VplaceError};
-use crate::regression::{self, DropReason, Fit, FitParams};
+use crate::fit::regression::{self, DropReason, Fit, FitParams};
 use crate::scene::{LightKind, Scene};
-use crate::view::View;
+use crate::view::{check_len, GBuffer, View};
 
 /// Where a feature comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -163,16 +163,8 @@ pub enum StrongestLight {
 /// row 0 at the top; see DESIGN, Capture.
 #[derive(Debug, Clone, Copy)]
 pub struct FeatureInput<'a> {
-    /// Image width, pixels (at least 1).
-    pub width: usize,
-    /// Image height, pixels (at least 1).
-    pub height: usize,
-    /// World position per pixel.
-    pub position: &'a [f32],
-    /// Unit world normal per pixel.
-    pub normal: &'a [f32],
-    /// Diffuse albedo (Cycles DiffCol) per pixel.
-    pub albedo: &'a [f32],
+    /// Position, normal, albedo and coverage (the normal need not be unit length).
+    pub gbuffer: GBuffer<'a>,
     /// Planar camera depth (Cycles Z) per pixel; background values are ignored via `covered`.
     pub depth: &'a [f32],
     /// The direct image `D`.
@@ -182,8 +174,6 @@ pub struct FeatureInput<'a> {
     pub indirect: Option<&'a [f32]>,
     /// Specular colour (Cycles GlossCol); `None` makes [`REFLECTANCE`] unavailable.
     pub specular: Option<&'a [f32]>,
-    /// True where the pixel sees geometry.
-    pub covered: &'a [bool],
     /// The strongest light; `None` makes [`LIGHT_COSINE`] unavailable.
     pub light: Option<StrongestLight>,
 }
@@ -228,22 +218,6 @@ struct Acc {
     label: f64,
 }
 
-fn check_len(what: &str, arr: &[f32], h: usize, w: usize, c: usize) -> Result<()> {
-    if arr.len() == h * w * c {
-        return Ok(());
-    }
-    let expected = if c == 1 {
-        format!("({h}, {w})")
-    } else {
-        format!("({h}, {w}, {c})")
-    };
-    Err(VplaceError::Shape {
-        what: what.into(),
-        expected,
-        got: format!("{} values", arr.len()),
-    })
-}
-
 #[inline]
 fn lum(v: &[f32]) -> f32 {
     luminance(Vec3::from_slice(v))
@@ -255,37 +229,24 @@ fn finite3(v: &[f32]) -> bool {
 }
 
 impl FeatureInput<'_> {
-    /// Checks every array's length, `cell_px` and the light.
+    /// Checks every array's length and the light. Non-finite values are not errors here: the
+    /// extraction masks such pixels and counts them.
     pub fn validate(&self) -> Result<()> {
-        let (h, w) = (self.height, self.width);
-        if h == 0 || w == 0 {
-            return Err(VplaceError::Empty {
-                what: "G-buffer".into(),
-                hint: "width and height must be at least 1".into(),
-            });
-        }
-        for (what, arr) in [
-            ("position", self.position),
-            ("normal", self.normal),
-            ("albedo", self.albedo),
-            ("direct", self.direct),
-        ] {
-            check_len(what, arr, h, w, 3)?;
-        }
+        self.gbuffer.check_shape()?;
+        let (w, h) = (self.gbuffer.width, self.gbuffer.height);
+        check_len("direct", self.direct.len(), w, h, 3)?;
         if let Some(ind) = self.indirect {
-            check_len("indirect", ind, h, w, 3)?;
+            check_len("indirect", ind.len(), w, h, 3)?;
         }
         if let Some(s) = self.specular {
-            check_len("specular", s, h, w, 3)?;
+            check_len("specular", s.len(), w, h, 3)?;
         }
-        check_len("depth", self.depth, h, w, 1)?;
-        if self.covered.len() != h * w {
-            return Err(VplaceError::Shape {
-                what: "covered".into(),
-                expected: format!("({h}, {w})"),
-                got: format!("{} values", self.covered.len()),
-            });
-        }
+        check_len("depth", self.depth.len(), w, h, 1)?;
+        self.check_light()
+    }
+
+    /// Checks the light: a finite position, or a finite non-zero direction.
+    fn check_light(&self) -> Result<()> {
         match self.light {
             Some(StrongestLight::Position(p)) if !p.is_finite() => Err(VplaceError::NonFinite {
                 what: "light position".into(),
@@ -308,6 +269,23 @@ impl FeatureInput<'_> {
 /// pixel at all.
 pub fn extract_features(input: &FeatureInput<'_>, cell_px: usize) -> Result<CellFeatures> {
     input.validate()?;
+    extract_checked(input, cell_px)
+}
+
+/// [`extract_features`] of `view` with `light`: the view's arrays were checked when it was made
+/// ([`View::new`]), so only the light and `cell_px` are.
+pub fn extract_view_features(
+    view: &View,
+    light: Option<StrongestLight>,
+    cell_px: usize,
+) -> Result<CellFeatures> {
+    let input = FeatureInput::of(view, light);
+    input.check_light()?;
+    extract_checked(&input, cell_px)
+}
+
+/// The extraction of an input whose arrays have their sizes.
+fn extract_checked(input: &FeatureInput<'_>, cell_px: usize) -> Result<CellFeatures> {
     if cell_px == 0 {
         return Err(VplaceError::OutOfRange {
             what: "cell_px".into(),
@@ -315,7 +293,7 @@ pub fn extract_features(input: &FeatureInput<'_>, cell_px: usize) -> Result<Cell
             expected: "at least 1".into(),
         });
     }
-    let (w, h) = (input.width, input.height);
+    let (w, h) = (input.gbuffer.width, input.gbuffer.height);
     let cells_x = w.div_ceil(cell_px);
     let cells_y = h.div_ceil(cell_px);
     let light = input.light.map(|l| match l {
@@ -399,19 +377,19 @@ fn accumulate_row(
     cells_x: usize,
     cy: usize,
 ) -> Vec<Acc> {
-    let w = input.width;
+    let w = input.gbuffer.width;
     let mut accs = vec![Acc::default(); cells_x];
     let y0 = cy * cell_px;
-    let y1 = (y0 + cell_px).min(input.height);
+    let y1 = (y0 + cell_px).min(input.gbuffer.height);
     for y in y0..y1 {
         let (r1, r3) = (y * w..(y + 1) * w, 3 * y * w..3 * (y + 1) * w);
         let row = Row {
-            pos: &input.position[r3.clone()],
-            nrm: &input.normal[r3.clone()],
-            alb: &input.albedo[r3.clone()],
+            pos: &input.gbuffer.position[r3.clone()],
+            nrm: &input.gbuffer.normal[r3.clone()],
+            alb: &input.gbuffer.albedo[r3.clone()],
             dir: &input.direct[r3.clone()],
             dep: &input.depth[r1.clone()],
-            cov: &input.covered[r1],
+            cov: &input.gbuffer.covered[r1],
             ind: input.indirect.map(|g| &g[r3.clone()]),
             spec: input.specular.map(|s| &s[r3.clone()]),
         };
@@ -570,16 +548,11 @@ impl<'a> FeatureInput<'a> {
     #[must_use]
     pub fn of(view: &'a View, light: Option<StrongestLight>) -> Self {
         Self {
-            width: view.width,
-            height: view.height,
-            position: &view.position,
-            normal: &view.normal,
-            albedo: &view.albedo,
+            gbuffer: view.gbuffer(),
             depth: &view.depth,
             direct: &view.direct,
             indirect: view.indirect.as_deref(),
             specular: view.specular.as_deref(),
-            covered: &view.covered,
             light,
         }
     }
@@ -689,7 +662,7 @@ pub const VIEW_DEPENDENT: &str =
     "depends on the view, not on the surface: the lights must hold from every view";
 
 /// Normalizes the features of `cells` (the cells of the views named `names`, in order) and fits
-/// their label (see [`crate::regression`]); `light` is what the light-cosine feature was computed
+/// their label (see [`crate::fit::regression`]); `light` is what the light-cosine feature was computed
 /// with. Features whose input was not given are reported as [`DropReason::Unavailable`]; with
 /// `surface_only` the features that are not properties of the surface ([`FeatureDef::surface`])
 /// are left out, reported as [`DropReason::Excluded`].
@@ -766,6 +739,40 @@ pub fn fit_cells(
     })
 }
 
+/// Settings of a fit on views: the cells, the choice of features and the regression's own.
+/// `Copy`, with named presets.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ViewFitParams {
+    /// Cell size in pixels (`>= 1`).
+    pub cell_px: usize,
+    /// Fit only the features of the surface (the same from every view), so that the model
+    /// holds from views it was not fitted on.
+    pub surface_only: bool,
+    /// The regression (selection, tolerances, ridge, folds).
+    pub regression: FitParams,
+}
+
+impl ViewFitParams {
+    /// 16-pixel cells, surface features only, [`FitParams::DEFAULT`].
+    pub const DEFAULT: Self = Self {
+        cell_px: 16,
+        surface_only: true,
+        regression: FitParams::DEFAULT,
+    };
+    /// Every feature, plain OLS ([`FitParams::PLAIN_OLS`]): what `numpy.linalg.lstsq` fits.
+    pub const PLAIN_OLS: Self = Self {
+        cell_px: 16,
+        surface_only: false,
+        regression: FitParams::PLAIN_OLS,
+    };
+}
+
+impl Default for ViewFitParams {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
 /// Fits one model on the cells of every view of `views` (each needs its indirect image), with
 /// `light` for the light-cosine feature (see [`strongest_light`]) and, with `surface_only`,
 /// only the features of the surface (see [`fit_cells`]).
@@ -787,7 +794,7 @@ pub fn fit_views(
     }
     let cells = views
         .iter()
-        .map(|v| extract_features(&FeatureInput::of(v, light), cell_px))
+        .map(|v| extract_view_features(v, light, cell_px))
         .collect::<Result<Vec<_>>>()?;
     let names: Vec<&str> = views.iter().map(|v| v.name.as_str()).collect();
     let mut model = fit_cells(&cells, &names, light, surface_only, params)?;
@@ -819,7 +826,7 @@ impl CellModel {
 
     /// The predicted label of every cell of `view`, with the model's cell size and light.
     pub fn predict_view(&self, view: &View) -> Result<Vec<f64>> {
-        let cells = extract_features(&FeatureInput::of(view, self.light), self.cell_px)?;
+        let cells = extract_view_features(view, self.light, self.cell_px)?;
         Ok(self.predict(&cells))
     }
 
@@ -846,7 +853,7 @@ impl CellModel {
 
     /// [`CellModel::out_of_range`] for the cells of `view`.
     pub fn out_of_range_view(&self, view: &View) -> Result<Vec<(usize, f64)>> {
-        let cells = extract_features(&FeatureInput::of(view, self.light), self.cell_px)?;
+        let cells = extract_view_features(view, self.light, self.cell_px)?;
         Ok(self.out_of_range(&cells))
     }
 }

@@ -16,7 +16,9 @@
 use glam::{Mat4, Vec3};
 
 use crate::error::{check_finite, Result, VplaceError};
-use crate::evaluator::GBuffer;
+
+mod gbuffer;
+pub use gbuffer::{check_len, GBuffer};
 
 /// The camera of a view.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -46,25 +48,17 @@ impl Camera {
     }
 }
 
-/// The arrays of a view as a caller holds them (borrowed, unchecked): the input of [`View::new`].
+/// The arrays of a view as a caller holds them (borrowed, unchecked): the input of [`View::new`],
+/// its [`GBuffer`] and the lighting passes.
 /// Images are flat, row-major, row 0 at the top.
 #[derive(Debug, Clone, Copy)]
 pub struct ViewInput<'a> {
     /// A name for messages and reports (the camera's name, say).
     pub name: &'a str,
-    /// Image width, pixels (`>= 1`).
-    pub width: usize,
-    /// Image height, pixels (`>= 1`).
-    pub height: usize,
-    /// World position per pixel (`H x W x 3`).
-    pub position: &'a [f32],
-    /// World shading normal per pixel (`H x W x 3`); need not be unit length (a pixel that
-    /// straddles two surfaces averages their normals).
-    pub normal: &'a [f32],
-    /// Diffuse albedo, Cycles `DiffCol` (`H x W x 3`).
-    pub albedo: &'a [f32],
-    /// True where the pixel sees geometry (`H x W`).
-    pub covered: &'a [bool],
+    /// The G-buffer: image size (`>= 1` each way), world position, shading normal (need not be
+    /// unit length: a pixel that straddles two surfaces averages their normals), diffuse albedo
+    /// (Cycles `DiffCol`) and coverage.
+    pub gbuffer: GBuffer<'a>,
     /// Planar camera depth, Cycles `Z` (`H x W`).
     pub depth: &'a [f32],
     /// The direct image `D` (`H x W x 3`).
@@ -118,25 +112,11 @@ pub struct View {
     pub masked_pixels: usize,
 }
 
-fn check_len(what: &str, len: usize, w: usize, h: usize, c: usize) -> Result<()> {
-    if len == w * h * c {
-        return Ok(());
-    }
-    Err(VplaceError::Shape {
-        what: what.into(),
-        expected: if c == 1 {
-            format!("({h}, {w})")
-        } else {
-            format!("({h}, {w}, {c})")
-        },
-        got: format!("{len} values"),
-    })
-}
-
 impl View {
     /// Checks and copies `input` (see the module docs for what is checked).
     pub fn new(input: &ViewInput<'_>) -> Result<Self> {
-        let (w, h) = (input.width, input.height);
+        let g = input.gbuffer;
+        let (w, h) = (g.width, g.height);
         if w == 0 || h == 0 {
             return Err(VplaceError::Empty {
                 what: format!("view {:?}", input.name),
@@ -144,9 +124,9 @@ impl View {
             });
         }
         let rgb = [
-            ("position", Some(input.position)),
-            ("normal", Some(input.normal)),
-            ("albedo", Some(input.albedo)),
+            ("position", Some(g.position)),
+            ("normal", Some(g.normal)),
+            ("albedo", Some(g.albedo)),
             ("direct", Some(input.direct)),
             ("diffuse_direct", Some(input.diffuse_direct)),
             ("diffuse_indirect", input.diffuse_indirect),
@@ -158,7 +138,7 @@ impl View {
                 check_len(what, a.len(), w, h, 3)?;
             }
         }
-        check_len("covered", input.covered.len(), w, h, 1)?;
+        check_len("covered", g.covered.len(), w, h, 1)?;
         check_len("depth", input.depth.len(), w, h, 1)?;
         check_finite("camera_position", &input.camera.position.to_array())?;
         check_finite("world_to_clip", &input.camera.world_to_clip.to_cols_array())?;
@@ -168,7 +148,7 @@ impl View {
                 reason: "the camera matrix is singular".into(),
             });
         }
-        let mut covered = input.covered.to_vec();
+        let mut covered = g.covered.to_vec();
         let mut masked = 0;
         for (p, c) in covered.iter_mut().enumerate().filter(|(_, c)| **c) {
             let px = 3 * p..3 * p + 3;
@@ -200,9 +180,9 @@ impl View {
             name: input.name.to_owned(),
             width: w,
             height: h,
-            position: input.position.to_vec(),
-            normal: input.normal.to_vec(),
-            albedo: input.albedo.to_vec(),
+            position: g.position.to_vec(),
+            normal: g.normal.to_vec(),
+            albedo: g.albedo.to_vec(),
             covered,
             depth: input.depth.to_vec(),
             direct: input.direct.to_vec(),
@@ -226,7 +206,7 @@ impl View {
         }
     }
 
-    /// The G-buffer of the view, for the evaluator.
+    /// The G-buffer of the view, for the feature extraction, the evaluator and the refit.
     #[must_use]
     pub fn gbuffer(&self) -> GBuffer<'_> {
         GBuffer {
@@ -294,12 +274,14 @@ mod tests {
     ) -> ViewInput<'a> {
         ViewInput {
             name: "test",
-            width: 2,
-            height: 1,
-            position: pos,
-            normal: nrm,
-            albedo: alb,
-            covered: cov,
+            gbuffer: GBuffer {
+                width: 2,
+                height: 1,
+                position: pos,
+                normal: nrm,
+                albedo: alb,
+                covered: cov,
+            },
             depth: dep,
             direct: lit,
             diffuse_direct: lit,
@@ -352,7 +334,7 @@ mod tests {
         i.camera.world_to_clip = Mat4::ZERO;
         assert!(matches!(View::new(&i), Err(VplaceError::Invalid { .. })));
         i.camera.world_to_clip = Mat4::IDENTITY;
-        i.width = 0;
+        i.gbuffer.width = 0;
         assert!(matches!(View::new(&i), Err(VplaceError::Empty { .. })));
     }
 

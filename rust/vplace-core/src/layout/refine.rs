@@ -1,7 +1,7 @@
 //! The layout iteration (DESIGN, Layout): evaluate the layout, compare per cell with the
 //! captured indirect image `I`, move budget toward cells with a high residual, repeat.
 //!
-//! Each iteration renders the VPL indirect image with [`evaluate`] on every `stride`-th pixel of
+//! Each iteration renders the VPL indirect image with [`evaluate`](crate::shade::evaluator::evaluate) on every `stride`-th pixel of
 //! every view (rows and columns), measures the error (RMSE over the covered pixels of those
 //! grids, RGB, linear, all views together) and the mean absolute luminance residual `r_k` of each
 //! cell of each view. The shares move
@@ -12,7 +12,7 @@
 //!
 //! A VPL drawn again at the same position (a stratum whose count did not change draws the same
 //! emitters) gets its shadow-ray answers from the previous iteration instead of new rays
-//! ([`crate::evaluator`]'s shadow cache): the images and errors are bit for bit those of fresh
+//! ([`crate::shade::evaluator`]'s shadow cache): the images and errors are bit for bit those of fresh
 //! evaluations. On the layout benchmark about a third of the rays of iterations 2 and 3 are
 //! reused.
 
@@ -21,13 +21,14 @@ use std::time::Instant;
 
 use crate::color::luminance;
 use crate::error::{Result, VplaceError};
-use crate::evaluator::{evaluate_cached, EvalParams, GBuffer, Progress};
 use crate::layout::{
     allocate, blend, build_strata, draw, importance, shares, Allocation, Grid, LayoutParams, Strata,
 };
+use crate::progress::Progress;
 use crate::scene::Scene;
-use crate::shadow_cache::ShadowCache;
-use crate::view::View;
+use crate::shade::evaluator::{evaluate_cached, EvalParams};
+use crate::shade::shadow_cache::ShadowCache;
+use crate::view::{GBuffer, View};
 use crate::vpl::Vpl;
 
 /// Settings of the iteration. `Copy`, with named presets.
@@ -300,8 +301,8 @@ fn refine_with(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::evaluator::evaluate;
     use crate::scene::Light;
+    use crate::shade::evaluator::evaluate;
     use crate::test_util::{closed_box, FloorView};
 
     const LIGHT: Vec3 = Vec3::new(0.3, -0.2, 1.0);

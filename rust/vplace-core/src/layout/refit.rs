@@ -3,7 +3,7 @@
 //!
 //! Column `j` of `A` is the contribution of VPL `j` (with its current flux) to the covered pixels
 //! of every view's strided grid (every `stride`-th pixel in x and y), RGB stacked, computed by the
-//! evaluator's own shading term ([`crate::shading`]) with its shadow ray: entry for entry the
+//! evaluator's own shading term ([`crate::shade::shading`]) with its shadow ray: entry for entry the
 //! evaluator's image before the sum over VPLs. `b` is `I` on the same rows. The refit solves
 //!
 //! `min_s ||A s - b||^2 + lambda ||s - 1||^2  subject to  s >= 0`,
@@ -40,11 +40,12 @@ use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 use crate::error::{Result, VplaceError};
-use crate::evaluator::{check_radius, validate_vpls, GBuffer, Progress};
-use crate::refine::targets;
+use crate::layout::refine::targets;
+use crate::progress::Progress;
 use crate::scene::Scene;
-use crate::shading::{Batch, Receiver, VplSoa};
-use crate::view::View;
+use crate::shade::evaluator::{check_radius, validate_vpls};
+use crate::shade::shading::{Batch, Receiver, VplSoa};
+use crate::view::{GBuffer, View};
 use crate::vpl::{Profile, Vpl};
 
 /// Settings of the refit. `Copy`, with a default.
@@ -197,7 +198,7 @@ fn normal_equations(
                     .chunks_mut(3 * n)
                     .zip(task_pixels)
                     .map(|(px_rows, &(v, p))| {
-                        let recv = sources[v].0.receiver(p, eps);
+                        let recv = Receiver::of_pixel(&sources[v].0, p, eps);
                         let occluded = |ray: &_| scene.occluded_ray(&mut state, ray);
                         pixel_rows(
                             &recv,
@@ -482,7 +483,7 @@ pub fn refit(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::evaluator::{evaluate, EvalParams};
+    use crate::shade::evaluator::{evaluate, EvalParams};
     use crate::test_util::{closed_box, reference_incident, shading_cases, FloorView};
 
     /// VPLs on the ceiling and the walls of the test box, facing in, and one on the floor facing
@@ -703,7 +704,7 @@ mod tests {
                         .collect();
                     expect_rays += pixel_rays;
                     let rays = pixel_rows(
-                        &g.receiver(p, eps),
+                        &Receiver::of_pixel(&g, p, eps),
                         &soa,
                         profile,
                         radius * radius,

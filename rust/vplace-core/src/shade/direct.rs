@@ -4,7 +4,7 @@
 //! Blender and compared with the capture.
 //!
 //! Per pixel (position `x`, unit normal `n`, shadow rays from `x` pushed off the surface by the
-//! scene's ray epsilon) and per emitter ([`crate::emitters`], Blender's units):
+//! scene's ray epsilon) and per emitter ([`crate::scene::emitters`], Blender's units):
 //! - point or spot of radius 0, sun of angle 0: the one exact term, one shadow ray;
 //! - point or spot with a radius: the disk facing `x` sampled by area (soft falloff, Blender's
 //!   default) or the sphere's visible cone sampled uniformly in solid angle; the spot's blend
@@ -32,15 +32,16 @@ use std::f32::consts::PI;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
-use crate::emitters::{
+use crate::error::{Result, VplaceError};
+use crate::progress::Progress;
+use crate::rng::Rng;
+use crate::scene::emitters::{
     area_of, basis, concentric_disk, cosine_direction, one_minus_cos, spot_attenuation,
     spread_attenuation, uniform_cone, EmissiveMesh, Emitter, EnvironmentMap, COLLIMATED_SPREAD,
     PARALLEL_SUN,
 };
-use crate::error::{Result, VplaceError};
-use crate::evaluator::{GBuffer, Progress};
-use crate::rng::Rng;
 use crate::scene::{Light, LightKind, Scene};
+use crate::view::GBuffer;
 
 /// The most samples per pixel and emitter a call may ask for.
 pub const MAX_SAMPLES: usize = 1 << 16;
@@ -564,7 +565,7 @@ pub fn direct_light(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::emitters::light_power;
+    use crate::scene::emitters::light_power;
     use crate::scene::Material;
     use crate::test_util::{box_with, closed_box, GBufferArrays, BLOCKER};
     use glam::Mat3;
@@ -855,7 +856,7 @@ mod tests {
             let power = s
                 .emitters()
                 .iter()
-                .map(|&e| crate::emitters::emitter_power(e, &s))
+                .map(|&e| crate::scene::emitters::emitter_power(e, &s))
                 .sum::<Vec3>();
             close(power, radiance * 2.0 * PI * a * b, 1e-5);
         }

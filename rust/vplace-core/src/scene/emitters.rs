@@ -633,22 +633,7 @@ pub fn sample_emission(
     let (u1, u2) = (next(), next());
     let light = match emitter {
         Emitter::Light(l) => l,
-        Emitter::Mesh(mesh) => {
-            let (p, n, radiance, pdf_area) = mesh.sample(u1, u2);
-            let side = if next() < 0.5 { n } else { -n };
-            let d = cosine_direction(side, next(), next());
-            // Flux of the ray `L A / p` per side over the half power `pi sum L A` of a side.
-            let weight = Vec3::select(
-                mesh.radiance_area.cmpgt(Vec3::ZERO),
-                radiance / (pdf_area * mesh.radiance_area),
-                Vec3::ZERO,
-            );
-            return EmissionRay {
-                origin: p + side * scene.ray_epsilon(),
-                direction: d,
-                weight,
-            };
-        }
+        Emitter::Mesh(mesh) => return mesh_ray(mesh, scene, u1, u2, next),
     };
     let on_sphere = |radius: f32, next: &mut dyn FnMut() -> f32| {
         if radius > 0.0 {
@@ -732,25 +717,61 @@ pub fn sample_emission(
                 weight: one,
             }
         }
-        LightKind::World { map } => {
-            // `w` is where the light comes from; the ray travels along `-w`.
-            let (w, weight) = match map {
-                Some(m) => {
-                    let (w, pdf) = m.sample(u1, u2);
-                    let value = m.value(w);
-                    let ok = m.integral().cmpgt(Vec3::ZERO);
-                    let weight = Vec3::select(ok, value / (pdf * m.integral()), Vec3::ZERO);
-                    (w, if pdf > 0.0 { weight } else { Vec3::ZERO })
-                }
-                None => (uniform_sphere(u1, u2), one),
-            };
-            let (v1, v2) = (next(), next());
-            EmissionRay {
-                origin: outside_disk(scene, -w, v1, v2),
-                direction: -w,
-                weight,
-            }
+        LightKind::World { map } => world_ray(map.as_deref(), scene, u1, u2, next),
+    }
+}
+
+/// [`sample_emission`] of emissive triangles: a point by power (`u1`, `u2`), a side, then a
+/// cosine direction from it.
+fn mesh_ray(
+    mesh: &EmissiveMesh,
+    scene: &Scene,
+    u1: f32,
+    u2: f32,
+    next: &mut impl FnMut() -> f32,
+) -> EmissionRay {
+    let (p, n, radiance, pdf_area) = mesh.sample(u1, u2);
+    let side = if next() < 0.5 { n } else { -n };
+    let d = cosine_direction(side, next(), next());
+    // Flux of the ray `L A / p` per side over the half power `pi sum L A` of a side.
+    let weight = Vec3::select(
+        mesh.radiance_area.cmpgt(Vec3::ZERO),
+        radiance / (pdf_area * mesh.radiance_area),
+        Vec3::ZERO,
+    );
+    EmissionRay {
+        origin: p + side * scene.ray_epsilon(),
+        direction: d,
+        weight,
+    }
+}
+
+/// [`sample_emission`] of the world: a direction from its map (`u1`, `u2`), then a start on
+/// the disk outside the scene.
+fn world_ray(
+    map: Option<&EnvironmentMap>,
+    scene: &Scene,
+    u1: f32,
+    u2: f32,
+    next: &mut impl FnMut() -> f32,
+) -> EmissionRay {
+    let one = Vec3::ONE;
+    // `w` is where the light comes from; the ray travels along `-w`.
+    let (w, weight) = match map {
+        Some(m) => {
+            let (w, pdf) = m.sample(u1, u2);
+            let value = m.value(w);
+            let ok = m.integral().cmpgt(Vec3::ZERO);
+            let weight = Vec3::select(ok, value / (pdf * m.integral()), Vec3::ZERO);
+            (w, if pdf > 0.0 { weight } else { Vec3::ZERO })
         }
+        None => (uniform_sphere(u1, u2), one),
+    };
+    let (v1, v2) = (next(), next());
+    EmissionRay {
+        origin: outside_disk(scene, -w, v1, v2),
+        direction: -w,
+        weight,
     }
 }
 

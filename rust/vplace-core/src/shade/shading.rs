@@ -34,10 +34,10 @@
 //! omni VPL, or at `r = 0`) gives nothing and needs no ray.
 //!
 //! The callers:
-//! - the evaluator ([`crate::evaluator`]) sums the pairs of each pixel, with shadow rays;
-//! - the refit ([`crate::refit`]) keeps them per VPL as the columns of its matrix, with shadow
+//! - the evaluator ([`crate::shade::evaluator`]) sums the pairs of each pixel, with shadow rays;
+//! - the refit (`layout::refit`) keeps them per VPL as the columns of its matrix, with shadow
 //!   rays;
-//! - the layout's view efficiency ([`crate::layout::view_efficiency`]) averages the unshadowed
+//! - the layout's view efficiency (`layout::view_efficiency`) averages the unshadowed
 //!   term of the cosine profile over a few pixels of the view.
 //!
 //! **How.** `Batch` computes one receiver against every VPL of a `VplSoa` (the VPLs in
@@ -49,12 +49,8 @@ use glam::{Vec3, Vec3A};
 use obvhs::ray::Ray;
 use std::f32::consts::PI;
 
+use crate::view::GBuffer;
 use crate::vpl::{Profile, Vpl};
-
-/// The default near-field radius `radius` as a fraction of the scene diagonal
-/// ([`crate::scene::Scene::near_field_radius`]): VPL spacing grows with the scene, so the radius
-/// within which a VPL's `1 / r^2` is bounded does too.
-pub const NEAR_FIELD_FRACTION: f32 = 0.01;
 
 /// The irradiance per unit flux `K` that a VPL's light gives a receiver (see the module docs):
 /// `e2` is `r^2 = |y - x|^2`, `ne` is `n . e`, `h` is `-m . e` (cosine only), `nm` is `n . m`
@@ -118,6 +114,19 @@ pub(crate) struct Receiver {
 }
 
 impl Receiver {
+    /// Pixel `p` of `gbuffer` as a receiver of VPL light; `eps` is
+    /// [`crate::scene::Scene::ray_epsilon`].
+    #[inline]
+    #[must_use]
+    pub(crate) fn of_pixel(gbuffer: &GBuffer<'_>, p: usize, eps: f32) -> Self {
+        Self::new(
+            GBuffer::vec3(gbuffer.position, p),
+            GBuffer::vec3(gbuffer.normal, p),
+            GBuffer::vec3(gbuffer.albedo, p),
+            eps,
+        )
+    }
+
     /// The receiver at `position` with the G-buffer's `normal` (normalized here; a box-filtered
     /// normal is shorter than 1, a zero normal stays zero) and `albedo`; `eps` is
     /// [`crate::scene::Scene::ray_epsilon`].

@@ -508,20 +508,10 @@ pub fn fit(x: &[f64], y: &[f64], p: usize, params: &FitParams) -> Result<Fit> {
     let (ymean, ystd, ymax) = mean_std(y.iter().copied(), n);
     let sst: f64 = y.iter().map(|v| (v - ymean) * (v - ymean)).sum();
 
-    let mut dropped: Vec<(usize, DropReason)> = Vec::new();
-    let mut cand: Vec<usize> = Vec::new();
+    // Step 1: constant columns (and every column when the label is constant).
     let label_constant = is_constant(ystd, ymax);
-    for (j, &(_, std, max_abs)) in stats.iter().enumerate() {
-        if is_constant(std, max_abs) {
-            dropped.push((j, DropReason::Constant));
-        } else if label_constant {
-            dropped.push((j, DropReason::ConstantLabel));
-        } else {
-            cand.push(j);
-        }
-    }
+    let (cand, mut dropped) = screen_columns(&stats, label_constant);
     let c = cand.len();
-    let ycol = c + 1;
     let solve_params = Params {
         rtol: params
             .rank_rtol
@@ -536,8 +526,110 @@ pub fn fit(x: &[f64], y: &[f64], p: usize, params: &FitParams) -> Result<Fit> {
         1
     };
     let k = if k < 2 { 1 } else { k };
+    let fold_rows = assign_folds(n, k, params.seed);
+    let scale: Vec<(f64, f64)> = cand.iter().map(|&j| (stats[j].0, stats[j].1)).collect();
+    let design = Design {
+        x,
+        y,
+        p,
+        cand: &cand,
+        scale: &scale,
+    };
+    let (blocks, r_full) = fold_factors(&design, &fold_rows);
+
+    // Step 3: collinear columns, in order.
+    let set = drop_collinear(&r_full, &cand, params, &solve_params, &mut dropped)?;
+
+    // Step 4: backward elimination on CV R^2.
+    let (set, cv) = if k >= 2 && sst > 0.0 {
+        let (set, current) = select_by_cv(
+            &blocks,
+            set,
+            &cand,
+            sst,
+            params,
+            &solve_params,
+            &mut dropped,
+        )?;
+        (set, Some(current))
+    } else {
+        (set, None)
+    };
+
+    // Step 5: the final fit.
+    let (c0, b, solved) = fit_on(&r_full, &set, c + 1, &solve_params, false)?;
+    let (intercept, coefficients, kept) = unscale(c0, &b, &set, &design, ymean);
+    let total: f64 = kept.iter().map(|&j| coefficients[j].abs()).sum();
+    let weights: Vec<f64> = coefficients
+        .iter()
+        .map(|b| if total > 0.0 { b.abs() / total } else { 0.0 })
+        .collect();
+    let mut model = Fit {
+        p,
+        n,
+        intercept,
+        coefficients,
+        weights,
+        kept,
+        dropped,
+        r2: 0.0,
+        adjusted_r2: None,
+        cv_r2: cv,
+        folds: if k >= 2 && sst > 0.0 { k } else { 0 },
+        condition_number: if set.is_empty() { 1.0 } else { solved.cond },
+        rank: solved.rank,
+        ridge_lambda: solved.lambda,
+        fitted: Vec::new(),
+    };
+    score(&mut model, x, y, sst, label_constant, ymax);
+    // A safety net: never hand back a silent NaN.
+    let finite = model.intercept.is_finite()
+        && model.coefficients.iter().all(|v| v.is_finite())
+        && model.fitted.iter().all(|v| v.is_finite())
+        && model.r2.is_finite();
+    if !finite {
+        return Err(VplaceError::Invalid {
+            what: "fit".into(),
+            reason: "the solution overflowed f64: rescale x and y to moderate magnitudes".into(),
+        });
+    }
+    Ok(model)
+}
+
+/// The design of one fit: `x` (`n x p`, row-major), `y`, the candidate columns and their
+/// `(mean, std)` standardization.
+struct Design<'a> {
+    x: &'a [f64],
+    y: &'a [f64],
+    p: usize,
+    cand: &'a [usize],
+    scale: &'a [(f64, f64)],
+}
+
+/// Step 1: the candidate columns, and the constant ones (every one with a constant label)
+/// dropped in column order.
+fn screen_columns(
+    stats: &[(f64, f64, f64)],
+    label_constant: bool,
+) -> (Vec<usize>, Vec<(usize, DropReason)>) {
+    let mut dropped: Vec<(usize, DropReason)> = Vec::new();
+    let mut cand: Vec<usize> = Vec::new();
+    for (j, &(_, std, max_abs)) in stats.iter().enumerate() {
+        if is_constant(std, max_abs) {
+            dropped.push((j, DropReason::Constant));
+        } else if label_constant {
+            dropped.push((j, DropReason::ConstantLabel));
+        } else {
+            cand.push(j);
+        }
+    }
+    (cand, dropped)
+}
+
+/// The rows of each of `k` folds: a seeded shuffle of `0..n`, dealt round robin.
+fn assign_folds(n: usize, k: usize, seed: u64) -> Vec<Vec<usize>> {
     let mut order: Vec<usize> = (0..n).collect();
-    let mut rng = Rng::new(params.seed, 11);
+    let mut rng = Rng::new(seed, 11);
     for i in (1..n).rev() {
         let r = (rng.next_u32() as usize) % (i + 1);
         order.swap(i, r);
@@ -546,8 +638,14 @@ pub fn fit(x: &[f64], y: &[f64], p: usize, params: &FitParams) -> Result<Fit> {
     for (pos, &row) in order.iter().enumerate() {
         fold_rows[pos % k].push(row);
     }
-    let scale: Vec<(f64, f64)> = cand.iter().map(|&j| (stats[j].0, stats[j].1)).collect();
-    // Tall-skinny QR: chunks of at most CHUNK rows are factored in parallel, then their `R`s.
+    fold_rows
+}
+
+/// Step 2: the `R` factor of `[1 | X_std | y]` over each fold's rows and over all rows.
+/// Tall-skinny QR: chunks of at most [`CHUNK`] rows are factored in parallel, then their `R`s.
+fn fold_factors(d: &Design<'_>, fold_rows: &[Vec<usize>]) -> (Vec<DMatrix<f64>>, DMatrix<f64>) {
+    let (c, k) = (d.cand.len(), fold_rows.len());
+    let ycol = c + 1;
     let chunks: Vec<(usize, &[usize])> = fold_rows
         .iter()
         .enumerate()
@@ -559,10 +657,10 @@ pub fn fit(x: &[f64], y: &[f64], p: usize, params: &FitParams) -> Result<Fit> {
             let mut a = DMatrix::zeros(rows.len(), c + 2);
             for (i, &row) in rows.iter().enumerate() {
                 a[(i, 0)] = 1.0;
-                a[(i, ycol)] = y[row];
-                let xr = &x[row * p..(row + 1) * p];
-                for (ci, &j) in cand.iter().enumerate() {
-                    let (m, s) = scale[ci];
+                a[(i, ycol)] = d.y[row];
+                let xr = &d.x[row * d.p..(row + 1) * d.p];
+                for (ci, &j) in d.cand.iter().enumerate() {
+                    let (m, s) = d.scale[ci];
                     a[(i, ci + 1)] = (xr[j] - m) / s;
                 }
             }
@@ -589,8 +687,18 @@ pub fn fit(x: &[f64], y: &[f64], p: usize, params: &FitParams) -> Result<Fit> {
     } else {
         r_of(stack(&all, c + 2))
     };
+    (blocks, r_full)
+}
 
-    // Step 3: collinear columns, in order.
+/// Step 3: the block columns (`candidate index + 1`) kept after dropping, in order, each
+/// candidate whose residual on the kept ones is below `collinear_rtol`.
+fn drop_collinear(
+    r_full: &DMatrix<f64>,
+    cand: &[usize],
+    params: &FitParams,
+    solve_params: &Params,
+    dropped: &mut Vec<(usize, DropReason)>,
+) -> Result<Vec<usize>> {
     let mut set: Vec<usize> = Vec::new(); // block columns (j + 1)
     for (ci, &j) in cand.iter().enumerate() {
         let bc = ci + 1;
@@ -605,7 +713,7 @@ pub fn fit(x: &[f64], y: &[f64], p: usize, params: &FitParams) -> Result<Fit> {
                     1.0
                 }
             } else {
-                let m = columns(&r_full, 1, &set);
+                let m = columns(r_full, 1, &set);
                 let solved = solve_small(m.clone(), &target, solve_params.rtol, f64::INFINITY)?;
                 (m * solved.b - &target).norm() / norm
             };
@@ -617,65 +725,85 @@ pub fn fit(x: &[f64], y: &[f64], p: usize, params: &FitParams) -> Result<Fit> {
         }
         set.push(bc);
     }
+    Ok(set)
+}
 
-    // Step 4: backward elimination on CV R^2.
-    let mut cv = None;
-    if k >= 2 && sst > 0.0 {
-        let train: Vec<DMatrix<f64>> = (0..k)
+/// Step 4: backward elimination: while removing a column loses at most `min_cv_gain` of the
+/// CV R^2, the column whose removal leaves the best CV R^2 goes. Returns the kept block
+/// columns and their CV R^2.
+fn select_by_cv(
+    blocks: &[DMatrix<f64>],
+    mut set: Vec<usize>,
+    cand: &[usize],
+    sst: f64,
+    params: &FitParams,
+    solve_params: &Params,
+    dropped: &mut Vec<(usize, DropReason)>,
+) -> Result<(Vec<usize>, f64)> {
+    let (c, k) = (cand.len(), blocks.len());
+    let ycol = c + 1;
+    let train: Vec<DMatrix<f64>> = (0..k)
+        .into_par_iter()
+        .map(|f| {
+            let others: Vec<&DMatrix<f64>> = blocks
+                .iter()
+                .enumerate()
+                .filter(|&(g, _)| g != f)
+                .map(|(_, b)| b)
+                .collect();
+            r_of(stack(&others, c + 2))
+        })
+        .collect();
+    let mut current = cv_r2(&train, blocks, &set, ycol, sst, solve_params)?;
+    while !set.is_empty() {
+        let without: Vec<Result<f64>> = (0..set.len())
             .into_par_iter()
-            .map(|f| {
-                let others: Vec<&DMatrix<f64>> = blocks
-                    .iter()
-                    .enumerate()
-                    .filter(|&(g, _)| g != f)
-                    .map(|(_, b)| b)
-                    .collect();
-                r_of(stack(&others, c + 2))
+            .map(|i| {
+                let mut s = set.clone();
+                s.remove(i);
+                cv_r2(&train, blocks, &s, ycol, sst, solve_params)
             })
             .collect();
-        let mut current = cv_r2(&train, &blocks, &set, ycol, sst, &solve_params)?;
-        while !set.is_empty() {
-            let without: Vec<Result<f64>> = (0..set.len())
-                .into_par_iter()
-                .map(|i| {
-                    let mut s = set.clone();
-                    s.remove(i);
-                    cv_r2(&train, &blocks, &s, ycol, sst, &solve_params)
-                })
-                .collect();
-            let mut best: Option<(usize, f64)> = None;
-            for (i, r) in without.into_iter().enumerate() {
-                let r = r?;
-                if best.is_none_or(|(_, b)| r >= b) {
-                    best = Some((i, r));
-                }
+        let mut best: Option<(usize, f64)> = None;
+        for (i, r) in without.into_iter().enumerate() {
+            let r = r?;
+            if best.is_none_or(|(_, b)| r >= b) {
+                best = Some((i, r));
             }
-            let Some((i, r)) = best else { break };
-            if current - r > params.min_cv_gain {
-                break;
-            }
-            let j = cand[set[i] - 1];
-            dropped.push((
-                j,
-                DropReason::NoCvGain {
-                    cv_r2_with: current,
-                    cv_r2_without: r,
-                },
-            ));
-            set.remove(i);
-            current = r;
         }
-        cv = Some(current);
+        let Some((i, r)) = best else { break };
+        if current - r > params.min_cv_gain {
+            break;
+        }
+        let j = cand[set[i] - 1];
+        dropped.push((
+            j,
+            DropReason::NoCvGain {
+                cv_r2_with: current,
+                cv_r2_without: r,
+            },
+        ));
+        set.remove(i);
+        current = r;
     }
+    Ok((set, current))
+}
 
-    // Step 5: the final fit.
-    let (c0, b, solved) = fit_on(&r_full, &set, ycol, &solve_params, false)?;
-    let mut coefficients = vec![0.0; p];
+/// Step 5: the intercept and the coefficients on the raw columns from the standardized
+/// solution `(c0, b)` of the block columns `set`, and the kept columns in column order.
+fn unscale(
+    c0: f64,
+    b: &DVector<f64>,
+    set: &[usize],
+    d: &Design<'_>,
+    ymean: f64,
+) -> (f64, Vec<f64>, Vec<usize>) {
+    let mut coefficients = vec![0.0; d.p];
     let mut intercept = c0;
     let mut kept: Vec<usize> = Vec::with_capacity(set.len());
     for (kk, &bc) in set.iter().enumerate() {
-        let j = cand[bc - 1];
-        let (m, s) = scale[bc - 1];
+        let j = d.cand[bc - 1];
+        let (m, s) = d.scale[bc - 1];
         coefficients[j] = b[kk] / s;
         intercept -= b[kk] * m / s;
         kept.push(j);
@@ -683,32 +811,15 @@ pub fn fit(x: &[f64], y: &[f64], p: usize, params: &FitParams) -> Result<Fit> {
     if set.is_empty() {
         intercept = ymean;
     }
-    let mut order_kept = kept.clone();
-    order_kept.sort_unstable();
-    let total: f64 = order_kept.iter().map(|&j| coefficients[j].abs()).sum();
-    let weights: Vec<f64> = coefficients
-        .iter()
-        .map(|b| if total > 0.0 { b.abs() / total } else { 0.0 })
-        .collect();
-    let mut model = Fit {
-        p,
-        n,
-        intercept,
-        coefficients,
-        weights,
-        kept: order_kept,
-        dropped,
-        r2: 0.0,
-        adjusted_r2: None,
-        cv_r2: cv,
-        folds: if k >= 2 && sst > 0.0 { k } else { 0 },
-        condition_number: if set.is_empty() { 1.0 } else { solved.cond },
-        rank: solved.rank,
-        ridge_lambda: solved.lambda,
-        fitted: Vec::new(),
-    };
+    kept.sort_unstable();
+    (intercept, coefficients, kept)
+}
+
+/// The fitted values, R^2 and adjusted R^2 of `model` on `x`, `y`.
+fn score(model: &mut Fit, x: &[f64], y: &[f64], sst: f64, label_constant: bool, ymax: f64) {
+    let n = model.n;
     model.fitted = x
-        .chunks_exact(p)
+        .chunks_exact(model.p)
         .map(|row| model.predict_row(row))
         .collect();
     let sse: f64 = model
@@ -727,18 +838,6 @@ pub fn fit(x: &[f64], y: &[f64], p: usize, params: &FitParams) -> Result<Fit> {
     let kk = model.kept.len();
     model.adjusted_r2 =
         (n > kk + 1).then(|| 1.0 - (1.0 - model.r2) * (n - 1) as f64 / (n - kk - 1) as f64);
-    // A safety net: never hand back a silent NaN.
-    let finite = model.intercept.is_finite()
-        && model.coefficients.iter().all(|v| v.is_finite())
-        && model.fitted.iter().all(|v| v.is_finite())
-        && model.r2.is_finite();
-    if !finite {
-        return Err(VplaceError::Invalid {
-            what: "fit".into(),
-            reason: "the solution overflowed f64: rescale x and y to moderate magnitudes".into(),
-        });
-    }
-    Ok(model)
 }
 
 #[cfg(test)]

@@ -1,9 +1,9 @@
 //! The shadow-ray answers of one evaluation, kept for the next evaluation of the same G-buffer
-//! in the same scene (the layout iterations of [`crate::refine`]).
+//! in the same scene (the layout iterations of `layout::refine`).
 //!
 //! A VPL of the next set at the same position (bit for bit) as one of this set gets its answers
 //! from here instead of new rays. Visibility depends only on the two ends of the ray, so the
-//! image is bit for bit the one [`crate::evaluator::evaluate`] renders; only the number of rays
+//! image is bit for bit the one [`crate::shade::evaluator::evaluate`] renders; only the number of rays
 //! traced changes. Answers are two bits per (pixel, VPL) pair: traced, and not blocked.
 
 use std::collections::HashMap;

@@ -1,0 +1,512 @@
+//! Candidate emitters and strata (see the module docs of [`crate::layout`]): the pixel
+//! emitters of every view, the off-screen light-path hits grouped by view efficiency, and the
+//! strata they fall into.
+
+use super::*;
+
+/// A candidate emitter: a surface point and the flux it reflects.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Emitter {
+    /// Position, offset off the surface like a [`Vpl`].
+    pub position: Vec3,
+    /// Unit normal, facing the side the light arrives from.
+    pub normal: Vec3,
+    /// Reflected flux, RGB watts; its luminance is `> 0`.
+    pub flux: Vec3,
+}
+
+/// Where a view's pixel emitters got their indirect irradiance.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum IndirectSource {
+    /// The view's captured `DiffInd`.
+    Captured,
+    /// The fit's per-cell prediction (a view without a GI render).
+    Predicted,
+    /// None: the emitters reflect direct light only.
+    None,
+}
+
+/// The cell strata of one view.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Grid {
+    /// Cells per row.
+    pub cells_x: usize,
+    /// Cells per column.
+    pub cells_y: usize,
+    /// Index of the view's first cell among the strata.
+    pub start: usize,
+    /// Where the view's emitters got their indirect irradiance.
+    pub source: IndirectSource,
+}
+
+impl Grid {
+    /// Number of cells.
+    #[must_use]
+    pub fn cells(&self) -> usize {
+        self.cells_x * self.cells_y
+    }
+}
+
+/// The candidate emitters of one or more views grouped in strata.
+///
+/// Invariants: `start.len() == strata() + 1`, non-decreasing, `start[strata()] ==
+/// emitters.len()`; stratum `k` holds `emitters[start[k]..start[k + 1]]` and `flux[k]` is their
+/// sum; the grids cover the strata `0..offscreen()` one after the other; the strata from
+/// [`Strata::offscreen`] on are the off-screen ones (the last one dark);
+/// `view_weight.len() == strata()`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Strata {
+    /// Cell size, pixels.
+    pub cell_px: usize,
+    /// The cell grid of each view, in the order of the views.
+    pub grids: Vec<Grid>,
+    /// Every candidate, grouped by stratum.
+    pub emitters: Vec<Emitter>,
+    /// Start of each stratum in `emitters`, plus the end.
+    pub start: Vec<usize>,
+    /// `F_k`: the flux of each stratum, RGB watts.
+    pub flux: Vec<Vec3>,
+    /// Light-ray hits dropped because a view sees them (its pixels stand for them).
+    pub light_hits_on_screen: usize,
+    /// Pixel emitters dropped because an earlier view sees their surface (counted once).
+    pub shared_pixels: usize,
+    /// `v_k`: how efficiently stratum `k` lights the view relative to the on-screen emitters
+    /// (1 for cells, 0 for the dark stratum).
+    pub view_weight: Vec<f64>,
+}
+
+impl Strata {
+    /// Number of strata (cells plus the off-screen one).
+    #[must_use]
+    pub fn strata(&self) -> usize {
+        self.flux.len()
+    }
+
+    /// Index of the first off-screen stratum (= the number of cells of every view).
+    #[must_use]
+    pub fn offscreen(&self) -> usize {
+        self.grids.iter().map(Grid::cells).sum()
+    }
+
+    /// Total flux of the off-screen strata.
+    #[must_use]
+    pub fn offscreen_flux(&self) -> Vec3 {
+        self.flux[self.offscreen()..].iter().copied().sum()
+    }
+
+    /// Luminance of each `F_k`.
+    #[must_use]
+    pub fn luminance(&self) -> Vec<f64> {
+        self.flux.iter().map(|&f| f64::from(luminance(f))).collect()
+    }
+}
+
+#[inline]
+pub(super) fn vec3(arr: &[f32], p: usize) -> Vec3 {
+    Vec3::new(arr[3 * p], arr[3 * p + 1], arr[3 * p + 2])
+}
+
+/// The unit view direction through the image point `(x, y)` (pixels, y down), as the line
+/// through two unprojected depths (so the camera position and the depth range do not enter).
+pub(super) fn corner_direction(inv: &Mat4, x: f32, y: f32, w: usize, h: usize) -> Vec3 {
+    let (nx, ny) = (x / w as f32 * 2.0 - 1.0, 1.0 - y / h as f32 * 2.0);
+    let near = inv.project_point3(Vec3::new(nx, ny, -0.5));
+    let far = inv.project_point3(Vec3::new(nx, ny, 0.5));
+    (far - near).normalize_or_zero()
+}
+
+/// The solid angle of a pixel from the view directions of its top-left, top-right and
+/// bottom-left corners.
+pub(super) fn solid_angle(d00: Vec3, d10: Vec3, d01: Vec3) -> f32 {
+    (d10 - d00).cross(d01 - d00).length()
+}
+
+/// The irradiance / pi that the pixel emitters of `view` reflect, and where its indirect part
+/// came from: `DiffDir` alone without `multi_bounce`; `DiffDir + max(0, DiffInd)` when the
+/// view has its `diffuse_indirect` pass; otherwise, with `predicted` (the fit's per-cell `dL`,
+/// `cells_y x cells_x`), `DiffDir` plus the grey irradiance `max(0, dL_k) / albedo_k` of each
+/// cell (`albedo_k` the mean albedo luminance of its covered pixels; cells darker than
+/// [`MIN_CELL_ALBEDO`] get none): on a view without a GI render the prediction stands in for
+/// the light the capture did not measure.
+///
+/// Errors: a prediction of the wrong size.
+pub fn emitter_irradiance<'a>(
+    view: &'a View,
+    predicted: Option<&[f64]>,
+    cell_px: usize,
+    multi_bounce: bool,
+) -> Result<(Cow<'a, [f32]>, IndirectSource)> {
+    let direct = &view.diffuse_direct;
+    if !multi_bounce {
+        return Ok((Cow::Borrowed(direct), IndirectSource::None));
+    }
+    if let Some(ind) = &view.diffuse_indirect {
+        let sum = direct
+            .iter()
+            .zip(ind)
+            .map(|(d, i)| d + i.max(0.0))
+            .collect();
+        return Ok((Cow::Owned(sum), IndirectSource::Captured));
+    }
+    let Some(pred) = predicted else {
+        return Ok((Cow::Borrowed(direct), IndirectSource::None));
+    };
+    let (w, h) = (view.width, view.height);
+    let (cx, cy) = (w.div_ceil(cell_px), h.div_ceil(cell_px));
+    if pred.len() != cx * cy {
+        return Err(VplaceError::Shape {
+            what: format!("prediction of view {:?}", view.name),
+            expected: format!("({cy}, {cx}) cells"),
+            got: format!("{} values", pred.len()),
+        });
+    }
+    let mut sum = vec![0.0f64; cx * cy];
+    let mut count = vec![0u32; cx * cy];
+    for (p, _) in view.covered.iter().enumerate().filter(|(_, &c)| c) {
+        let a = &view.albedo[3 * p..3 * p + 3];
+        let k = (p / w / cell_px) * cx + (p % w) / cell_px;
+        sum[k] += luminance_f64([f64::from(a[0]), f64::from(a[1]), f64::from(a[2])]);
+        count[k] += 1;
+    }
+    let cell: Vec<f32> = (0..cx * cy)
+        .map(|k| {
+            let mean = if count[k] > 0 {
+                sum[k] / f64::from(count[k])
+            } else {
+                0.0
+            };
+            if mean > MIN_CELL_ALBEDO {
+                (pred[k].max(0.0) / mean.max(MIN_CELL_ALBEDO)) as f32
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let out = direct
+        .iter()
+        .enumerate()
+        .map(|(i, d)| {
+            let p = i / 3;
+            d + cell[(p / w / cell_px) * cx + (p % w) / cell_px]
+        })
+        .collect();
+    Ok((Cow::Owned(out), IndirectSource::Predicted))
+}
+
+/// The pixel emitters of `view` reflecting `irradiance` (irradiance / pi, `H x W x 3`), each with
+/// its cell, in pixel order; `owned(x)` says whether the emitter at `x` belongs to this view (not
+/// already held by an earlier one).
+pub(super) fn pixel_emitters(
+    view: &View,
+    irradiance: &[f32],
+    cell_px: usize,
+    offset: f32,
+    owned: impl Fn(Vec3) -> bool + Sync,
+) -> (Vec<(usize, Emitter)>, usize) {
+    let (w, h, c) = (view.width, view.height, cell_px);
+    let cells_x = w.div_ceil(c);
+    let cam = view.camera.position;
+    let inv = view.camera.world_to_clip.inverse();
+    // Rows in parallel, in bands that share the view directions of their pixel corners; the
+    // emitters are then appended in pixel order, as a plain row-major loop would.
+    let band = 8;
+    let found: Vec<(Vec<(usize, Emitter)>, usize)> = (0..h.div_ceil(band))
+        .into_par_iter()
+        .map(|b| {
+            let (y0, y1) = (b * band, ((b + 1) * band).min(h));
+            let corners: Vec<Vec<Vec3>> = (y0..=y1)
+                .map(|y| {
+                    (0..=w)
+                        .map(|x| corner_direction(&inv, x as f32, y as f32, w, h))
+                        .collect()
+                })
+                .collect();
+            let mut out = Vec::new();
+            let mut shared = 0;
+            for y in y0..y1 {
+                let (top, below) = (&corners[y - y0], &corners[y - y0 + 1]);
+                for x in 0..w {
+                    let p = y * w + x;
+                    if !view.covered[p] {
+                        continue;
+                    }
+                    let dd = vec3(irradiance, p);
+                    let pos = vec3(&view.position, p);
+                    let mut n = vec3(&view.normal, p).normalize_or_zero();
+                    let to_cam = cam - pos;
+                    let r = to_cam.length();
+                    if n == Vec3::ZERO || r <= 0.0 {
+                        continue;
+                    }
+                    let mut cos = n.dot(to_cam) / r;
+                    if cos < 0.0 {
+                        n = -n;
+                        cos = -cos;
+                    }
+                    let omega = solid_angle(top[x], top[x + 1], below[x]);
+                    let area = r * r * omega / cos.max(MIN_VIEW_COSINE);
+                    let flux = vec3(&view.albedo, p) * (PI * dd.max(Vec3::ZERO)) * area;
+                    let lum = luminance(flux);
+                    if lum.is_nan() || lum <= 0.0 || !flux.is_finite() {
+                        continue;
+                    }
+                    let emitter = Emitter {
+                        position: pos + n * offset,
+                        normal: n,
+                        flux,
+                    };
+                    if !owned(emitter.position) {
+                        shared += 1;
+                        continue;
+                    }
+                    out.push(((y / c) * cells_x + x / c, emitter));
+                }
+            }
+            (out, shared)
+        })
+        .collect();
+    let shared = found.iter().map(|(_, s)| s).sum();
+    (found.into_iter().flat_map(|(e, _)| e).collect(), shared)
+}
+
+/// Gathers the candidate emitters of `views` into strata (see the module docs). `predicted`,
+/// when given, holds the fit's per-cell `dL` of each view (`cells_y x cells_x`, row-major); a
+/// view without a `diffuse_indirect` pass then reflects it ([`emitter_irradiance`]).
+///
+/// Errors: no views, `cell_px == 0`, a prediction of the wrong size, or failing light rays
+/// (see [`light_path_vpls`]). A scene without emitters gets empty off-screen strata (its pixels
+/// still emit).
+pub fn build_strata(
+    scene: &Scene,
+    views: &[&View],
+    predicted: Option<&[Vec<f64>]>,
+    params: &LayoutParams,
+) -> Result<Strata> {
+    check_strata_input(views, predicted, params)?;
+    let c = params.cell_px;
+    let offset = Vpl::SURFACE_OFFSET * scene.diagonal();
+    let occluded = |a: Vec3, b: Vec3| scene.occluded(a, b);
+    let mut grids = Vec::with_capacity(views.len());
+    let mut per: Vec<Vec<Emitter>> = Vec::new();
+    let mut shared_pixels = 0;
+    for (i, view) in views.iter().enumerate() {
+        let pred = predicted.map(|p| p[i].as_slice());
+        let (irradiance, source) = emitter_irradiance(view, pred, c, params.multi_bounce)?;
+        let earlier = &views[..i];
+        let owned = |x: Vec3| !earlier.iter().any(|u| u.sees(x, occluded));
+        let (found, shared) = pixel_emitters(view, &irradiance, c, offset, owned);
+        shared_pixels += shared;
+        let grid = Grid {
+            cells_x: view.width.div_ceil(c),
+            cells_y: view.height.div_ceil(c),
+            start: per.len(),
+            source,
+        };
+        per.resize(grid.start + grid.cells(), Vec::new());
+        for (k, e) in found {
+            per[grid.start + k].push(e);
+        }
+        grids.push(grid);
+    }
+    let cells = per.len();
+    let (off, light_hits_on_screen) = offscreen_emitters(scene, views, params)?;
+    let samples: Vec<(Vec3, Vec3, f32)> = views.iter().flat_map(|v| view_samples(v)).collect();
+    let radius = scene.near_field_radius();
+    let on_screen: Vec<&Emitter> = per.iter().flatten().collect();
+    let step = on_screen.len().div_ceil(VIEW_SAMPLES).max(1);
+    let on_sample: Vec<&Emitter> = on_screen.iter().step_by(step).copied().collect();
+    let on_eta = view_efficiency(&on_sample, &samples, radius);
+    let on_mean = flux_weighted_mean(&on_sample, &on_eta);
+    let off_eta = view_efficiency(&off.iter().collect::<Vec<_>>(), &samples, radius);
+    let mut order: Vec<usize> = (0..off.len()).collect();
+    order.sort_by(|&a, &b| off_eta[a].total_cmp(&off_eta[b]).then(a.cmp(&b)));
+    let dark = order.partition_point(|&i| off_eta[i] <= 0.0);
+    // Bins of equal view contribution `lum(flux) * eta`: the efficient emitters, few but bright
+    // in the view, get bins of their own.
+    let contribution = |i: usize| f64::from(luminance(off[i].flux)) * off_eta[i];
+    let total: f64 = order[dark..].iter().map(|&i| contribution(i)).sum();
+    let mut bins: Vec<Vec<usize>> = vec![Vec::new(); OFFSCREEN_BINS + 1];
+    let mut acc = 0.0;
+    for &i in &order[dark..] {
+        let mid = acc + 0.5 * contribution(i);
+        acc += contribution(i);
+        let b = (mid / total * OFFSCREEN_BINS as f64) as usize;
+        bins[b.min(OFFSCREEN_BINS - 1)].push(i);
+    }
+    bins[OFFSCREEN_BINS] = order[..dark].to_vec();
+    let mut view_weight = vec![1.0; cells];
+    for (b, members) in bins.iter().enumerate() {
+        let group: Vec<&Emitter> = members.iter().map(|&i| &off[i]).collect();
+        let eta: Vec<f64> = members.iter().map(|&i| off_eta[i]).collect();
+        view_weight.push(match (b == OFFSCREEN_BINS, on_mean > 0.0) {
+            (true, _) => 0.0,
+            (false, true) => flux_weighted_mean(&group, &eta) / on_mean,
+            (false, false) => 1.0,
+        });
+        per.push(group.into_iter().cloned().collect());
+    }
+    let mut start = Vec::with_capacity(per.len() + 1);
+    let mut emitters = Vec::new();
+    let mut flux = Vec::with_capacity(per.len());
+    for s in per {
+        start.push(emitters.len());
+        flux.push(s.iter().map(|e| e.flux).sum());
+        emitters.extend(s);
+    }
+    start.push(emitters.len());
+    Ok(Strata {
+        cell_px: c,
+        grids,
+        emitters,
+        start,
+        flux,
+        light_hits_on_screen,
+        shared_pixels,
+        view_weight,
+    })
+}
+
+/// The argument checks of [`build_strata`].
+pub(super) fn check_strata_input(
+    views: &[&View],
+    predicted: Option<&[Vec<f64>]>,
+    params: &LayoutParams,
+) -> Result<()> {
+    if views.is_empty() {
+        return Err(VplaceError::Empty {
+            what: "views".into(),
+            hint: "give at least one view to lay out VPLs for".into(),
+        });
+    }
+    if params.cell_px == 0 {
+        return Err(VplaceError::OutOfRange {
+            what: "cell_px".into(),
+            value: "0".into(),
+            expected: ">= 1".into(),
+        });
+    }
+    if let Some(p) = predicted {
+        if p.len() != views.len() {
+            return Err(VplaceError::Shape {
+                what: "predicted".into(),
+                expected: format!("one prediction per view ({})", views.len()),
+                got: format!("{}", p.len()),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The light-path hits no view sees, as emitters of the off-screen strata, and how many hits a
+/// view sees (dropped: its pixels stand for them).
+pub(super) fn offscreen_emitters(
+    scene: &Scene,
+    views: &[&View],
+    params: &LayoutParams,
+) -> Result<(Vec<Emitter>, usize)> {
+    let occluded = |a: Vec3, b: Vec3| scene.occluded(a, b);
+    let mut off: Vec<Emitter> = Vec::new();
+    let mut light_hits_on_screen = 0;
+    if params.light_rays > 0 && scene.has_emitters() {
+        for v in light_path_vpls(scene, params.light_rays, params.seed, params.bounces)? {
+            if views.iter().any(|view| view.sees(v.position, occluded)) {
+                light_hits_on_screen += 1;
+            } else if luminance(v.flux) > 0.0 {
+                off.push(Emitter {
+                    position: v.position,
+                    normal: v.normal,
+                    flux: v.flux,
+                });
+            }
+        }
+    }
+    Ok((off, light_hits_on_screen))
+}
+
+/// About [`VIEW_SAMPLES`] covered pixels of the view on a regular grid: (position, unit
+/// normal facing the camera, albedo luminance).
+pub(super) fn view_samples(view: &View) -> Vec<(Vec3, Vec3, f32)> {
+    let g = view.gbuffer();
+    let covered = view.covered_count();
+    let stride = ((covered as f64 / VIEW_SAMPLES as f64).sqrt().floor() as usize).max(1);
+    let mut out = Vec::new();
+    for y in (stride / 2..g.height).step_by(stride) {
+        for x in (stride / 2..g.width).step_by(stride) {
+            let p = y * g.width + x;
+            if !g.covered[p] {
+                continue;
+            }
+            let pos = vec3(g.position, p);
+            let mut n = vec3(g.normal, p).normalize_or_zero();
+            let albedo = luminance(vec3(g.albedo, p));
+            if n == Vec3::ZERO || !pos.is_finite() || !albedo.is_finite() {
+                continue;
+            }
+            if n.dot(view.camera.position - pos) < 0.0 {
+                n = -n;
+            }
+            out.push((pos, n, albedo.max(0.0)));
+        }
+    }
+    out
+}
+
+/// Emitters per task of [`view_efficiency`], shaded in one batch per sample.
+pub(super) const EMITTER_CHUNK: usize = 256;
+
+/// The view efficiency `eta_e` of each emitter: the mean over `samples` (position, unit normal,
+/// albedo) of `albedo / pi * I(cos_e) * max(0, n_p . l) * F(r)`, the shading term of
+/// [`crate::shade::shading`] for the cosine profile without shadow rays (the radiance an emitter of
+/// unit flux sends back from each sample pixel; `F` the near-field term with radius `radius`).
+/// Parallel over chunks of emitters; each sample shades a chunk in one batch.
+#[must_use]
+pub fn view_efficiency(
+    emitters: &[&Emitter],
+    samples: &[(Vec3, Vec3, f32)],
+    radius: f32,
+) -> Vec<f64> {
+    if samples.is_empty() {
+        return vec![0.0; emitters.len()];
+    }
+    let radius_sq = radius * radius;
+    let norm = samples.len() as f64 * f64::from(PI);
+    emitters
+        .par_chunks(EMITTER_CHUNK)
+        .map(|chunk| {
+            let unit: Vec<Vpl> = chunk
+                .iter()
+                .map(|e| Vpl {
+                    position: e.position,
+                    normal: e.normal,
+                    flux: Vec3::ONE,
+                })
+                .collect();
+            let soa = VplSoa::new(&unit);
+            let mut batch = Batch::new(soa.len());
+            let mut sum = vec![0.0f64; chunk.len()];
+            for &(p, n, albedo) in samples {
+                batch.prepare_unshadowed(&soa, p, n, Profile::Cosine, radius_sq);
+                for (acc, &s) in sum.iter_mut().zip(batch.scales()) {
+                    *acc += f64::from(albedo * s);
+                }
+            }
+            sum.into_iter().map(|s| s / norm).collect::<Vec<f64>>()
+        })
+        .collect::<Vec<_>>()
+        .concat()
+}
+
+/// `sum lum(flux_e) * eta_e / sum lum(flux_e)`, 0 for no flux.
+pub(super) fn flux_weighted_mean(emitters: &[&Emitter], eta: &[f64]) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for (e, &v) in emitters.iter().zip(eta) {
+        let l = f64::from(luminance(e.flux));
+        num += l * v;
+        den += l;
+    }
+    if den > 0.0 {
+        num / den
+    } else {
+        0.0
+    }
+}
