@@ -1,4 +1,4 @@
-"""vplace.markdown: the one table writer and the main job's short report."""
+"""vplace.markdown (the one table writer) and the main job's short report (vplace.job)."""
 
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ def _report(**change) -> vjob.JobSummary:
 
 
 def test_job_report_rows():
-    text = markdown.job_report(_report(baselines={"rsm": vjob.Baseline(_report().metrics, 1)}))
+    text = vjob.job_report(_report(baselines={"rsm": vjob.Baseline(_report().metrics, 1)}))
     assert text.startswith("# vplace report: box\n")
     assert "| export scene | 0.50 |" in text
     assert "Every image is scored against a ground truth." in text
@@ -43,7 +43,7 @@ def test_job_report_rows():
 
 def test_job_report_eevee_row():
     e = {"rmse": 0.1, "relative_mse": 0.2, "ssim": 0.9, "brightness": 1.0, "seconds": 2.0}
-    text = markdown.job_report(_report(eevee={**e, "samples": 16, "world_volume_bake_seconds": 3}))
+    text = vjob.job_report(_report(eevee={**e, "samples": 16, "world_volume_bake_seconds": 3}))
     assert "| EEVEE with the written lights (16 samples, 2.0 s; the world's probe volume " in text
-    plain = markdown.job_report(_report(eevee={**e, "samples": 16}))
+    plain = vjob.job_report(_report(eevee={**e, "samples": 16}))
     assert "| EEVEE with the written lights (16 samples, 2.0 s) | 0.10000 |" in plain

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 import vplace
+from vplace import images, markdown
 
 #: The layout methods, in the report's order: Keller's light paths, reflective shadow maps, the
 #: regression-guided layout, and the same with its VPL powers refitted to the captured light.
@@ -423,8 +424,6 @@ def write_files(
     evaluator's image as PNG, the VPLs as CSV, the model as JSON, and the summary as JSON and
     Markdown (``summary.files`` is set to every file of the folder); ``cell_px`` is the fit's
     cell size, for the log."""
-    from vplace import images, markdown
-
     images.save_png(out_dir / "cycles_gi.png", reference.gi)
     images.save_png(out_dir / "direct.png", reference.direct)
     images.save_png(out_dir / "direct_plus_vpl.png", reference.direct + computed.indirect)
@@ -442,6 +441,59 @@ def write_files(
         log(f"[vplace] fitted model (cells of {cell_px} px):\n{computed.fit}")
     summary.files = sorted({*(p.name for p in out_dir.iterdir() if p.is_file()), "report.json"})
     (out_dir / "report.json").write_text(json.dumps(summary.to_dict(main_job=True), indent=2))
-    text = markdown.job_report(summary)
+    text = job_report(summary)
     (out_dir / "report.md").write_text(text)
     log(text)
+
+
+def _scores(label: str, m: dict[str, float], suffix: str = "") -> list[str]:
+    return [
+        label,
+        f"{m['rmse' + suffix]:.5f}",
+        f"{m['relative_mse' + suffix]:.5f}",
+        f"{m['ssim' + suffix]:.4f}",
+        f"{m['brightness' + suffix]:.3f}",
+    ]
+
+
+def _eevee_label(e: dict[str, float]) -> str:
+    bake = e.get("world_volume_bake_seconds")
+    baked = f"; the world's probe volume baked in {bake:.1f} s" if bake else ""
+    return f"EEVEE with the written lights ({e['samples']} samples, {e['seconds']:.1f} s{baked})"
+
+
+def job_report(report: JobSummary) -> str:
+    """The main job's short human-readable report."""
+    m, s = report.metrics, report.evaluator
+    rows = [
+        _scores("direct only", m, "_direct_only"),
+        _scores(f"evaluator: direct + VPL indirect ({report.method})", m),
+        *[
+            _scores(f"evaluator: direct + VPL indirect ({name}, same N)", b.metrics)
+            for name, b in report.baselines.items()
+        ],
+    ]
+    if report.eevee:
+        rows.append(_scores(_eevee_label(report.eevee), report.eevee))
+    label = report.reference.label if report.reference is not None else "its own capture"
+    lines = [
+        f"# vplace report: {report.scene}",
+        "",
+        f"{report.triangles} triangles, {report.lights} lights, "
+        f"{report.resolution[0]}x{report.resolution[1]} px, {report.samples} spp Cycles, "
+        f"{report.n_vpls} VPLs by {report.method} ({report.profile}, "
+        f"near-field radius {report.radius:.3g} m)",
+        "",
+        *markdown.table(
+            ["stage", "seconds"], [[k, f"{v:.2f}"] for k, v in report.stage_seconds.items()]
+        ),
+        "",
+        f"Every image is scored against {label}.",
+        "",
+        *markdown.table(["image", "RMSE", "relative MSE", "SSIM", "brightness"], rows),
+        "",
+        f"Evaluator: {s.shadow_rays} shadow rays in {s.seconds:.3f} s "
+        f"= {s.rays_per_second / 1e6:.2f} M rays/s",
+        "",
+    ]
+    return "\n".join(lines)
