@@ -25,7 +25,7 @@
 //!    model with feature selection ([`fit::regression`]).
 //! 6. [`layout`]: candidate emitters (lit pixels and off-screen light-ray hits), strata (image
 //!    cells plus off-screen strata), the budget split `N * lerp(u_k, m_k, alpha)` by largest
-//!    remainder, flux-proportional draws that keep the total flux; [`layout::refine`]: the
+//!    remainder, flux-proportional draws that keep the total flux; [`layout::iterate`]: the
 //!    iteration that evaluates the layout, compares it per cell with the indirect image and
 //!    moves budget toward high residuals, returning the best layout; [`layout::refit`]: the
 //!    optional non-negative least-squares refit of the VPL powers; [`layout::rsm`]: the

@@ -33,7 +33,7 @@ use crate::vpl::Vpl;
 
 /// Settings of the iteration. `Copy`, with named presets.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RefineParams {
+pub struct IterateParams {
     /// The layout (budget, alpha, cells, seed).
     pub layout: LayoutParams,
     /// The evaluator used to score each iteration.
@@ -48,7 +48,7 @@ pub struct RefineParams {
     pub step: f64,
 }
 
-impl RefineParams {
+impl IterateParams {
     /// Three iterations at quarter resolution, 1 % tolerance, half steps.
     pub const DEFAULT: Self = Self {
         layout: LayoutParams::DEFAULT,
@@ -60,15 +60,15 @@ impl RefineParams {
     };
 }
 
-impl Default for RefineParams {
+impl Default for IterateParams {
     fn default() -> Self {
         Self::DEFAULT
     }
 }
 
-/// One evaluated layout.
+/// One round of the iteration: one evaluated layout.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Iteration {
+pub struct Round {
     /// RMSE of the VPL indirect image against `I` over the covered pixels of the strided grid.
     pub error: f64,
     /// Shadow rays the evaluation traced.
@@ -82,20 +82,20 @@ pub struct Iteration {
     pub allocation: Allocation,
 }
 
-/// The result of [`refine`].
+/// The result of [`iterate`].
 #[derive(Debug, Clone, PartialEq)]
-pub struct Refined {
+pub struct Iterated {
     /// The VPLs of the best iteration.
     pub vpls: Vec<Vpl>,
     /// Index of the best iteration in `iterations`.
     pub best: usize,
     /// Every iteration, in order.
-    pub iterations: Vec<Iteration>,
+    pub iterations: Vec<Round>,
     /// The strata the layouts were drawn from.
     pub strata: Strata,
 }
 
-impl Refined {
+impl Iterated {
     /// The error of the returned layout (the minimum over the iterations).
     #[must_use]
     pub fn error(&self) -> f64 {
@@ -175,25 +175,25 @@ pub(crate) fn targets<'a>(views: &[&'a View]) -> Result<Vec<&'a [f32]>> {
 /// Lays out VPLs for `views` and refines the allocation against their indirect images (each
 /// view needs one). `predicted` holds the fit's per-cell `dL` of each view, or is `None` for
 /// the uniform start.
-pub fn refine(
+pub fn iterate(
     scene: &Scene,
     views: &[&View],
     predicted: Option<&[Vec<f64>]>,
-    params: &RefineParams,
+    params: &IterateParams,
     progress: Option<&Progress>,
-) -> Result<Refined> {
-    refine_with(scene, views, predicted, params, progress, true)
+) -> Result<Iterated> {
+    iterate_with(scene, views, predicted, params, progress, true)
 }
 
-/// [`refine`], with (`reuse`) or without the reuse of shadow rays between iterations.
-fn refine_with(
+/// [`iterate`], with (`reuse`) or without the reuse of shadow rays between iterations.
+fn iterate_with(
     scene: &Scene,
     views: &[&View],
     predicted: Option<&[Vec<f64>]>,
-    params: &RefineParams,
+    params: &IterateParams,
     progress: Option<&Progress>,
     reuse: bool,
-) -> Result<Refined> {
+) -> Result<Iterated> {
     let indirect = targets(views)?;
     for (what, value, ok) in [
         ("stride", params.stride as f64, params.stride >= 1),
@@ -229,7 +229,7 @@ fn refine_with(
     let cells = strata.offscreen();
     let lum = strata.luminance();
     let mut q = shares(&strata, predicted, lp.alpha)?;
-    let mut iterations: Vec<Iteration> = Vec::new();
+    let mut iterations: Vec<Round> = Vec::new();
     let mut best_vpls = Vec::new();
     let mut best = 0;
     let mut caches: Vec<ShadowCache> = subs.iter().map(|_| ShadowCache::default()).collect();
@@ -266,7 +266,7 @@ fn refine_with(
         } else {
             iterations[best].error - error
         };
-        iterations.push(Iteration {
+        iterations.push(Round {
             error,
             shadow_rays: rays,
             reused_rays: reused,
@@ -290,7 +290,7 @@ fn refine_with(
         let target = importance(&lum, &residual, &strata.view_weight);
         q = blend(&q, &target, params.step);
     }
-    Ok(Refined {
+    Ok(Iterated {
         vpls: best_vpls,
         best,
         iterations,
@@ -327,7 +327,7 @@ mod tests {
         let fv = FloorView::new(32, LIGHT, 20.0);
         let indirect = reference(&scene, &fv);
         for (alpha, stride, step, seed) in [(0.0, 2, 0.5, 1), (1.0, 1, 1.0, 2), (0.5, 4, 0.3, 3)] {
-            let params = RefineParams {
+            let params = IterateParams {
                 layout: LayoutParams {
                     budget: 24,
                     alpha,
@@ -340,11 +340,11 @@ mod tests {
                 max_iterations: 5,
                 tolerance: 0.0,
                 step,
-                ..RefineParams::DEFAULT
+                ..IterateParams::DEFAULT
             };
             let pred: Vec<f64> = (0..16).map(|c| (c % 4) as f64).collect();
             let v = fv.view_with(Some(&indirect));
-            let r = refine(&scene, &[&v], Some(&[pred]), &params, None).unwrap();
+            let r = iterate(&scene, &[&v], Some(&[pred]), &params, None).unwrap();
             assert!(!r.iterations.is_empty() && r.iterations.len() <= 5);
             let min = r
                 .iterations
@@ -371,37 +371,37 @@ mod tests {
         let scene = closed_box(vec![Light::point(LIGHT, Vec3::splat(20.0))]);
         let fv = FloorView::new(16, LIGHT, 20.0);
         let v = fv.view_with(Some(&reference(&scene, &fv)));
-        let base = RefineParams {
+        let base = IterateParams {
             layout: LayoutParams {
                 budget: 16,
                 cell_px: 4,
                 light_rays: 200,
                 ..LayoutParams::DEFAULT
             },
-            ..RefineParams::DEFAULT
+            ..IterateParams::DEFAULT
         };
         // A huge tolerance stops after the second evaluation.
-        let p = RefineParams {
+        let p = IterateParams {
             tolerance: 1e9,
             max_iterations: 10,
             ..base
         };
-        let r = refine(&scene, &[&v], None, &p, None).unwrap();
+        let r = iterate(&scene, &[&v], None, &p, None).unwrap();
         assert_eq!(r.iterations.len(), 2);
-        let p = RefineParams {
+        let p = IterateParams {
             max_iterations: 1,
             ..base
         };
-        let r = refine(&scene, &[&v], None, &p, None).unwrap();
+        let r = iterate(&scene, &[&v], None, &p, None).unwrap();
         assert_eq!(r.iterations.len(), 1);
         assert_eq!(r.best, 0);
         // Step 0: the allocation never moves, the error is constant: stops at the second.
-        let p = RefineParams {
+        let p = IterateParams {
             step: 0.0,
             max_iterations: 10,
             ..base
         };
-        let r = refine(&scene, &[&v], None, &p, None).unwrap();
+        let r = iterate(&scene, &[&v], None, &p, None).unwrap();
         assert_eq!(r.iterations.len(), 2);
         assert_eq!(r.iterations[0].error, r.iterations[1].error);
     }
@@ -412,29 +412,29 @@ mod tests {
         let fv = FloorView::new(8, LIGHT, 20.0);
         let indirect = vec![0.0; 8 * 8 * 3];
         let v = fv.view_with(Some(&indirect));
-        let ok = RefineParams::DEFAULT;
+        let ok = IterateParams::DEFAULT;
         assert!(matches!(
-            refine(&scene, &[&fv.view()], None, &ok, None),
+            iterate(&scene, &[&fv.view()], None, &ok, None),
             Err(VplaceError::Invalid { .. })
         ));
         assert!(matches!(
-            refine(&scene, &[], None, &ok, None),
+            iterate(&scene, &[], None, &ok, None),
             Err(VplaceError::Empty { .. })
         ));
         for p in [
-            RefineParams { stride: 0, ..ok },
-            RefineParams {
+            IterateParams { stride: 0, ..ok },
+            IterateParams {
                 max_iterations: 0,
                 ..ok
             },
-            RefineParams {
+            IterateParams {
                 tolerance: -1.0,
                 ..ok
             },
-            RefineParams { step: 2.0, ..ok },
+            IterateParams { step: 2.0, ..ok },
         ] {
             assert!(matches!(
-                refine(&scene, &[&v], None, &p, None),
+                iterate(&scene, &[&v], None, &p, None),
                 Err(VplaceError::OutOfRange { .. })
             ));
         }
@@ -448,7 +448,7 @@ mod tests {
         let v = fv.view_with(Some(&reference(&scene, &fv)));
         let (mut reused, mut partial) = (0, false);
         for (alpha, stride, seed, budget) in [(1.0, 2, 1, 40), (0.5, 1, 7, 64), (0.0, 3, 3, 17)] {
-            let params = RefineParams {
+            let params = IterateParams {
                 layout: LayoutParams {
                     budget,
                     alpha,
@@ -461,11 +461,11 @@ mod tests {
                 max_iterations: 4,
                 tolerance: 0.0,
                 step: 0.7,
-                ..RefineParams::DEFAULT
+                ..IterateParams::DEFAULT
             };
             let pred: Vec<f64> = (0..16).map(|c| ((c * 7) % 5) as f64).collect();
             let run = |reuse| {
-                refine_with(
+                iterate_with(
                     &scene,
                     &[&v],
                     Some(std::slice::from_ref(&pred)),
@@ -499,11 +499,11 @@ mod tests {
             );
             for (x, y) in again.iterations.iter().zip(&a.iterations) {
                 assert_eq!(
-                    Iteration {
+                    Round {
                         seconds: 0.0,
                         ..x.clone()
                     },
-                    Iteration {
+                    Round {
                         seconds: 0.0,
                         ..y.clone()
                     }

@@ -34,9 +34,9 @@
 //! luminance `lum(F_group) / n` with its emitter's chromaticity, so the total reflected
 //! luminance flux is the same for every allocation: the layout moves accuracy, not energy.
 //!
-//! The iteration that moves budget toward cells with a high residual is [`crate::layout::refine`].
+//! The iteration that moves budget toward cells with a high residual is [`crate::layout::iterate`].
 
-pub mod refine;
+pub mod iterate;
 pub mod refit;
 pub mod request;
 pub mod rsm;

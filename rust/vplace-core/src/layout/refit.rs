@@ -40,7 +40,7 @@ use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 use crate::error::{Result, VplaceError};
-use crate::layout::refine::targets;
+use crate::layout::iterate::targets;
 use crate::progress::Progress;
 use crate::scene::Scene;
 use crate::shade::evaluator::{check_radius, validate_vpls};

@@ -6,7 +6,7 @@
 
 use crate::error::Result;
 use crate::fit::features::CellModel;
-use crate::layout::refine::{refine, RefineParams};
+use crate::layout::iterate::{iterate, IterateParams};
 use crate::layout::{layout, Allocation, LayoutParams, Strata};
 use crate::progress::Progress;
 use crate::scene::Scene;
@@ -89,8 +89,8 @@ impl LayoutRequest {
         scene: &Scene,
         views: &[&View],
         model: Option<&CellModel>,
-    ) -> (RefineParams, Iteration) {
-        let params = RefineParams {
+    ) -> (IterateParams, Iteration) {
+        let params = IterateParams {
             layout: LayoutParams {
                 budget: self.budget,
                 alpha: self.alpha,
@@ -157,11 +157,11 @@ pub struct LaidOut {
     /// The allocation of the returned VPLs.
     pub allocation: Allocation,
     /// The resolved settings.
-    pub params: RefineParams,
+    pub params: IterateParams,
     /// Whether the iteration ran, and why not.
     pub iteration: Iteration,
     /// The iterations (empty unless [`Iteration::Runs`]), and the best one's index.
-    pub iterations: Vec<crate::layout::refine::Iteration>,
+    pub iterations: Vec<crate::layout::iterate::Round>,
     /// Index of the returned iteration in `iterations`.
     pub best: Option<usize>,
 }
@@ -185,7 +185,7 @@ pub fn lay_out(
         })
         .transpose()?;
     if iteration == Iteration::Runs {
-        let r = refine(scene, views, predicted.as_deref(), &params, progress)?;
+        let r = iterate(scene, views, predicted.as_deref(), &params, progress)?;
         Ok(LaidOut {
             allocation: r.iterations[r.best].allocation.clone(),
             vpls: r.vpls,

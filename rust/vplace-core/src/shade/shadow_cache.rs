@@ -1,5 +1,5 @@
 //! The shadow-ray answers of one evaluation, kept for the next evaluation of the same G-buffer
-//! in the same scene (the layout iterations of `layout::refine`).
+//! in the same scene (the layout iterations of `layout::iterate`).
 //!
 //! A VPL of the next set at the same position (bit for bit) as one of this set gets its answers
 //! from here instead of new rays. Visibility depends only on the two ends of the ray, so the
