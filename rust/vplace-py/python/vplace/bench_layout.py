@@ -296,24 +296,6 @@ def main(argv: list[str] | None = None) -> None:
     t_refit, fitted = median_time(
         lambda: vplace.refit(scene, views, vpls, vplace.RefitParams(stride=4)), args.repeat
     )
-    first = views[0]
-    t_bvh, (_, st_bvh) = median_time(lambda: vplace.evaluate(scene, first, vpls), args.repeat)
-    s = args.brute_stride
-    c = caps[0]
-    sub = vplace.View(
-        **{
-            k: np.ascontiguousarray(c[k][::s, ::s])
-            for k in ("position", "normal", "albedo", "covered", "depth", "direct")
-        },
-        diffuse_direct=np.ascontiguousarray(c["diffuse_direct"][::s, ::s]),
-        camera_position=c["camera_position"],
-        world_to_clip=c["world_to_clip"],
-    )
-    _, st_sub = vplace.evaluate(scene, sub, vpls)
-    t_brute, (_, st_brute) = median_time(
-        lambda: vplace.evaluate(scene, sub, vpls, brute_force=True), 1
-    )
-
     threads = os.environ.get("RAYON_NUM_THREADS") or str(os.cpu_count())
     print(
         f"vplace layout benchmark: {args.views} view(s) of {args.width}x{args.height}, "
@@ -351,6 +333,34 @@ def main(argv: list[str] | None = None) -> None:
         "the layout)"
     )
     print()
+    print_evaluator(scene, views[0], caps[0], vpls, args)
+
+
+def print_evaluator(
+    scene: vplace.Scene,
+    first: vplace.View,
+    c: dict[str, np.ndarray],
+    vpls: vplace.VplSet,
+    args: argparse.Namespace,
+) -> None:
+    """The evaluator's table: the BVH at full resolution and at ``--brute-stride``, against the
+    brute-force loop over every triangle."""
+    t_bvh, (_, st_bvh) = median_time(lambda: vplace.evaluate(scene, first, vpls), args.repeat)
+    s = args.brute_stride
+    sub = vplace.View(
+        **{
+            k: np.ascontiguousarray(c[k][::s, ::s])
+            for k in ("position", "normal", "albedo", "covered", "depth", "direct")
+        },
+        diffuse_direct=np.ascontiguousarray(c["diffuse_direct"][::s, ::s]),
+        camera_position=c["camera_position"],
+        world_to_clip=c["world_to_clip"],
+    )
+    _, st_sub = vplace.evaluate(scene, sub, vpls)
+    t_brute, (_, st_brute) = median_time(
+        lambda: vplace.evaluate(scene, sub, vpls, brute_force=True), 1
+    )
+
     print(f"{'evaluator':<40} {'pixels':>9} {'shadow rays':>12} {'seconds':>9} {'rays/s':>12}")
     npx = args.width * args.height
     print(
