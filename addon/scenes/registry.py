@@ -20,6 +20,7 @@ import bpy
 import numpy as np
 
 from ..errors import AddonError
+from . import lroom
 from . import rooms as builtin_rooms
 
 REPO = Path(__file__).resolve().parents[2]
@@ -342,6 +343,11 @@ BUILTIN: dict[str, tuple[Path, list[Path], Callable[[], Path]]] = {
         builtin_rooms.SKYROOM_BLEND,
         [Path(builtin_rooms.__file__)],
         lambda: builtin_rooms.write_skyroom_blend(builtin_rooms.SKYROOM_BLEND),
+    ),
+    "lroom": (
+        lroom.LROOM_BLEND,
+        [Path(lroom.__file__), Path(builtin_rooms.__file__)],
+        lambda: lroom.write_lroom_blend(lroom.LROOM_BLEND),
     ),
     "panelroom": (
         builtin_rooms.PANELROOM_BLEND,
