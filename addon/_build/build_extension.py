@@ -91,10 +91,18 @@ def step(msg: str) -> None:
 def install_toolchains(platforms: list[Platform]) -> None:
     """Installs what the cross builds need and is missing: Rust targets, MinGW, zig."""
     targets = [p.rust_target for p in platforms]
-    installed = subprocess.run(
-        ["rustup", "target", "list", "--installed"], capture_output=True, text=True, check=True
-    ).stdout.split()
+    if shutil.which("rustup"):
+        installed = subprocess.run(
+            ["rustup", "target", "list", "--installed"], capture_output=True, text=True, check=True
+        ).stdout.split()
+    else:  # a Rust without rustup builds for its host only
+        host = re.search(
+            r"^host: (\S+)", subprocess.check_output(["rustc", "-vV"], text=True), re.M
+        )
+        installed = [host.group(1)] if host else []
     missing = [t for t in targets if t not in installed]
+    if missing and not shutil.which("rustup"):
+        raise SystemExit(f"building for {', '.join(missing)} needs rustup (rustup target add)")
     if missing:
         step(f"rustup target add {' '.join(missing)}")
         subprocess.run(["rustup", "target", "add", *missing], check=True)
@@ -115,9 +123,7 @@ def install_toolchains(platforms: list[Platform]) -> None:
         ).returncode
         if have_zig != 0:
             step(f"pip install {ZIGLANG}")
-            subprocess.run(
-                [sys.executable, "-m", "pip", "install", "--quiet", ZIGLANG], check=True
-            )
+            subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", ZIGLANG], check=True)
 
 
 def build_vplace_wheel(platform: Platform, wheels: Path) -> Path:
@@ -185,7 +191,8 @@ def build(out_dir: Path, platforms: list[Platform]) -> list[Path]:
         manifest = stage_addon(stage, platforms, names)
         version = re.search(r'^version = "(.*)"', manifest, flags=re.M)
         zips = [
-            out_dir / f"vplace-{version.group(1) if version else '0'}-{p.blender.replace('-', '_')}.zip"
+            out_dir
+            / f"vplace-{version.group(1) if version else '0'}-{p.blender.replace('-', '_')}.zip"
             for p in platforms
         ]
         for old in zips:
