@@ -43,8 +43,13 @@ test: lint
 test-fast: build
 	$(PY) -m pytest tests -m "not slow"
 
+# The four per-platform zips in dist/ (cross-compiled: installs the Rust targets, MinGW-w64 and
+# zig when missing), then their checks, the Windows wheels under Wine included (set up once).
+# Not part of `make test`: there tests/test_extension_zips.py skips until dist/ has the zips.
 extension: build
 	$(PY) addon/_build/build_extension.py --out dist
+	$(PY) tests/windows_under_wine.py
+	$(PY) -m pytest tests/test_extension_zips.py -q -rs
 
 clean:
 	rm -rf $(VENV) target out dist

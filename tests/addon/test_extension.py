@@ -1,5 +1,6 @@
-"""The packaged extension: build the zip, install it with Blender's extensions API in an
-isolated user directory, enable it, and run its main operator on the Cornell box."""
+"""The packaged extension: build the Linux zip, install it with Blender's extensions API in an
+isolated user directory, enable it, and run its main operator on the Cornell box. (The other
+platforms' zips are checked by tests/test_extension_zips.py.)"""
 
 import os
 import subprocess
@@ -44,17 +45,25 @@ INSTALL_AND_RUN = textwrap.dedent(
 @pytest.mark.slow
 def test_extension_zip_installs_and_runs(tmp_path):
     build = subprocess.run(
-        [sys.executable, str(ROOT / "addon/_build/build_extension.py"), "--out", str(tmp_path)],
+        [
+            sys.executable,
+            str(ROOT / "addon/_build/build_extension.py"),
+            "--out",
+            str(tmp_path),
+            "--platforms",
+            "linux-x64",
+        ],
         capture_output=True,
         text=True,
         timeout=900,
     )
     assert build.returncode == 0, build.stdout + build.stderr
     zip_path = Path(build.stdout.strip().splitlines()[-1])
+    assert zip_path.name.endswith("-linux_x64.zip"), zip_path
     names = zipfile.ZipFile(zip_path).namelist()
     assert "blender_manifest.toml" in names and "__init__.py" in names
     assert {"ui/operators.py", "scene/export.py", "writeback/apply.py"} <= set(names), names
-    assert any(n.startswith("wheels/vplace-") for n in names)
+    assert any(n.startswith("wheels/vplace-") and "manylinux" in n for n in names), names
     assert not any("_build" in n or "__pycache__" in n for n in names)
     script = tmp_path / "install.py"
     script.write_text(INSTALL_AND_RUN)
