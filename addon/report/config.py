@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import job as pipeline
-from ..errors import ReportError
+from ..errors import AddonError, ReportError
 from ..scenes import registry as default_scene
 from ..scenes import rooms as builtin_rooms
 from ..writeback import apply, eevee_setup
@@ -157,8 +157,10 @@ class ReportConfig:
         if max(self.budgets) > apply.MAX_VPLS:
             raise ReportError(f"budgets above {apply.MAX_VPLS} VPLs are not supported")
         if self.blend is not None:
-            if not Path(self.blend).is_file():
-                raise ReportError(f"no such .blend file: {self.blend}")
+            try:
+                default_scene.check_blend(Path(self.blend))
+            except AddonError as exc:
+                raise ReportError(str(exc)) from exc
             if not self.fit_cameras:
                 raise ReportError("a report on a .blend needs --fit-cameras")
         else:
