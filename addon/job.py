@@ -92,6 +92,8 @@ class Job(vplace.job.LayoutSettings):
             )
         if self.size < 8:
             raise AddonError(f"the capture size must be at least 8 pixels, got {self.size}")
+        if self.iterations < 0:
+            raise AddonError(f"layout iterations must be 0 (off) or more, got {self.iterations}")
         self.views.validate()
 
     def capture_resolution(self, scene: bpy.types.Scene) -> tuple[int, int]:
@@ -308,6 +310,16 @@ def render_eevee_preview(
         return time.perf_counter() - start
 
 
+def scene_label(bl_scene: bpy.types.Scene) -> str:
+    """The scene as its user knows it: the name of its .blend file (``cornell``, not Blender's
+    default scene name ``Scene``), with the scene's own name when the file holds several; the
+    scene's name alone in a file never saved."""
+    if not bpy.data.filepath:
+        return bl_scene.name
+    stem = Path(bpy.data.filepath).stem
+    return stem if len(bpy.data.scenes) == 1 else f"{stem} ({bl_scene.name})"
+
+
 def summary(
     bl_scene: bpy.types.Scene,
     job: Job,
@@ -328,7 +340,7 @@ def summary(
     if laid.refit is not None:
         evaluator.refit_error = [laid.refit.error_before, laid.refit.error_after]
     return vplace.job.JobSummary(
-        scene=bl_scene.name,
+        scene=scene_label(bl_scene),
         triangles=prepared.scene.triangle_count,
         lights=prepared.scene.light_count,
         views=[c.view for c in prepared.captures],

@@ -132,7 +132,8 @@ class ReportConfig:
     cache_dir: Path | None = None
 
     def presets(self) -> list[ScenePreset]:
-        """The scenes to run."""
+        """The scenes to run. A .blend is named after its file and captured at the main job's
+        samples (``Job.samples``, as the demo and the panel capture)."""
         if self.blend is not None:
             return [
                 ScenePreset(
@@ -140,7 +141,7 @@ class ReportConfig:
                     tuple(self.fit_cameras),
                     tuple(self.held_out_cameras),
                     self.resolution or (320, 180),
-                    self.capture_samples or 128,
+                    self.capture_samples or pipeline.Job.samples,
                     self.truth_samples or 1024,
                     blend=Path(self.blend),
                 )
@@ -169,6 +170,21 @@ class ReportConfig:
                 raise ReportError(f"unknown scenes {bad}: choose from {sorted(PRESETS)}")
         if any(s < 1 for s in (*self.cycles_samples, *self.capture_curve)):
             raise ReportError("Cycles sample counts must be at least 1")
+        for name, value in (
+            ("capture samples", self.capture_samples),
+            ("truth samples", self.truth_samples),
+            ("EEVEE samples", self.eevee_samples),
+        ):
+            if value is not None and value < 1:
+                raise ReportError(f"{name} must be at least 1, got {value}")
+        if self.resolution is not None and min(self.resolution) < 8:
+            raise ReportError(f"the resolution must be at least 8 x 8, got {list(self.resolution)}")
+        if not 0.0 <= self.alpha <= 1.0:
+            raise ReportError(
+                f"alpha must be 0 (uniform) to 1 (regression-guided), got {self.alpha}"
+            )
+        if self.iterations < 0:
+            raise ReportError(f"layout iterations must be 0 (off) or more, got {self.iterations}")
         if self.feature_mode not in pipeline.FEATURE_MODES:
             raise ReportError(f"feature mode must be one of {pipeline.FEATURE_MODES}")
         if self.volume_resolution < 1:
