@@ -20,6 +20,7 @@ def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("filterwarnings", "ignore::DeprecationWarning:blender_util")
     # - matplotlib 3.9.4 (pinned in tests/requirements.txt) calls pyparsing's camelCase names,
     #   which pyparsing 3.3 deprecates: matplotlib's code, not ours.
-    for module in ("matplotlib._fontconfig_pattern", "matplotlib._mathtext"):
+    #   (pyparsing.util warns about the parseAll argument matplotlib passes.)
+    for module in ("matplotlib._fontconfig_pattern", "matplotlib._mathtext", "pyparsing.util"):
         config.addinivalue_line("filterwarnings", f"ignore::DeprecationWarning:{module}")
     config.addinivalue_line("markers", "slow: renders with Cycles or EEVEE for more than a few s")
