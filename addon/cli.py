@@ -186,20 +186,24 @@ def _par2d_options(sub: argparse._SubParsersAction) -> None:
 
 def run_par2d_demo(out: Path, size: int, method: str) -> None:
     """Builds the PAR demo scene, bakes its light map, renders it with EEVEE, saves both."""
+    from .errors import AddonError, output_folder, run_operator
     from .job import render_eevee_preview
     from .scenes import registry as default_scene
     from .writeback import par2d_bake
 
+    if size < 1:
+        raise AddonError(f"the light map size must be at least 1 pixel, got {size}")
+    output_folder(out)
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     source = default_scene.build_par2d_demo(scene)
-    out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     par2d_bake.bake_to_scene(scene, source, size, size, method)
     print(
         f"[vplace] baked a {size}x{size} {method} light map in {time.perf_counter() - start:.2f} s"
     )
-    bpy.ops.wm.save_as_mainfile(filepath=str(out / "par2d_demo.blend"), copy=True)
+    blend = out / "par2d_demo.blend"
+    run_operator("wm.save_as_mainfile", f"cannot save {blend}", filepath=str(blend), copy=True)
     seconds = render_eevee_preview(scene, out / "eevee.png", (size, size))
     print(f"[vplace] EEVEE render {seconds:.1f} s -> {out / 'eevee.png'}")
 
@@ -239,17 +243,14 @@ def run(args: argparse.Namespace) -> None:
             config.eevee_samples = args.eevee_samples
         run_report(config, args.out)
         return
-    from .errors import AddonError
     from .job import Job, method_name, run_main_job
-    from .scenes.registry import builtin_scene
+    from .scenes.registry import builtin_scene, open_blend
 
-    if args.scene.endswith(".blend"):
+    if args.scene.endswith(".blend") or Path(args.scene).is_file():
         blend = Path(args.scene)
-        if not blend.is_file():
-            raise AddonError(f"no such .blend file: {blend}")
     else:
         blend = builtin_scene(args.scene)
-    bpy.ops.wm.open_mainfile(filepath=str(blend))
+    open_blend(blend)
     job = Job(
         n_vpls=args.vpls,
         size=args.size,
@@ -278,15 +279,19 @@ def main(argv: list[str] | None = None) -> int:
     if argv is None:
         argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else sys.argv[1:]
     args = parse_args(argv)
+    from .errors import os_error_message
     from .native import vplace
 
     try:
         run(args)
-    except vplace.VplaceError as exc:
+    except (vplace.VplaceError, OSError) as exc:
+        # A problem the user can fix: the input, the options, or the disk (a folder that cannot
+        # be written, a full disk). Anything else is a bug and keeps its traceback.
         if args.debug:
             traceback.print_exc()
         else:
-            print(f"vplace: error: {exc}", file=sys.stderr)
+            message = os_error_message(exc, args.out) if isinstance(exc, OSError) else str(exc)
+            print(f"vplace: error: {' '.join(message.split())}", file=sys.stderr)
         return 2
     return 0
 

@@ -38,7 +38,8 @@ from .capture.stage import (
 )
 from .capture.views import ViewSet, ViewSpec, capture_resolution
 from .capture.views import specs as view_specs
-from .errors import AddonError, CaptureError
+from .compat import eevee_engine
+from .errors import AddonError, CaptureError, output_folder, run_operator
 from .native import vplace
 from .scene import export
 from .scene.convert import export_native
@@ -91,6 +92,8 @@ class Job(vplace.job.LayoutSettings):
             )
         if self.size < 8:
             raise AddonError(f"the capture size must be at least 8 pixels, got {self.size}")
+        if self.iterations < 0:
+            raise AddonError(f"layout iterations must be 0 (off) or more, got {self.iterations}")
         self.views.validate()
 
     def capture_resolution(self, scene: bpy.types.Scene) -> tuple[int, int]:
@@ -283,7 +286,7 @@ def render_eevee_preview(
     """Renders ``bl_scene`` with EEVEE to a PNG; every changed setting is restored."""
     with override() as g:
         r = bl_scene.render
-        g.set(r, "engine", "BLENDER_EEVEE")
+        g.set(r, "engine", eevee_engine())
         g.set(r, "resolution_x", resolution[0])
         g.set(r, "resolution_y", resolution[1])
         g.set(r, "resolution_percentage", 100)
@@ -294,13 +297,27 @@ def render_eevee_preview(
         g.set(bl_scene.view_settings, "look", "None")
         ims = r.image_settings
         g.remember(ims, capture.IMAGE_SETTINGS)
-        g.set(ims, "media_type", "IMAGE")
-        g.set(ims, "file_format", "PNG")
+        g.image_format(ims, "PNG")
         g.set(ims, "color_mode", "RGB")
         g.set(ims, "color_depth", "8")
         start = time.perf_counter()
-        bpy.ops.render.render(write_still=True, scene=bl_scene.name)
+        run_operator(
+            "render.render",
+            f"the EEVEE preview of scene {bl_scene.name!r} did not finish",
+            write_still=True,
+            scene=bl_scene.name,
+        )
         return time.perf_counter() - start
+
+
+def scene_label(bl_scene: bpy.types.Scene) -> str:
+    """The scene as its user knows it: the name of its .blend file (``cornell``, not Blender's
+    default scene name ``Scene``), with the scene's own name when the file holds several; the
+    scene's name alone in a file never saved."""
+    if not bpy.data.filepath:
+        return bl_scene.name
+    stem = Path(bpy.data.filepath).stem
+    return stem if len(bpy.data.scenes) == 1 else f"{stem} ({bl_scene.name})"
 
 
 def summary(
@@ -323,7 +340,7 @@ def summary(
     if laid.refit is not None:
         evaluator.refit_error = [laid.refit.error_before, laid.refit.error_after]
     return vplace.job.JobSummary(
-        scene=bl_scene.name,
+        scene=scene_label(bl_scene),
         triangles=prepared.scene.triangle_count,
         lights=prepared.scene.light_count,
         views=[c.view for c in prepared.captures],
@@ -394,7 +411,7 @@ def run_main_job(
         raise AddonError(f"truth samples must be at least 1, got {truth_samples}")
     if job.cache_dir is None:
         job.cache_dir = out_dir / "cache"
-    out_dir.mkdir(parents=True, exist_ok=True)
+    output_folder(out_dir)
     timer = StageTimer(log)
     prepared = prepare(bl_scene, job, timer, reference=reference_render(job, truth_samples))
     reference = prepared.reference

@@ -34,7 +34,21 @@ class SettingsGuard:
         ``media_type`` resets its ``file_format`` and ``color_depth``).
         """
         for attr in attrs:
-            self.set(owner, attr, getattr(owner, attr))
+            if hasattr(owner, attr):  # a setting of a later Blender (``media_type``: 5.0)
+                self.set(owner, attr, getattr(owner, attr))
+
+    def image_format(self, settings: Any, file_format: str, multilayer: bool = False) -> None:
+        """Sets an image's ``file_format`` (``"PNG"``, ``"OPEN_EXR"``), a multilayer EXR when
+        ``multilayer``: from Blender 5.0 through ``media_type``, before it as the format
+        ``OPEN_EXR_MULTILAYER``."""
+        if hasattr(settings, "media_type"):
+            self.set(settings, "media_type", "MULTI_LAYER_IMAGE" if multilayer else "IMAGE")
+            if not multilayer:
+                self.set(settings, "file_format", file_format)
+        else:
+            self.set(
+                settings, "file_format", f"{file_format}_MULTILAYER" if multilayer else file_format
+            )
 
     def restore(self) -> None:
         """Puts every recorded attribute back, in the order they were first changed."""

@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import math
 from collections.abc import Iterator
 from typing import Any
 
 import bpy
+import numpy as np
 
 import addon
+from addon.compat import new_material
 from addon.scene.export import VPL_MARKER
 from addon.scenes.registry import build_cornell_box
 from addon.writeback.par2d_bake import OUTPUT_MARKER
@@ -39,6 +42,9 @@ VOLATILE = {
     "name_full",
     "use_extra_user",
     "depsgraph",
+    # The UV sculpt paint mode: reading it in a file that never entered it crashes Blender 4.2
+    # (its brush's tool slots); vplace never touches tool settings.
+    "uv_sculpt",
 }
 
 
@@ -110,10 +116,44 @@ def _written_by_vplace(item: Any) -> bool:
     return False
 
 
+def _attribute_values(attr: bpy.types.Attribute) -> str:
+    """A digest of a mesh attribute's values, element by element."""
+    data = attr.data
+    if len(data) == 0:
+        return ""
+    first = data[0]
+    key = next(k for k in ("value", "vector", "color", "id") if hasattr(first, k))
+    sample = getattr(first, key)
+    if isinstance(sample, str):
+        return hashlib.sha1("\0".join(getattr(d, key) for d in data).encode()).hexdigest()
+    values = np.empty(len(data) * np.asarray(sample).size, dtype=np.float64)
+    try:
+        data.foreach_get(key, values)
+    except TypeError:  # booleans and integers read one by one
+        values = np.array([np.asarray(getattr(d, key), dtype=np.float64) for d in data])
+    return hashlib.sha1(values.tobytes()).hexdigest()
+
+
+def attribute_snapshot(attr: bpy.types.Attribute) -> dict[str, Any]:
+    """A mesh attribute by what it holds: name, domain, type and its values. Not how Blender
+    stores them: Blender 5.2 turns an attribute stored as one value for every element
+    (``storage_type`` ``SINGLE``) into an array when some operator reads the mesh, the same values
+    either way; a change vplace made would change the values."""
+    return {
+        "name": attr.name,
+        "domain": attr.domain,
+        "data_type": attr.data_type,
+        "values": _attribute_values(attr),
+    }
+
+
 def rna_snapshot(struct: Any, depth: int = 3) -> Any:
-    """Every plain property of an RNA struct, recursing into non-ID pointers and collections."""
+    """Every plain property of an RNA struct, recursing into non-ID pointers and collections;
+    a mesh attribute by its values (:func:`attribute_snapshot`)."""
     if struct is None:
         return None
+    if isinstance(struct, bpy.types.Attribute):
+        return attribute_snapshot(struct)
     if isinstance(struct, bpy.types.ID) and depth < 3:
         return ("ID", struct.name_full)
     out: dict[str, Any] = {}
@@ -203,7 +243,6 @@ def diff(a: dict[str, Any], b: dict[str, Any], path: str = "") -> list[str]:
 def no_vpls() -> Any:
     """A VPL set of one powerless VPL: ``apply.write_vpls`` then writes only the stand-in lights
     (emitters, a world's sun) it is given."""
-    import numpy as np
 
     from addon.native import vplace
 
@@ -214,7 +253,7 @@ def no_vpls() -> Any:
 def principled(name: str, **inputs: Any) -> tuple[bpy.types.Material, bpy.types.Node]:
     """A new material with its default Principled BSDF's ``inputs`` set; the material and the
     node."""
-    mat = bpy.data.materials.new(name)
+    mat = new_material(name)
     node = mat.node_tree.nodes["Principled BSDF"]
     for key, value in inputs.items():
         node.inputs[key].default_value = value

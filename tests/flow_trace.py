@@ -24,6 +24,12 @@ ROOT = Path(__file__).resolve().parents[1]
 #: How many levels below the traced function are counted (0: all).
 DEPTH = 2
 OWN = (ROOT / "addon", ROOT / "rust" / "vplace-py" / "python" / "vplace")
+#: The add-on's foundations serve every stage (``tests/test_house.py``), as bpy and numpy do: a
+#: call into them (an operator run through ``errors.run_operator``, the output folder checked)
+#: neither starts nor ends a stay.
+FOUNDATIONS = frozenset(
+    ROOT / "addon" / f"{name}.py" for name in ("errors", "settings", "compat", "native")
+)
 
 
 @dataclass
@@ -56,6 +62,8 @@ class Flow:
 
 def _own_file(filename: str) -> str | None:
     path = Path(filename)
+    if path in FOUNDATIONS:
+        return None
     for root in OWN:
         if path.is_relative_to(root):
             return str(path.relative_to(ROOT))

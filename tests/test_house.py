@@ -109,11 +109,11 @@ def _crate_uses(path: Path) -> set[str]:
 
 
 #: The add-on's stages in the order the main job meets them; a package may import its own
-#: stage and earlier ones only. ``native`` (the one door to ``vplace``), ``errors`` and
-#: ``settings`` serve every stage; the built-in scenes are builders the command line and the
-#: report open.
+#: stage and earlier ones only. ``native`` (the one door to ``vplace``), ``errors``,
+#: ``settings`` and ``compat`` serve every stage; the built-in scenes are builders the command
+#: line and the report open.
 ADDON_STAGES = (
-    ("addon.native", "addon.errors", "addon.settings"),
+    ("addon.native", "addon.errors", "addon.settings", "addon.compat"),
     ("addon.scene", "addon.scenes"),
     ("addon.capture",),
     ("addon.writeback",),

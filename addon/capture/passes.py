@@ -23,7 +23,8 @@ import bpy
 import numpy as np
 import OpenEXR
 
-from ..errors import CaptureError
+from ..compat import PASS_NAMES
+from ..errors import CaptureError, run_operator
 from ..scene.export import VPL_MARKER
 from ..settings import SettingsGuard, at_frame, override, standard_view
 from . import render_key
@@ -161,9 +162,14 @@ class Capture:
 
 def _render(scene: bpy.types.Scene, view_layer: bpy.types.ViewLayer) -> None:
     """Renders one still (a seam that tests replace to inject failures)."""
-    result = bpy.ops.render.render(write_still=False, scene=scene.name, layer=view_layer.name)
-    if "FINISHED" not in result:
-        raise CaptureError(f"Cycles did not finish the render ({result})")
+    run_operator(
+        "render.render",
+        f"Cycles did not finish the capture of scene {scene.name!r}",
+        CaptureError,
+        write_still=False,
+        scene=scene.name,
+        layer=view_layer.name,
+    )
 
 
 def _configure(
@@ -196,7 +202,7 @@ def _configure(
         g.set(view_layer, flag, True)
     ims = r.image_settings
     g.remember(ims, IMAGE_SETTINGS)
-    g.set(ims, "media_type", "MULTI_LAYER_IMAGE")
+    g.image_format(ims, "OPEN_EXR", multilayer=True)
     g.set(ims, "color_depth", "32")
     g.set(ims, "exr_codec", "NONE")
 
@@ -209,6 +215,8 @@ def _read_exr(path: Path, layer: str) -> dict[str, np.ndarray]:
         for part in f.parts:
             for name, ch in part.channels.items():
                 key = name.removeprefix(layer + ".")
+                first, dot, rest = key.partition(".")
+                key = PASS_NAMES.get(first, first) + dot + rest  # Blender before 5.0
                 pixels = np.asarray(ch.pixels, dtype=np.float32)
                 base, _, comp = key.rpartition(".")
                 if base in PASS_FLAGS and comp in {"X", "Y", "Z"}:

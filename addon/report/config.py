@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import job as pipeline
-from ..errors import ReportError
+from ..errors import AddonError, ReportError
 from ..scenes import registry as default_scene
 from ..scenes import rooms as builtin_rooms
 from ..writeback import apply, eevee_setup
@@ -132,7 +132,8 @@ class ReportConfig:
     cache_dir: Path | None = None
 
     def presets(self) -> list[ScenePreset]:
-        """The scenes to run."""
+        """The scenes to run. A .blend is named after its file and captured at the main job's
+        samples (``Job.samples``, as the demo and the panel capture)."""
         if self.blend is not None:
             return [
                 ScenePreset(
@@ -140,7 +141,7 @@ class ReportConfig:
                     tuple(self.fit_cameras),
                     tuple(self.held_out_cameras),
                     self.resolution or (320, 180),
-                    self.capture_samples or 128,
+                    self.capture_samples or pipeline.Job.samples,
                     self.truth_samples or 1024,
                     blend=Path(self.blend),
                 )
@@ -157,8 +158,10 @@ class ReportConfig:
         if max(self.budgets) > apply.MAX_VPLS:
             raise ReportError(f"budgets above {apply.MAX_VPLS} VPLs are not supported")
         if self.blend is not None:
-            if not Path(self.blend).is_file():
-                raise ReportError(f"no such .blend file: {self.blend}")
+            try:
+                default_scene.check_blend(Path(self.blend))
+            except AddonError as exc:
+                raise ReportError(str(exc)) from exc
             if not self.fit_cameras:
                 raise ReportError("a report on a .blend needs --fit-cameras")
         else:
@@ -167,6 +170,21 @@ class ReportConfig:
                 raise ReportError(f"unknown scenes {bad}: choose from {sorted(PRESETS)}")
         if any(s < 1 for s in (*self.cycles_samples, *self.capture_curve)):
             raise ReportError("Cycles sample counts must be at least 1")
+        for name, value in (
+            ("capture samples", self.capture_samples),
+            ("truth samples", self.truth_samples),
+            ("EEVEE samples", self.eevee_samples),
+        ):
+            if value is not None and value < 1:
+                raise ReportError(f"{name} must be at least 1, got {value}")
+        if self.resolution is not None and min(self.resolution) < 8:
+            raise ReportError(f"the resolution must be at least 8 x 8, got {list(self.resolution)}")
+        if not 0.0 <= self.alpha <= 1.0:
+            raise ReportError(
+                f"alpha must be 0 (uniform) to 1 (regression-guided), got {self.alpha}"
+            )
+        if self.iterations < 0:
+            raise ReportError(f"layout iterations must be 0 (off) or more, got {self.iterations}")
         if self.feature_mode not in pipeline.FEATURE_MODES:
             raise ReportError(f"feature mode must be one of {pipeline.FEATURE_MODES}")
         if self.volume_resolution < 1:

@@ -48,7 +48,7 @@ from .. import job as pipeline
 from ..capture import passes as capture
 from ..capture.native_view import gloss_mask, view_of
 from ..capture.views import ViewSpec
-from ..errors import ReportError
+from ..errors import ReportError, output_folder
 from ..native import vplace
 from ..scenes import registry as default_scene
 from ..settings import override
@@ -571,7 +571,7 @@ def run_scene(
     from . import plots as report_plots
 
     blend = preset.blend or default_scene.builtin_scene(preset.name)
-    bpy.ops.wm.open_mainfile(filepath=str(blend))
+    default_scene.open_blend(blend)
     log(f"[vplace] report: {preset.name} ({blend.name})")
     bl_scene = bpy.context.scene
     data = load_scene(bl_scene, preset, config, cache_dir, log)
@@ -632,7 +632,7 @@ def run_report(
     from . import plots as report_plots
 
     config.validate()
-    out.mkdir(parents=True, exist_ok=True)
+    output_folder(out)
     cache_dir = config.cache_dir or out / "cache"
     start = time.perf_counter()
     rows: list[Row] = []

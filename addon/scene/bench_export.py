@@ -24,6 +24,7 @@ from typing import Any
 import bpy
 import numpy as np
 
+from ..compat import new_material
 from . import export
 from .convert import build_scene
 
@@ -66,7 +67,7 @@ def textured_terrain(n: int, tex: int) -> bpy.types.Scene:
     pixels[..., 3] = 1.0
     image.pixels.foreach_set(pixels.ravel())
     image.pack()
-    mat = bpy.data.materials.new("textured")
+    mat = new_material("textured")
     tree = mat.node_tree
     bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
     node = tree.nodes.new("ShaderNodeTexImage")

@@ -397,7 +397,8 @@ def light_info(name: str, light: bpy.types.Light, matrix: Any) -> LightInfo:
         sy = (light.size_y if light.shape in {"RECTANGLE", "ELLIPSE"} else light.size) * scale_y
         info.size_x, info.size_y = sx, sy
         info.spread = float(getattr(light, "spread", math.pi))
-        if not light.normalize:
+        # ``normalize`` came with Blender 4.5; before it an area light's power was normalized.
+        if not getattr(light, "normalize", True):
             area = math.pi * sx * sy / 4.0 if info.area_disk else sx * sy
             info.power = tuple(p * area for p in info.power)  # type: ignore[assignment]
     elif light.type == "SUN":

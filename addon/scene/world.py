@@ -34,6 +34,8 @@ from typing import Any
 import bpy
 import numpy as np
 
+from ..errors import ExportError, run_operator
+
 __all__ = ["BAKE_SAMPLES", "BAKE_SIZE", "MAX_IMAGE_WIDTH", "WorldInfo", "bake_world", "world_info"]
 
 #: Environment images wider than this are box-filtered down by an integer factor.
@@ -309,7 +311,10 @@ def bake_world(
         ims.color_mode = "RGB"
         ims.color_depth = "32"
         ims.exr_codec = "NONE"
-        bpy.ops.render.render(scene=tmp.name)
+        run_operator(
+            "render.render", f"the bake of world {world.name!r} did not finish", ExportError,
+            scene=tmp.name,
+        )  # fmt: skip
         bpy.data.images["Render Result"].save_render(filepath=path, scene=tmp)
         with OpenEXR.File(path) as f:
             channels = f.parts[0].channels

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import bpy
 
+from ..compat import new_world
 from .rooms import (
     REPO,
     Vec3,
@@ -137,7 +138,7 @@ def build_lroom(scene: bpy.types.Scene | None = None) -> bpy.types.Scene:
     )
     plant("Plant", (-2.6, 1.6), 1.4, _principled("Clay pot", (0.45, 0.15, 0.06)), _leaves(), coll)
 
-    world = bpy.data.worlds.new("World")
+    world = new_world("World")
     world.color = (0.05, 0.05, 0.05)
     bg = world.node_tree.nodes["Background"]
     bg.inputs["Color"].default_value = (0.05, 0.05, 0.05, 1.0)

@@ -19,7 +19,8 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from ..errors import AddonError
+from ..compat import eevee_engine, new_material, new_world
+from ..errors import AddonError, run_operator
 from . import lroom
 from . import rooms as builtin_rooms
 
@@ -98,7 +99,7 @@ def obj_to_blender(v: np.ndarray) -> np.ndarray:
 
 
 def _diffuse_material(name: str, color: tuple[float, ...]) -> bpy.types.Material:
-    mat = bpy.data.materials.new(name)
+    mat = new_material(name)
     bsdf = mat.node_tree.nodes.get("Principled BSDF")
     bsdf.inputs["Base Color"].default_value = (*color[:3], 1.0)
     bsdf.inputs["Roughness"].default_value = 1.0
@@ -157,7 +158,7 @@ def build_cornell_box(obj_path: Path, scene: bpy.types.Scene | None = None) -> b
     for name, (location, target, lens) in CORNELL_VIEWS.items():
         _look_at_camera(scene, name, location, target, lens)
 
-    world = bpy.data.worlds.new("Black")
+    world = new_world("Black")
     bg = world.node_tree.nodes.get("Background")
     bg.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
     bg.inputs["Strength"].default_value = 0.0
@@ -229,7 +230,7 @@ def build_sponza(gltf_path: Path, scene: bpy.types.Scene | None = None) -> bpy.t
     scene.camera = bpy.data.objects[SPONZA_CAMERA]
     location, target, lens = SPONZA_WEST
     _look_at_camera(scene, SPONZA_WEST_CAMERA, location, target, lens)
-    world = bpy.data.worlds.new("Black")
+    world = new_world("Black")
     world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
     scene.world = world
     r = scene.render
@@ -261,7 +262,7 @@ def _flat_object(
     mesh = bpy.data.meshes.new(name)
     mesh.from_pydata([(x, y, 0.0) for x, y in outline], [], [list(range(len(outline)))])
     mesh.update()
-    mat = bpy.data.materials.new(name)
+    mat = new_material(name)
     bsdf = mat.node_tree.nodes.get("Principled BSDF")
     if emission is None:
         bsdf.inputs["Base Color"].default_value = (0.05, 0.05, 0.05, 1.0)
@@ -310,20 +311,29 @@ def build_par2d_demo(scene: bpy.types.Scene | None = None) -> bpy.types.Collecti
     cam.location = (0.0, 0.2, 10.0)
     scene.collection.objects.link(cam)
     scene.camera = cam
-    world = bpy.data.worlds.new("Black")
+    world = new_world("Black")
     world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
     scene.world = world
-    scene.render.engine = "BLENDER_EEVEE"
+    scene.render.engine = eevee_engine()
     scene.render.resolution_x = scene.render.resolution_y = 256
     scene.eevee.taa_render_samples = 4
     return coll
 
 
 def _ensure_blend(blend: Path, sources: list[Path], build: Callable[[], Path]) -> Path:
-    """``blend``, rebuilt by ``build`` when missing or older than any of ``sources``."""
-    if not blend.exists() or any(src.stat().st_mtime > blend.stat().st_mtime for src in sources):
-        print(f"[vplace] building {blend.relative_to(REPO)}")
+    """``blend``, rebuilt by ``build`` when missing, older than any of ``sources``, or built by
+    another Blender (an older one may not read a newer one's file; the stamp beside it says
+    which built it)."""
+    stamp = blend.with_name(blend.name + ".version")
+    if (
+        not blend.exists()
+        or any(src.stat().st_mtime > blend.stat().st_mtime for src in sources)
+        or not stamp.exists()
+        or stamp.read_text() != bpy.app.version_string
+    ):
+        print(f"[vplace] building {blend.relative_to(REPO)} with Blender {bpy.app.version_string}")
         build()
+        stamp.write_text(bpy.app.version_string)
     return blend
 
 
@@ -365,3 +375,29 @@ def builtin_scene(name: str) -> Path:
         )
     blend, sources, build = BUILTIN[name]
     return _ensure_blend(blend, sources, build)
+
+
+#: How a .blend file begins: Blender's header, or the gzip or Zstandard frame of a compressed one.
+BLEND_MAGICS = (b"BLENDER", b"\x1f\x8b", b"\x28\xb5\x2f\xfd")
+
+
+def check_blend(path: Path) -> Path:
+    """``path`` if it is a .blend file, else an :class:`AddonError` naming it (missing, a
+    folder, unreadable, or some other kind of file)."""
+    if not path.is_file():
+        raise AddonError(f"no such .blend file: {path}")
+    try:
+        with path.open("rb") as f:
+            head = f.read(8)
+    except OSError as exc:
+        raise AddonError(f"cannot read the .blend file {path}: {exc.strerror or exc}") from exc
+    if not head.startswith(BLEND_MAGICS):
+        raise AddonError(f"not a .blend file: {path} (it does not begin as one)")
+    return path
+
+
+def open_blend(path: Path) -> None:
+    """Opens ``path`` in place of the current file (never saved), or an :class:`AddonError`
+    naming it."""
+    check_blend(path)
+    run_operator("wm.open_mainfile", f"cannot open the .blend file {path}", filepath=str(path))

@@ -34,6 +34,8 @@ from pathlib import Path
 import bpy
 import numpy as np
 
+from ..compat import new_material, new_world
+
 __all__ = [
     "PANELROOM_BLEND",
     "PANELROOM_FIT",
@@ -285,7 +287,7 @@ def _principled(
 ) -> bpy.types.Material:
     """A Principled BSDF of base ``color``, or of ``image`` through the UVs (its alpha the
     cut-out with ``alpha``)."""
-    mat = bpy.data.materials.new(name)
+    mat = new_material(name)
     tree = mat.node_tree
     bsdf = tree.nodes["Principled BSDF"]
     bsdf.inputs["Base Color"].default_value = (*color[:3], 1.0)
@@ -303,7 +305,7 @@ def _principled(
 
 def _emission(name: str, color: Sequence[float], strength: float) -> bpy.types.Material:
     """A pure emitter: an Emission shader of ``color`` x ``strength`` (reflects nothing)."""
-    mat = bpy.data.materials.new(name)
+    mat = new_material(name)
     tree = mat.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
     em = tree.nodes.new("ShaderNodeEmission")
@@ -316,7 +318,7 @@ def _emission(name: str, color: Sequence[float], strength: float) -> bpy.types.M
 
 def _screen(name: str, color: Sequence[float], strength: float) -> bpy.types.Material:
     """A glossy dark screen glowing ``color`` x ``strength``: Principled BSDF emission."""
-    mat = bpy.data.materials.new(name)
+    mat = new_material(name)
     bsdf = mat.node_tree.nodes["Principled BSDF"]
     bsdf.inputs["Base Color"].default_value = (0.02, 0.02, 0.02, 1.0)
     bsdf.inputs["Roughness"].default_value = 0.2
@@ -690,10 +692,12 @@ def build_skyroom(scene: bpy.types.Scene | None = None) -> bpy.types.Scene:
     leaves = _leaves()
     plant("Plant", (1.2, -1.45), 1.6, _principled("Clay pot", (0.45, 0.15, 0.06)), leaves, coll)
 
-    world = bpy.data.worlds.new("Sky")
+    world = new_world("Sky")
     tree = world.node_tree
     sky = tree.nodes.new("ShaderNodeTexSky")
-    sky.sky_type = "MULTIPLE_SCATTERING"
+    # Blender before 5.0 has no MULTIPLE_SCATTERING; its Nishita sky is the single-scattering one.
+    kinds = sky.bl_rna.properties["sky_type"].enum_items.keys()
+    sky.sky_type = "MULTIPLE_SCATTERING" if "MULTIPLE_SCATTERING" in kinds else "NISHITA"
     sky.sun_elevation = SKY_SUN_ELEVATION
     sky.sun_rotation = SKY_SUN_ROTATION
     sky.location = (-300.0, 300.0)
@@ -772,7 +776,7 @@ def build_panelroom(scene: bpy.types.Scene | None = None) -> bpy.types.Scene:
     )
     parts.build("Lattice louvre", [grille], coll)
 
-    world = bpy.data.worlds.new("Black")
+    world = new_world("Black")
     world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
     world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
     world.color = (0.0, 0.0, 0.0)

@@ -32,7 +32,7 @@ import hashlib
 import os
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import bpy
@@ -41,7 +41,8 @@ import OpenEXR
 
 from ..capture import render_key
 from ..capture.passes import IMAGE_SETTINGS, hide_vpls, vpl_objects
-from ..errors import AddonError
+from ..compat import eevee_engine
+from ..errors import AddonError, run_operator
 from ..settings import SettingsGuard, override, standard_view
 from . import apply, eevee_setup
 
@@ -57,7 +58,7 @@ class Setup:
     """One way to render a view (see the module docs)."""
 
     name: str
-    engine: str = "BLENDER_EEVEE"
+    engine: str = field(default_factory=eevee_engine)
     vpls: bool = False
     raytracing: bool = False
     fast_gi: bool = True
@@ -82,7 +83,8 @@ class Setup:
         if threshold != e.light_threshold:
             g.set(e, "light_threshold", threshold)
         g.set(e, "use_raytracing", self.raytracing)
-        g.set(e, "use_fast_gi", self.fast_gi)
+        if hasattr(e, "use_fast_gi"):  # Blender 4.5 on; 4.2's fast GI is on with ray tracing
+            g.set(e, "use_fast_gi", self.fast_gi)
         if self.raytracing:
             g.set(e, "ray_tracing_method", "SCREEN")
         if self.vpls:
@@ -142,8 +144,7 @@ def _configure_output(g: SettingsGuard, scene: bpy.types.Scene, path: Path) -> N
     standard_view(g, scene)
     ims = r.image_settings
     g.remember(ims, IMAGE_SETTINGS)
-    g.set(ims, "media_type", "IMAGE")
-    g.set(ims, "file_format", "OPEN_EXR")
+    g.image_format(ims, "OPEN_EXR")
     g.set(ims, "color_mode", "RGB")
     g.set(ims, "color_depth", "32")
     g.set(ims, "exr_codec", "NONE")
@@ -190,7 +191,7 @@ def render(
     camera = camera if camera is not None else scene.camera
     if camera is None or camera.type != "CAMERA":
         raise AddonError("the render needs a camera object")
-    engine = setup.engine if setup is not None else "BLENDER_EEVEE"
+    engine = setup.engine if setup is not None else eevee_engine()
     cached = None
     if cache_dir is not None:
         key = _key(scene, camera, resolution, samples, engine, setup, seed)
@@ -221,10 +222,11 @@ def render(
                 if not setup.vpls:
                     hide_vpls(g)
             start = time.perf_counter()
-            result = bpy.ops.render.render(write_still=True, scene=scene.name)
+            what = f"the {engine} render of scene {scene.name!r} did not finish"
+            run_operator("render.render", what, write_still=True, scene=scene.name)
             seconds = time.perf_counter() - start
-        if "FINISHED" not in result or not path.exists():
-            raise AddonError(f"the {engine} render did not finish ({result})")
+        if not path.exists():
+            raise AddonError(f"{what}: Blender wrote no image")
         out = EeveeImage(read_exr_rgb(path), seconds)
     if cached is not None:
         cached.parent.mkdir(parents=True, exist_ok=True)

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import bpy
 from mathutils import Vector
 
+from ..compat import eevee_engine
 from ..errors import AddonError
 from ..scene.export import VPL_MARKER
 from ..settings import override
@@ -250,7 +251,12 @@ def problems(scene: bpy.types.Scene) -> list[Problem]:
                 f"from them; a threshold of {threshold_for(scene):.3g} lets them reach",
             )
         )
-    if e.use_raytracing and e.use_fast_gi and e.fast_gi_method == "GLOBAL_ILLUMINATION":
+    # Blender 4.2 has no use_fast_gi switch: its fast GI is on whenever ray tracing is.
+    if (
+        e.use_raytracing
+        and getattr(e, "use_fast_gi", True)
+        and e.fast_gi_method == "GLOBAL_ILLUMINATION"
+    ):
         found.append(
             Problem(
                 "scene.eevee.fast_gi_method",
@@ -332,7 +338,7 @@ def new_volume(
 def bake(scene: bpy.types.Scene, volume: bpy.types.Object) -> float:
     """Bakes ``volume`` with EEVEE (blocking); returns the seconds."""
     with override() as g:
-        g.set(scene.render, "engine", "BLENDER_EEVEE")
+        g.set(scene.render, "engine", eevee_engine())
         with bpy.context.temp_override(
             scene=scene, active_object=volume, object=volume, selected_objects=[volume]
         ):
@@ -419,7 +425,8 @@ def set_up(scene: bpy.types.Scene, *, bake_volume: bool = True) -> list[str]:
     if int(e.shadow_pool_size) < mb:
         put(e, "shadow_pool_size", str(mb), "scene.eevee.shadow_pool_size")
     put(e, "use_raytracing", True, "scene.eevee.use_raytracing")
-    put(e, "use_fast_gi", True, "scene.eevee.use_fast_gi")
+    if hasattr(e, "use_fast_gi"):  # Blender 4.5 on
+        put(e, "use_fast_gi", True, "scene.eevee.use_fast_gi")
     put(e, "fast_gi_method", "AMBIENT_OCCLUSION_ONLY", "scene.eevee.fast_gi_method")
     if scene.world is not None and apply.world_sun_light(scene):
         put(scene.world, "sun_threshold", 0.0, "world.sun_threshold")

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
+from ..compat import new_material
 from ..native import vplace
 from ..scene.export import evaluated_mesh, material_info
 
@@ -144,11 +145,8 @@ def make_display_plane(
     uv = mesh.uv_layers.new(name="UVMap")
     uv.data.foreach_set("uv", [0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0, 1.0])
     mesh.update()
-    mat = bpy.data.materials.new(name)
+    mat = new_material(name)
     tree = mat.node_tree
-    if tree is None:  # pragma: no cover - Blender < 5 without nodes by default
-        mat.use_nodes = True
-        tree = mat.node_tree
     tree.nodes.clear()
     tex = tree.nodes.new("ShaderNodeTexImage")
     tex.image = image

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import bpy
 import numpy as np
 
+from ..errors import WriteBackError, run_operator
 from ..native import vplace
 from . import apply, eevee_setup
 from .stand_ins import StandIns, stand_ins
@@ -56,7 +57,13 @@ def write_back(
             sun=lights.sun,
         )
         if blend_path is not None:
-            bpy.ops.wm.save_as_mainfile(filepath=str(blend_path), copy=True)
+            run_operator(
+                "wm.save_as_mainfile",
+                f"cannot save a copy of the file to {blend_path}",
+                WriteBackError,
+                filepath=str(blend_path),
+                copy=True,
+            )
     problems = [str(p) for p in eevee_setup.problems(bl_scene)]
     for problem in problems:
         log(f"[vplace] warning: EEVEE: {problem} (Set up EEVEE for vplace fixes it)")

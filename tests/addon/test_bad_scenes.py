@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from blender_util import addon_cornell, data_snapshot, diff
 
+from addon.compat import new_material, new_world
 from addon.scene import bench_export
 from addon.writeback import apply
 
@@ -60,7 +61,7 @@ def test_mesh_with_nan_vertices(scene):
 
 def light_by_world_only(scene):
     bpy.data.objects["light"].hide_render = True
-    world = bpy.data.worlds.new("sky")
+    world = new_world("sky")
     world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.5, 0.6, 0.9, 1.0)
     world.node_tree.nodes["Background"].inputs["Strength"].default_value = 2.0
     scene.world = world
@@ -74,7 +75,7 @@ def light_by_emissive_mesh_only(scene):
         [(-0.25, -0.2, 1.95), (0.25, -0.2, 1.95), (0.25, 0.2, 1.95), (-0.25, 0.2, 1.95)],
         [(0, 3, 2, 1)],  # facing down
     )
-    mat = bpy.data.materials.new("glow")
+    mat = new_material("glow")
     nodes = mat.node_tree.nodes
     nodes.remove(nodes["Principled BSDF"])
     emission = nodes.new("ShaderNodeEmission")

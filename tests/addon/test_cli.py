@@ -46,6 +46,8 @@ def test_python_m_vplace_runs_the_main_job(tmp_path):
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     report = json.loads((out / "report.json").read_text())
     assert report["n_vpls"] == 8 and (out / "scene.blend").exists()
+    # Named after its file, not Blender's default scene name.
+    assert report["scene"] == "in" and "# vplace report: in" in (out / "report.md").read_text()
     assert "fitted model (cells of 8 px)" in r.stdout
     # Scored against a 256 spp render of the scene camera, not the 4 spp capture.
     assert report["reference"]["samples"] == 256 and "ground truth" in report["reference"]["label"]

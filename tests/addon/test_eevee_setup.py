@@ -39,7 +39,9 @@ def test_every_problem_is_named_and_set_up_fixes_it(scene):
     coll = write(scene, 300)
     e = scene.eevee
     e.shadow_pool_size = "64"  # 256 pages for about 1,500 wanted
-    e.use_raytracing, e.use_fast_gi, e.fast_gi_method = True, True, "GLOBAL_ILLUMINATION"
+    e.use_raytracing, e.fast_gi_method = True, "GLOBAL_ILLUMINATION"
+    if hasattr(e, "use_fast_gi"):  # Blender 4.5 on (4.2's fast GI is on with ray tracing)
+        e.use_fast_gi = True
     coll.objects[0].data.use_custom_distance = False
     probe = bpy.data.objects.new("users volume", bpy.data.lightprobes.new("users", "VOLUME"))
     scene.collection.objects.link(probe)

@@ -10,6 +10,7 @@ from blender_util import empty_file
 
 from addon.capture.native_view import gloss_mask
 from addon.capture.passes import Capture
+from addon.compat import new_material
 from addon.native import vplace
 from addon.scene import export
 from addon.scene.convert import build_scene
@@ -31,7 +32,7 @@ def principled(name, **inputs):
 
 def shader_material(name, kind, **inputs):
     """A material whose surface is one shader node of ``kind``."""
-    mat = bpy.data.materials.new(name)
+    mat = new_material(name)
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     nodes.remove(nodes["Principled BSDF"])
     node = nodes.new(kind)
@@ -43,7 +44,7 @@ def shader_material(name, kind, **inputs):
 
 def mixed(name, a, b, fac=0.5):
     """A Mix Shader of the surfaces of materials ``a`` and ``b`` (their nodes copied over)."""
-    mat = bpy.data.materials.new(name)
+    mat = new_material(name)
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     nodes.remove(nodes["Principled BSDF"])
     mix = nodes.new("ShaderNodeMixShader")

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from blender_util import empty_file, principled
 
+from addon.compat import new_material
 from addon.scene import export
 from addon.scene.convert import build_scene
 
@@ -118,7 +119,7 @@ def test_alpha_cut_surfaces_let_rays_through(scene):
 
 
 def test_mix_with_transparent_is_the_cut_out(scene):
-    mat = bpy.data.materials.new("fence")
+    mat = new_material("fence")
     nt = mat.node_tree
     p = nt.nodes["Principled BSDF"]
     p.inputs["Base Color"].default_value = (0.5, 0.5, 0.5, 1)

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from blender_util import empty_file
 
+from addon.compat import new_material
 from addon.native import vplace
 from addon.writeback import par2d_bake
 
@@ -15,7 +16,7 @@ def _square(name, x0, y0, x1, y1, collection, emission=None, z=0.0):
     obj = bpy.data.objects.new(name, mesh)
     collection.objects.link(obj)
     if emission is not None:
-        mat = bpy.data.materials.new(name)
+        mat = new_material(name)
         bsdf = mat.node_tree.nodes["Principled BSDF"]
         bsdf.inputs["Emission Color"].default_value = (*emission, 1.0)
         bsdf.inputs["Emission Strength"].default_value = 2.0

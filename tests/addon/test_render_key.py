@@ -12,6 +12,7 @@ from blender_util import cornell
 
 from addon.capture import passes as capture
 from addon.capture import render_key
+from addon.compat import eevee_engine
 
 
 def key(scene):
@@ -71,14 +72,14 @@ def test_what_the_render_reads_changes_the_key(change):
 )
 def test_what_eevee_reads_changes_its_key(change):
     scene = cornell()
-    before = render_key.scene_signature(scene, "BLENDER_EEVEE")
+    before = render_key.scene_signature(scene, eevee_engine())
     if change == "eevee shadow rays":
         scene.eevee.shadow_ray_count = 3
     elif change == "eevee ray tracing max roughness":
         scene.eevee.ray_tracing_options.trace_max_roughness = 0.9
     else:
         scene.eevee.ray_tracing_options.use_denoise = False
-    assert render_key.scene_signature(scene, "BLENDER_EEVEE") != before, change
+    assert render_key.scene_signature(scene, eevee_engine()) != before, change
 
 
 def test_what_vplace_sets_itself_or_only_moves_a_node_keeps_the_key():

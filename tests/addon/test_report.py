@@ -280,3 +280,22 @@ def test_camera_view_restores_the_camera_and_refuses_unknown_names():
     assert scene.camera == before
     with pytest.raises(ReportError, match="no camera object"), report.camera_view(scene, "Nope"):
         pass
+
+
+def test_a_blend_is_named_after_its_file_and_captured_at_the_main_jobs_samples(tmp_path):
+    """``report --blend`` captures at the spp the demo and the panel capture at (one default,
+    ``Job.samples``), and calls the scene by its file's name."""
+    import addon
+    from addon.cli import parse_args
+    from addon.job import Job
+
+    blend = tmp_path / "my_room.blend"
+    (preset,) = ReportConfig(blend=blend, fit_cameras=["Camera"]).presets()
+    assert preset.name == "my_room" and preset.capture_samples == Job.samples
+    demo = parse_args(["demo"])
+    assert demo.samples == Job.samples
+    addon.register()
+    try:
+        assert bpy.context.scene.vplace.samples == Job.samples
+    finally:
+        addon.unregister()

@@ -10,6 +10,7 @@ import pytest
 from blender_util import empty_file, no_vpls
 from mathutils import Vector
 
+from addon.compat import new_material, new_world
 from addon.scene import export
 from addon.scene.convert import build_scene
 from addon.writeback import apply
@@ -25,7 +26,7 @@ def scene():
 
 
 def emissive(name, strength=1.0):
-    mat = bpy.data.materials.new(name)
+    mat = new_material(name)
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     nodes.remove(nodes["Principled BSDF"])
     em = nodes.new("ShaderNodeEmission")
@@ -69,7 +70,7 @@ def test_a_quad_is_one_rectangle_per_side_of_power_pi_a_l(scene):
 def test_a_triangle_is_a_disk_of_its_area_and_a_closed_back_is_left_out(scene):
     mesh(scene, "tri", [(0, 0, 1), (1, 0, 1), (0, 1, 1)], [(0, 1, 2)], emissive("tri"))
     # A floor 1 cm under the triangle: its downward side cannot send light out.
-    floor = bpy.data.materials.new("floor")
+    floor = new_material("floor")
     mesh(
         scene,
         "floor",
@@ -100,7 +101,7 @@ def test_many_emitters_are_drawn_by_power_and_keep_the_total(scene):
 
 
 def test_no_emission_no_lights(scene):
-    mesh(scene, "grey", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [(0, 1, 2)], bpy.data.materials.new("g"))
+    mesh(scene, "grey", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [(0, 1, 2)], new_material("g"))
     assert lights_of(scene)[0] == []
 
 
@@ -167,10 +168,10 @@ def test_the_written_sun_shines_from_the_suns_direction_and_eevee_must_not_extra
     from addon.writeback import eevee_setup
 
     sun = emitter_lights.world_sun(world_image(sun=(20, 40, 5000.0)))
-    world = bpy.data.worlds.new("sky")
+    world = new_world("sky")
     scene.world = world
     world.sun_threshold = 10.0
-    floor = bpy.data.materials.new("floor")
+    floor = new_material("floor")
     mesh(scene, "floor", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [(0, 1, 2, 3)], floor)
     none = no_vpls()
     coll = apply.write_vpls(scene, none, scene_diagonal=3.0, sun=sun)
@@ -192,7 +193,7 @@ def test_the_sun_counts_only_where_it_reaches_what_a_view_sees(scene):
         "floor",
         [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)],
         [(0, 1, 2, 3)],
-        bpy.data.materials.new("f"),
+        new_material("f"),
     )
     exported = export.export_scene(scene)
     sun = emitter_lights.SunLight((0.0, 0.0, 1.0), (5.0, 5.0, 5.0), 0.01)
@@ -210,7 +211,7 @@ def test_the_sun_counts_only_where_it_reaches_what_a_view_sees(scene):
         (2.1, 2.2, 1),
         (-2.3, 2.2, 1),
     ]  # not on a pixel diagonal
-    mesh(scene, "roof", roof, [(0, 1, 2, 3)], bpy.data.materials.new("r"))
+    mesh(scene, "roof", roof, [(0, 1, 2, 3)], new_material("r"))
     exported = export.export_scene(scene)
     lit = emitter_lights.sun_lit_fraction(build_scene(exported), position, normal, covered, sun)
     assert lit == 0.0

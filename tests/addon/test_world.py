@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from blender_util import empty_file
 
+from addon.compat import new_world
 from addon.scene import world as world_mod
 from addon.scene.convert import native_world
 
@@ -15,7 +16,7 @@ from addon.scene.convert import native_world
 @pytest.fixture
 def world():
     empty_file()
-    w = bpy.data.worlds.new("w")
+    w = new_world("w")
     bpy.context.scene.world = w
     return w
 

@@ -30,6 +30,7 @@ from blender_util import add_lamp, empty_file
 
 from addon.capture import passes as capture
 from addon.capture.native_view import view_of
+from addon.compat import new_material, new_world
 from addon.native import vplace
 from addon.scene import export
 from addon.scene.convert import build_scene
@@ -41,7 +42,7 @@ OURS_SAMPLES = 512
 
 
 def diffuse(name: str, color=(ALBEDO, ALBEDO, ALBEDO)) -> bpy.types.Material:
-    mat = bpy.data.materials.new(name)
+    mat = new_material(name)
     nodes = mat.node_tree.nodes
     nodes.remove(nodes["Principled BSDF"])
     bsdf = nodes.new("ShaderNodeBsdfDiffuse")
@@ -67,7 +68,7 @@ def box(scene, name, lo, hi, mat) -> bpy.types.Object:
 
 
 def set_world(scene, color=(0, 0, 0), strength=0.0) -> bpy.types.World:
-    world = bpy.data.worlds.new("world")
+    world = new_world("world")
     bg = world.node_tree.nodes["Background"]
     bg.inputs["Color"].default_value = (*color, 1.0)
     bg.inputs["Strength"].default_value = strength
@@ -157,7 +158,7 @@ def sky_world(scene) -> None:
 
 
 def emissive_panel(scene, *, principled: bool) -> None:
-    mat = bpy.data.materials.new("panel")
+    mat = new_material("panel")
     nodes = mat.node_tree.nodes
     if principled:
         p = nodes["Principled BSDF"]

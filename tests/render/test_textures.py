@@ -29,6 +29,7 @@ from test_lights import (
 
 from addon.capture import passes as capture
 from addon.capture.native_view import view_of
+from addon.compat import new_material
 from addon.native import vplace
 from addon.scene import export
 from addon.scene.convert import build_scene
@@ -54,7 +55,7 @@ def checker(name: str, n: int = 4, *, alpha: bool = False, texels: int = 64) -> 
 
 
 def textured(name: str, image: bpy.types.Image, scale: float, *, cut: bool) -> bpy.types.Material:
-    mat = bpy.data.materials.new(name)
+    mat = new_material(name)
     nt = mat.node_tree
     p = nt.nodes["Principled BSDF"]
     p.inputs["Roughness"].default_value = 1.0

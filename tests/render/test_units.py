@@ -8,6 +8,7 @@ import numpy as np
 from blender_util import add_lamp, empty_file
 
 from addon.capture import passes as capture
+from addon.compat import new_material, new_world
 
 ALBEDO = 0.5
 
@@ -17,7 +18,7 @@ def plane_scene():
     scene = bpy.context.scene
     mesh = bpy.data.meshes.new("plane")
     mesh.from_pydata([(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], [], [(0, 1, 2, 3)])
-    mat = bpy.data.materials.new("diffuse")
+    mat = new_material("diffuse")
     nodes = mat.node_tree.nodes
     nodes.remove(nodes["Principled BSDF"])
     bsdf = nodes.new("ShaderNodeBsdfDiffuse")
@@ -32,7 +33,7 @@ def plane_scene():
     cam.location = (0, 0, 5)
     scene.collection.objects.link(cam)
     scene.camera = cam
-    scene.world = bpy.data.worlds.new("black")
+    scene.world = new_world("black")
     scene.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
     return scene
 

@@ -21,6 +21,7 @@ from blender_util import empty_file
 
 from addon import job as pipeline
 from addon.capture import passes as capture
+from addon.compat import new_material, new_world
 from addon.writeback import apply, eevee_setup
 from addon.writeback import eevee_render as eevee
 
@@ -32,7 +33,7 @@ DEFAULT_WORLD_GREY = 0.0509
 
 
 def _diffuse(name, color):
-    mat = bpy.data.materials.new(name)
+    mat = new_material(name)
     tree = mat.node_tree
     tree.nodes.clear()
     bsdf = tree.nodes.new("ShaderNodeBsdfDiffuse")
@@ -63,7 +64,7 @@ def world_room() -> bpy.types.Scene:
     a camera inside, and the default grey world outside."""
     empty_file()
     scene = bpy.context.scene
-    world = bpy.data.worlds.new("World")
+    world = new_world("World")
     world.node_tree.nodes["Background"].inputs["Color"].default_value = (
         *(DEFAULT_WORLD_GREY,) * 3,
         1.0,

@@ -1,0 +1,53 @@
+"""What differs between the Blenders the manifest names (4.2 LTS to 5.2 LTS), in one place.
+
+- Before Blender 5.0 a new material or world has no node tree until ``use_nodes`` is set; from
+  5.0 every one has its tree and ``use_nodes`` is deprecated (:func:`new_material`,
+  :func:`new_world`).
+- EEVEE's engine is ``BLENDER_EEVEE_NEXT`` in 4.2 to 4.5, ``BLENDER_EEVEE`` from 5.0
+  (:func:`eevee_engine`).
+- A multilayer EXR names its passes ``DiffDir``, ``Emit``, ... before 5.0 and ``Diffuse
+  Direct``, ``Emission``, ... from 5.0 (:data:`PASS_NAMES`).
+"""
+
+from __future__ import annotations
+
+from typing import TypeVar
+
+import bpy
+
+T = TypeVar("T", bpy.types.Material, bpy.types.World)
+
+
+def _with_nodes(idblock: T) -> T:
+    if idblock.node_tree is None:  # Blender before 5.0
+        idblock.use_nodes = True
+    return idblock
+
+
+def new_material(name: str) -> bpy.types.Material:
+    """A new material with Blender's default node tree (a Principled BSDF into the output)."""
+    return _with_nodes(bpy.data.materials.new(name))
+
+
+def new_world(name: str) -> bpy.types.World:
+    """A new world with Blender's default node tree (a Background into the output)."""
+    return _with_nodes(bpy.data.worlds.new(name))
+
+
+#: The pass names of a multilayer EXR before Blender 5.0 -> from 5.0.
+PASS_NAMES = {
+    "DiffDir": "Diffuse Direct",
+    "DiffInd": "Diffuse Indirect",
+    "DiffCol": "Diffuse Color",
+    "GlossDir": "Glossy Direct",
+    "GlossInd": "Glossy Indirect",
+    "GlossCol": "Glossy Color",
+    "Emit": "Emission",
+    "Env": "Environment",
+}
+
+
+def eevee_engine() -> str:
+    """EEVEE's ``render.engine`` name in this Blender."""
+    engines = bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items.keys()
+    return "BLENDER_EEVEE_NEXT" if "BLENDER_EEVEE_NEXT" in engines else "BLENDER_EEVEE"
