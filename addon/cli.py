@@ -26,15 +26,31 @@ def view_set(args: argparse.Namespace) -> ViewSet:
     """The views of the ``demo`` options (default: the scene camera)."""
     from .capture.views import ViewSet
 
+    region = {"coverage": args.coverage, "region_radius": args.region_radius}
     if args.cameras:
-        return ViewSet(mode="cameras", cameras=tuple(args.cameras))
+        return ViewSet(mode="cameras", cameras=tuple(args.cameras), **region)
     if args.frames:
         start, end, step = args.frames
-        return ViewSet(mode="frames", frame_start=start, frame_end=end, frame_step=step)
+        return ViewSet(mode="frames", frame_start=start, frame_end=end, frame_step=step, **region)
     if args.orbit:
         count, radius, angle = args.orbit
-        return ViewSet(mode="orbit", orbit_count=int(count), orbit_radius=radius, orbit_angle=angle)
-    return ViewSet()
+        return ViewSet(
+            mode="orbit", orbit_count=int(count), orbit_radius=radius, orbit_angle=angle, **region
+        )
+    return ViewSet(**region)
+
+
+def add_region_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--coverage N`` and ``--region-radius M`` (``vplace.coverage``)."""
+    parser.add_argument(
+        "--coverage", type=int, default=0, metavar="N",
+        help="add N ray-traced coverage views of the region around the cameras (0-16; default "
+        "0: the cameras' captures only)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--region-radius", type=float, default=0.0, metavar="M",
+        help="metres a camera may move from the user's (default 0: the room it stands in)",
+    )  # fmt: skip
 
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
@@ -88,6 +104,7 @@ def _demo_options(sub: argparse._SubParsersAction) -> None:
     demo.add_argument(
         "--samples", type=int, default=Job.samples, help="Cycles samples of each capture"
     )
+    add_region_arguments(demo)
     demo.add_argument(
         "--truth-samples", type=int, default=256,
         help="score against a Cycles render of the scene camera at these samples (default 256; "
@@ -175,6 +192,7 @@ def _report_options(sub: argparse._SubParsersAction) -> None:
     rep.add_argument("--eevee-samples", type=int, default=None, help="EEVEE's render samples")
     rep.add_argument("--feature-mode", choices=FEATURE_MODES, default="auto")
     rep.add_argument("--no-par2d", action="store_true", help="skip the PAR 2D plot")
+    add_region_arguments(rep)
 
 
 def _par2d_options(sub: argparse._SubParsersAction) -> None:
@@ -238,6 +256,8 @@ def run(args: argparse.Namespace) -> None:
             capture_curve=args.capture_curve,
             par2d=not args.no_par2d,
             cache_dir=args.cache,
+            coverage=args.coverage,
+            region_radius=args.region_radius,
         )
         if args.eevee_samples is not None:
             config.eevee_samples = args.eevee_samples

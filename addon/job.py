@@ -138,6 +138,9 @@ class Prepared:
     gloss: list[np.ndarray | None] = field(default_factory=list)
     #: The main job's reference (``prepare(reference=...)``).
     reference: Reference | None = None
+    #: The coverage views added for the region (``vplace.coverage``); they follow the
+    #: captures' views in ``views``.
+    coverage: vplace.coverage.Coverage | None = None
 
     @property
     def capture(self) -> capture.Capture:
@@ -208,6 +211,19 @@ def prepare(
             stage=timer.stage,
             log=timer.log,
         )
+    cover = None
+    if job.views.coverage > 0:
+        with timer.stage("coverage views (ray traced)"):
+            cover = vplace.coverage.cover(
+                scene,
+                exported.vertices[exported.triangles],
+                captured.views,
+                job.views.region(),
+                seed=job.seed,
+                profile=job.profile,
+                radius=job.radius if job.radius is not None else scene.near_field_radius,
+            )
+        timer.log(f"[vplace] {cover.describe()}")
     ref = None
     if reference is not None:
         ref = render_reference(
@@ -220,8 +236,9 @@ def prepare(
             cache_dir=job.cache_dir,
             stage=timer.stage,
         )
+    views = captured.views + (cover.views if cover is not None else [])
     return Prepared(
-        scene, exported, captured.captures, captured.views, captured.skipped, captured.gloss, ref
+        scene, exported, captured.captures, views, captured.skipped, captured.gloss, ref, cover
     )
 
 
@@ -254,7 +271,8 @@ def lay_out(
 
 def capture_reference(prepared: Prepared, job: Job) -> Reference:
     """The first view's own capture: the reference of the panel's runs (no extra render)."""
-    return own_reference(Captured(prepared.captures, prepared.views, prepared.gloss), job.samples)
+    views = prepared.views[: len(prepared.captures)]
+    return own_reference(Captured(prepared.captures, views, prepared.gloss), job.samples)
 
 
 def compute(

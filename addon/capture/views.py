@@ -27,6 +27,7 @@ import numpy as np
 from mathutils import Matrix, Vector
 
 from ..errors import AddonError
+from ..native import vplace
 
 VIEW_MODES = ("active", "cameras", "frames", "orbit")
 #: Custom property marking the temporary cameras of an orbit (removed after the capture).
@@ -46,6 +47,16 @@ class ViewSet:
     #: Metres from the camera to the orbit's pivot; 0: the distance to the scene's centre.
     orbit_radius: float = 0.0
     orbit_angle: float = 30.0
+    #: Coverage views added for the region around these views (``vplace.coverage``; 0: none).
+    #: Off by default until it pays on every scene: on ``lroom`` 4 views raise the held-out
+    #: views' SSIM (.836 -> .844, .817 -> .849) but leave them below ``uniform``'s.
+    coverage: int = 0
+    #: The region's radius around each camera, metres; 0: from the room the camera stands in.
+    region_radius: float = 0.0
+
+    def region(self) -> vplace.coverage.Region:
+        """The region the coverage views stand for."""
+        return vplace.coverage.Region(count=self.coverage, radius=self.region_radius)
 
     def validate(self) -> None:
         """Raises :class:`AddonError` for a view set no capture can run with."""
@@ -60,6 +71,10 @@ class ViewSet:
             )
         if self.mode == "orbit" and (self.orbit_count < 1 or self.orbit_radius < 0):
             raise AddonError("an orbit needs at least one view and a radius of 0 or more")
+        try:
+            self.region().validate()
+        except ValueError as err:
+            raise AddonError(str(err)) from None
 
 
 @dataclass(frozen=True)

@@ -12,6 +12,8 @@ from typing import Any
 
 from .. import job as pipeline
 from ..errors import AddonError, ReportError
+from ..native import vplace
+from ..scenes import lroom
 from ..scenes import registry as default_scene
 from ..scenes import rooms as builtin_rooms
 from ..writeback import apply, eevee_setup
@@ -80,6 +82,14 @@ PRESETS = {
         16,
         1024,
     ),
+    "lroom": ScenePreset(
+        "lroom",
+        tuple(lroom.LROOM_FIT),
+        tuple(lroom.LROOM_HELD_OUT),
+        (192, 108),
+        16,
+        1024,
+    ),
     "panelroom": ScenePreset(
         "panelroom",
         tuple(builtin_rooms.PANELROOM_FIT),
@@ -95,7 +105,7 @@ PRESETS = {
 class ReportConfig:
     """What the report runs. ``None`` fields take the scene preset's value."""
 
-    scenes: Sequence[str] = ("cornell", "sponza", "skyroom", "panelroom")
+    scenes: Sequence[str] = ("cornell", "sponza", "skyroom", "panelroom", "lroom")
     #: Any .blend instead of the built-in scenes, with its cameras.
     blend: Path | None = None
     fit_cameras: Sequence[str] = ()
@@ -130,6 +140,9 @@ class ReportConfig:
     volume_resolution: int = eevee_setup.VOLUME_PROBES
     par2d: bool = True
     cache_dir: Path | None = None
+    #: Ray-traced coverage views of the region around the fit cameras (``vplace.coverage``).
+    coverage: int = 0
+    region_radius: float = 0.0
 
     def presets(self) -> list[ScenePreset]:
         """The scenes to run. A .blend is named after its file and captured at the main job's
@@ -150,6 +163,10 @@ class ReportConfig:
 
     def validate(self) -> None:
         """Raises :class:`ReportError` for an unusable configuration."""
+        try:
+            vplace.coverage.Region(self.coverage, self.region_radius).validate()
+        except ValueError as err:
+            raise ReportError(str(err)) from None
         unknown = [m for m in self.methods if m not in METHODS]
         if unknown:
             raise ReportError(f"unknown methods {unknown}: choose from {list(METHODS)}")

@@ -47,7 +47,7 @@ import numpy as np
 from .. import job as pipeline
 from ..capture import passes as capture
 from ..capture.native_view import gloss_mask, view_of
-from ..capture.views import ViewSpec
+from ..capture.views import ViewSet, ViewSpec
 from ..errors import ReportError, output_folder
 from ..native import vplace
 from ..scenes import registry as default_scene
@@ -124,6 +124,7 @@ def load_scene(
         iterations=config.iterations,
         feature_mode=config.feature_mode,
         cache_dir=cache_dir,
+        views=ViewSet(coverage=config.coverage, region_radius=config.region_radius),
     )
     cams = {}
     for name in (*preset.fit_views, *preset.held_out_views):
@@ -153,6 +154,8 @@ def load_scene(
             ViewData(name, role, cams[name], truth, view_of(truth, held_out=True, gloss=gloss))
         )
     seconds = sum(c.render_seconds for c in prepared.captures)
+    if prepared.coverage is not None:
+        seconds += prepared.coverage.seconds
     return SceneData(prepared, job, views, resolution, seconds)
 
 

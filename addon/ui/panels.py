@@ -133,6 +133,11 @@ class VPLACE_PT_views(_Panel, bpy.types.Panel):
             col.prop(settings, "orbit_count")
             col.prop(settings, "orbit_radius")
             col.prop(settings, "orbit_angle")
+        col = layout.column(align=True)
+        col.prop(settings, "coverage")
+        sub = col.column(align=True)
+        sub.active = settings.coverage > 0
+        sub.prop(settings, "region_radius")
 
 
 CLASSES = (VPLACE_UL_cameras, VPLACE_PT_main, VPLACE_PT_views)

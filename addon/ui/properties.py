@@ -128,6 +128,21 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
         min=0.0,
         max=180.0,
     )
+    coverage: IntProperty(  # type: ignore[valid-type]
+        name="Coverage views",
+        description="Ray-traced views added around the cameras, so the lights also hold where "
+        "the camera moves next (0: the cameras' captures only)",
+        default=0,
+        min=0,
+        max=16,
+    )
+    region_radius: FloatProperty(  # type: ignore[valid-type]
+        name="Region radius",
+        description="How far the camera may move from the chosen views (0: the room it stands in)",
+        default=0.0,
+        min=0.0,
+        unit="LENGTH",
+    )
     samples: IntProperty(  # type: ignore[valid-type]
         name="Capture samples",
         description="Cycles samples of the capture",
@@ -170,6 +185,8 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
             orbit_count=self.orbit_count,
             orbit_radius=self.orbit_radius,
             orbit_angle=self.orbit_angle,
+            coverage=self.coverage,
+            region_radius=self.region_radius,
         )
 
 

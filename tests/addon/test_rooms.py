@@ -213,3 +213,38 @@ def test_the_report_and_the_command_line_run_the_rooms_by_default():
     assert cli.parse_args(["report"]).scenes == list(report.ReportConfig().scenes)
     for name in ROOMS:
         assert report.PRESETS[name].truth_samples == 1024 and report.PRESETS[name].blend is None
+
+
+def test_lroom_hides_its_wing_from_the_scene_camera_and_shows_it_to_the_held_out_ones():
+    """The L-shaped room (``scenes/lroom.py``): the fit camera sees nothing of the sunlit wing,
+    the held-out wing camera sees the wing in a fifth of its pixels and more."""
+    from addon.capture.passes import camera_matrices
+    from addon.scenes import lroom
+
+    blend, sources, _ = default_scene.BUILTIN["lroom"]
+    assert default_scene.builtin_scene("lroom") == blend and Path(lroom.__file__) in sources
+    assert (ROOT / "blend_scenes" / "lroom" / "README.md").is_file()
+    scene = open_room("lroom")
+    ex = export.export_scene(scene)
+    native = build_scene(ex)
+
+    def wing_share(camera_name):
+        cam = scene.objects[camera_name]
+        eye, world_to_clip = camera_matrices(scene, cam, (64, 36))
+        s = (np.arange(64) + 0.5) / 64 * 2 - 1
+        t = (np.arange(36) + 0.5) / 36 * 2 - 1
+        x, y = np.meshgrid(s, -t)
+        ndc = np.stack([x, y, np.ones_like(x), np.ones_like(x)], axis=-1).reshape(-1, 4)
+        far = ndc @ np.linalg.inv(world_to_clip).T
+        d = far[:, :3] / far[:, 3:] - eye
+        d = (d / np.linalg.norm(d, axis=1, keepdims=True)).astype(np.float32)
+        o = np.repeat(eye[None].astype(np.float32), len(d), axis=0)
+        dist, tri, _ = native.intersect(o, d)
+        hit = tri >= 0  # the rest leave through a window
+        assert hit.mean() > 0.9
+        p = o[hit] + d[hit] * dist[hit, None]
+        return float(((p[:, 0] > 0.05) & (p[:, 1] > 0.05)).mean())
+
+    (fit,) = lroom.LROOM_FIT
+    assert wing_share(fit) == 0.0
+    assert wing_share("Lroom camera (held out, wing)") > 0.2  # a fifth of what it sees

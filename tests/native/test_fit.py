@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 import vplace
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 from vplace import _native
 from vplace.bench_fit import (
@@ -395,6 +395,8 @@ def test_bad_arguments_are_input_errors():
     seed=st.integers(0, 2**32 - 1),
     log_scale=st.floats(-6, 6),
 )
+# Found by hypothesis: a column whose offset is 1e5 times its spread.
+@example(n=71, p=1, seed=784, log_scale=-5.0)
 def test_random_well_conditioned_problems_match_lstsq(n, p, seed, log_scale):
     assume(n >= p + 2)
     x, rng = rng_design(n, p, seed)
@@ -411,7 +413,9 @@ def test_random_well_conditioned_problems_match_lstsq(n, p, seed, log_scale):
     assert np.all(np.abs(coef_vector(r) - b) <= tol)
     # Fitted values are sums of terms b_j x_j that cancel when a column's offset dwarfs its spread.
     magnitude = np.abs(y).max() + (np.abs(b) * np.abs(x).max(0)).sum()
-    np.testing.assert_allclose(r.fitted, fitted, rtol=0, atol=1e3 * cond * EPS * magnitude)
+    # The bound holds for each solution's distance from the exact fitted values; lstsq's are
+    # rounded as much as ours, so the two may differ by twice it.
+    np.testing.assert_allclose(r.fitted, fitted, rtol=0, atol=2 * 1e3 * cond * EPS * magnitude)
     sst = ((y - y.mean()) ** 2).sum()
     assert r.r2 == pytest.approx(1 - ((y - fitted) ** 2).sum() / sst, abs=1e-9)
 

@@ -40,6 +40,7 @@ Long calls release the GIL, report progress and cancel through a :class:`Progres
 panic surfaces as :class:`InternalError`, never as a crash.
 """
 
+from vplace import coverage as coverage
 from vplace import par2d as par2d
 from vplace._native import (
     LUMINANCE,

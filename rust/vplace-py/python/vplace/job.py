@@ -21,6 +21,7 @@ import numpy as np
 
 import vplace
 from vplace import images, markdown
+from vplace.coverage import is_coverage
 
 #: The layout methods, in the report's order: Keller's light paths, reflective shadow maps, the
 #: regression-guided layout, and the same with its VPL powers refitted to the captured light.
@@ -83,10 +84,12 @@ class LayoutSettings:
 
 
 def fit(scene: vplace.Scene, views: Sequence[vplace.View], settings: LayoutSettings) -> vplace.Fit:
-    """The regression on ``views`` with the settings' cells and feature mode."""
+    """The regression on ``views`` with the settings' cells and feature mode. Coverage views
+    (``vplace.coverage``) are left out: the model learns from the captures only."""
+    captured = [v for v in views if not is_coverage(v)] or list(views)
     return vplace.fit(
         scene,
-        list(views),
+        captured,
         vplace.FitParams(
             cell_px=settings.cell_px,
             surface_only=settings.feature_mode == "auto",

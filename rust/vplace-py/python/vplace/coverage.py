@@ -1,0 +1,357 @@
+"""Coverage views: what a camera in the user's region can see, as views made without Blender.
+
+A layout fitted to the pixels of one camera serves those pixels: surfaces no capture saw get
+their VPLs from few, heavy off-screen draws, and a refit trades them away for the seen pixels
+(issue 20: from a second camera, bright splotches where the first saw nothing). So a job adds
+*coverage views*, chosen here, and lays out for all of them:
+
+- **Region.** Around each user camera ``c``, a ball of radius ``r`` (the user's, or
+  :data:`REGION_FRACTION` times the median distance rays from ``c`` travel before they hit a
+  surface: the room the camera stands in, whatever the scene's units).
+- **Candidates.** A cube of :data:`FACES` 90-degree views at ``c`` and at the points
+  ``c + r u`` of the region (``u`` the 6 axes and 8 diagonals; a point is pulled back from a
+  surface it would reach).
+- **Coverage.** Each candidate casts a :data:`PROBE` x :data:`PROBE` grid of rays; the surfaces
+  it sees are voxels (:data:`VOXELS` along the scene's diagonal, split by the normal's dominant
+  axis and sign, so the two faces of a wall differ). The user's captures cover theirs already.
+  Greedy set cover: the candidate that sees the most voxels not yet covered is added, until
+  ``count`` views or until the best adds less than :data:`MIN_GAIN` of what the region sees.
+- **The views.** Each picked view is a ``size`` x ``size`` G-buffer traced in the scene's BVH
+  (position, the geometric normal facing the eye, albedo through the textures), its direct
+  light from :func:`vplace.direct_light` (what Cycles' DiffDir holds), and as its indirect
+  image the light reflected by :data:`TARGET_VPLS` light-path VPLs
+  (:func:`vplace.uniform_vpls`, every bounce; physically derived powers, no fitting): the
+  iteration and the refit are held to it on the surfaces the captures did not see.
+
+No Cycles render is made: a coverage view costs rays only (about ``size^2`` primary rays,
+``samples`` shadow rays per pixel and emitter, and ``TARGET_VPLS`` shadow rays per pixel).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from vplace import _native
+
+#: The region's default radius: this fraction of the median free distance around a camera.
+REGION_FRACTION = 1.0
+#: A candidate point is kept this fraction of the free distance away from the surface it meets.
+WALL_MARGIN = 0.5
+#: Rays per side of a candidate's coverage probe.
+PROBE = 32
+#: Voxels along the scene's diagonal for the coverage count.
+VOXELS = 96
+#: Stop adding views when the best adds less than this share of what the region sees.
+MIN_GAIN = 0.02
+#: Light-path VPLs of a coverage view's indirect image.
+TARGET_VPLS = 512
+#: Direct-light samples per pixel and emitter.
+DIRECT_SAMPLES = 16
+#: Near and far clip of the coverage cameras, metres.
+NEAR, FAR = 0.02, 1.0e4
+
+#: The name of every coverage view starts with this.
+PREFIX = "coverage "
+
+
+def is_coverage(view: _native.View) -> bool:
+    """Whether ``view`` is a coverage view (made here, not captured)."""
+    return view.name.startswith(PREFIX)
+
+
+#: The six view directions of a cube (forward, up).
+FACES: tuple[tuple[tuple[float, float, float], tuple[float, float, float]], ...] = (
+    ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
+    ((-1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
+    ((0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
+    ((0.0, -1.0, 0.0), (0.0, 0.0, 1.0)),
+    ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0)),
+    ((0.0, 0.0, -1.0), (0.0, 1.0, 0.0)),
+)
+
+
+@dataclass(frozen=True)
+class Region:
+    """Where the user's camera may go, and how many coverage views stand for it."""
+
+    #: Coverage views to add (0: none, the layout sees the user's views only).
+    count: int = 4
+    #: Metres a camera may move from the user's; 0: :data:`REGION_FRACTION` of the free
+    #: distance around it.
+    radius: float = 0.0
+    #: Pixels per side of each coverage view.
+    size: int = 48
+
+    def validate(self) -> None:
+        """Raises ``ValueError`` for a region no job can use."""
+        if self.count < 0 or self.count > 16:
+            raise ValueError(f"coverage views must be 0 to 16, got {self.count}")
+        if not (self.radius >= 0.0 and math.isfinite(self.radius)):
+            raise ValueError(f"the region radius must be 0 (auto) or more, got {self.radius}")
+        if self.size < 8:
+            raise ValueError(f"coverage views must be at least 8 pixels, got {self.size}")
+
+
+@dataclass(frozen=True)
+class Pose:
+    """A coverage view's eye, forward and up directions (world)."""
+
+    eye: np.ndarray
+    forward: np.ndarray
+    up: np.ndarray
+
+    def world_to_clip(self) -> np.ndarray:
+        """(4, 4) OpenGL world-to-clip matrix of a 90-degree square view."""
+        f = self.forward / np.linalg.norm(self.forward)
+        right = np.cross(f, self.up)
+        right /= np.linalg.norm(right)
+        up = np.cross(right, f)
+        view = np.eye(4)
+        view[0, :3], view[1, :3], view[2, :3] = right, up, -f
+        view[:3, 3] = -view[:3, :3] @ self.eye
+        proj = np.zeros((4, 4))
+        proj[0, 0] = proj[1, 1] = 1.0  # cot(45 degrees)
+        proj[2, 2] = -(FAR + NEAR) / (FAR - NEAR)
+        proj[2, 3] = -2.0 * FAR * NEAR / (FAR - NEAR)
+        proj[3, 2] = -1.0
+        return proj @ view
+
+    def rays(self, size: int) -> tuple[np.ndarray, np.ndarray]:
+        """Unit directions (size*size, 3) through the pixel centres (row 0 at the top), and the
+        cosine of each with the forward axis (planar depth = distance x cosine)."""
+        f = self.forward / np.linalg.norm(self.forward)
+        right = np.cross(f, self.up)
+        right /= np.linalg.norm(right)
+        up = np.cross(right, f)
+        s = (np.arange(size) + 0.5) / size * 2.0 - 1.0
+        x, y = np.meshgrid(s, -s)
+        d = f[None, :] + x.reshape(-1, 1) * right + y.reshape(-1, 1) * up
+        norm = np.linalg.norm(d, axis=1, keepdims=True)
+        return (d / norm).astype(np.float32), (1.0 / norm[:, 0]).astype(np.float32)
+
+
+@dataclass
+class Coverage:
+    """The picked coverage views and what they cover."""
+
+    views: list[_native.View]
+    poses: list[Pose]
+    #: Share of the region's surface voxels the user's views cover, then with the coverage views.
+    covered_before: float
+    covered_after: float
+    radius: list[float] = field(default_factory=list)
+    seconds: float = 0.0
+
+    def describe(self) -> str:
+        """One line for the log and the report."""
+        return (
+            f"{len(self.views)} coverage views (region radius "
+            + ", ".join(f"{r:.2f}" for r in self.radius)
+            + f" m): the region's surfaces {self.covered_before:.0%} covered by the captures, "
+            f"{self.covered_after:.0%} with them ({self.seconds:.2f} s)"
+        )
+
+
+def _fibonacci(n: int) -> np.ndarray:
+    i = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * i / n
+    phi = i * math.pi * (3.0 - math.sqrt(5.0))
+    rxy = np.sqrt(1.0 - z * z)
+    return np.stack([rxy * np.cos(phi), rxy * np.sin(phi), z], axis=1).astype(np.float32)
+
+
+def _trace(scene: _native.Scene, origin: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+    """Hit distances of rays from ``origin`` (inf where they escape)."""
+    origins = np.ascontiguousarray(np.broadcast_to(origin.astype(np.float32), dirs.shape))
+    t, tri, _ = scene.intersect(origins, np.ascontiguousarray(dirs))
+    return np.where(tri >= 0, t, np.inf)
+
+
+def free_distance(scene: _native.Scene, eye: np.ndarray) -> float:
+    """Median distance rays from ``eye`` travel before a surface (the scene's diagonal when
+    most escape)."""
+    t = _trace(scene, eye, _fibonacci(256))
+    return float(min(np.median(t), scene.diagonal))
+
+
+def _candidates(
+    scene: _native.Scene, eyes: Sequence[np.ndarray], radii: Sequence[float]
+) -> list[Pose]:
+    axes = np.eye(3, dtype=np.float32)
+    diag = np.array(
+        [[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float32
+    ) / np.float32(math.sqrt(3.0))
+    dirs = np.concatenate([axes, -axes, diag])
+    points: list[np.ndarray] = []
+    for eye, r in zip(eyes, radii, strict=True):
+        points.append(eye)
+        t = _trace(scene, eye, dirs)
+        for u, ti in zip(dirs, t, strict=True):
+            reach = min(r, WALL_MARGIN * float(ti))
+            if reach > 0.1 * r:
+                points.append(eye + reach * u)
+    for i, a in enumerate(eyes):  # between the user's cameras, where nothing blocks the way
+        for b in eyes[i + 1 :]:
+            d = b - a
+            length = float(np.linalg.norm(d))
+            way = (d / max(length, 1e-12))[None, :].astype(np.float32)
+            if length > 0 and _trace(scene, a, way)[0] > length:
+                points.append((a + b) / 2.0)
+    return [
+        Pose(np.asarray(p, dtype=np.float64), np.array(f), np.array(u))
+        for p in points
+        for f, u in FACES
+    ]
+
+
+def _voxels(scene: _native.Scene, points: np.ndarray, normals: np.ndarray) -> set[int]:
+    lo, _ = scene.bounds
+    cell = scene.diagonal / VOXELS
+    ijk = np.floor((points - np.asarray(lo, dtype=np.float32)) / cell).astype(np.int64) + 1
+    axis = np.abs(normals).argmax(axis=1)
+    sign = np.take_along_axis(normals, axis[:, None], axis=1)[:, 0] > 0
+    n = VOXELS + 3
+    keys = ((ijk[:, 0] * n + ijk[:, 1]) * n + ijk[:, 2]) * 6 + axis * 2 + sign
+    return set(np.unique(keys).tolist())
+
+
+def _hits(
+    scene: _native.Scene, tris: np.ndarray, pose: Pose, size: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Position, geometric normal facing the eye, triangle and barycentrics of a pose's rays."""
+    dirs, cos = pose.rays(size)
+    origins = np.ascontiguousarray(np.broadcast_to(pose.eye.astype(np.float32), dirs.shape))
+    t, tri, bary = scene.intersect(origins, dirs)
+    hit = (tri >= 0) & (t * cos > NEAR)
+    pos = origins + dirs * np.where(hit, t, 0.0)[:, None]
+    normal = np.zeros_like(dirs)
+    if hit.any():
+        corners = tris[tri[hit]]
+        n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-20)
+        facing = np.sum(n * dirs[hit], axis=1) > 0
+        n[facing] *= -1.0
+        normal[hit] = n
+    return hit, pos.astype(np.float32), normal.astype(np.float32), tri, bary, t * cos
+
+
+def pick(
+    scene: _native.Scene,
+    triangles: np.ndarray,
+    user_views: Sequence[_native.View],
+    region: Region,
+) -> tuple[list[Pose], float, float, list[float]]:
+    """The coverage poses for ``user_views`` (greedy set cover, see the module docs), the share
+    of the region's voxels covered before and after, and the region's radius per view.
+    ``triangles``: (T, 3, 3) float32 corners of the scene's triangles."""
+    eyes = [np.asarray(v.camera_position, dtype=np.float32) for v in user_views]
+    radii = [region.radius or REGION_FRACTION * free_distance(scene, e) for e in eyes]
+    covered: set[int] = set()
+    for v in user_views:
+        mask = v.covered.ravel()
+        covered |= _voxels(scene, v.position.reshape(-1, 3)[mask], v.normal.reshape(-1, 3)[mask])
+    sets = []
+    poses = _candidates(scene, eyes, radii)
+    for pose in poses:
+        hit, pos, normal, *_ = _hits(scene, triangles, pose, PROBE)
+        sets.append(_voxels(scene, pos[hit], normal[hit]))
+    universe = set().union(covered, *sets)
+    seen_before = len(covered & universe) / max(len(universe), 1)
+    chosen: list[Pose] = []
+    while len(chosen) < region.count and sets:
+        gains = [len(s - covered) for s in sets]
+        best = int(np.argmax(gains))
+        if gains[best] < MIN_GAIN * len(universe):
+            break
+        chosen.append(poses[best])
+        covered |= sets[best]
+        del sets[best], poses[best]
+    return chosen, seen_before, len(covered & universe) / max(len(universe), 1), radii
+
+
+def coverage_view(
+    scene: _native.Scene,
+    triangles: np.ndarray,
+    pose: Pose,
+    size: int,
+    target: _native.VplSet,
+    *,
+    name: str,
+    seed: int = 0,
+) -> _native.View:
+    """A coverage view of ``pose``: traced G-buffer, direct light, ``target``'s indirect image."""
+    hit, pos, normal, tri, bary, depth = _hits(scene, triangles, pose, size)
+    albedo = np.zeros_like(pos)
+    if hit.any():
+        albedo[hit] = scene.albedo_at(
+            np.ascontiguousarray(tri[hit].astype(np.uint32)), np.ascontiguousarray(bary[hit])
+        )
+    shape = (size, size)
+    zeros = np.zeros((*shape, 3), np.float32)
+    common = dict(
+        position=pos.reshape(*shape, 3),
+        normal=normal.reshape(*shape, 3),
+        albedo=albedo.reshape(*shape, 3),
+        covered=hit.reshape(shape),
+        depth=np.where(hit, depth, 1e10).astype(np.float32).reshape(shape),
+        camera_position=tuple(float(c) for c in pose.eye),
+        world_to_clip=pose.world_to_clip().astype(np.float32),
+        name=name,
+    )
+    bare = _native.View(direct=zeros, diffuse_direct=zeros, **common)
+    diffuse_direct = _native.direct_light(scene, bare, samples=DIRECT_SAMPLES, seed=seed)
+    direct = diffuse_direct * common["albedo"]
+    lit = _native.View(direct=direct, diffuse_direct=diffuse_direct, **common)
+    indirect, _ = _native.evaluate(scene, lit, target)
+    rho = common["albedo"]
+    diffuse_indirect = np.where(rho > 1e-6, indirect / np.maximum(rho, 1e-6), 0.0).astype(
+        np.float32
+    )
+    return _native.View(
+        direct=direct,
+        diffuse_direct=diffuse_direct,
+        diffuse_indirect=diffuse_indirect,
+        indirect=np.ascontiguousarray(indirect, dtype=np.float32),
+        **common,
+    )
+
+
+def cover(
+    scene: _native.Scene,
+    triangles: np.ndarray,
+    user_views: Sequence[_native.View],
+    region: Region,
+    *,
+    seed: int = 0,
+    profile: str = "cosine",
+    radius: float | None = None,
+) -> Coverage:
+    """The coverage views of the region around ``user_views`` (see the module docs)."""
+    import time
+
+    region.validate()
+    start = time.perf_counter()
+    if region.count == 0 or not user_views:
+        return Coverage([], [], 1.0, 1.0)
+    poses, before, after, radii = pick(scene, triangles, user_views, region)
+    views = []
+    if poses:
+        target = _native.uniform_vpls(
+            scene,
+            TARGET_VPLS,
+            seed=seed + 7717,
+            bounces=_native.MAX_BOUNCES,
+            profile=profile,
+            radius=radius,
+        )
+        for i, pose in enumerate(poses):
+            views.append(
+                coverage_view(
+                    scene, triangles, pose, region.size, target, name=f"{PREFIX}{i + 1}", seed=seed
+                )
+            )
+    return Coverage(views, poses, before, after, radii, time.perf_counter() - start)
