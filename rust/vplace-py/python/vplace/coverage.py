@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from vplace import _native
+from vplace._native import MAX_BOUNCES, Scene, View, VplSet, direct_light, evaluate, uniform_vpls
 
 #: The region's default radius: this fraction of the median free distance around a camera.
 REGION_FRACTION = 1.0
@@ -58,7 +58,7 @@ NEAR, FAR = 0.02, 1.0e4
 PREFIX = "coverage "
 
 
-def is_coverage(view: _native.View) -> bool:
+def is_coverage(view: View) -> bool:
     """Whether ``view`` is a coverage view (made here, not captured)."""
     return view.name.startswith(PREFIX)
 
@@ -138,7 +138,7 @@ class Pose:
 class Coverage:
     """The picked coverage views and what they cover."""
 
-    views: list[_native.View]
+    views: list[View]
     poses: list[Pose]
     #: Share of the region's surface voxels the user's views cover, then with the coverage views.
     covered_before: float
@@ -164,23 +164,21 @@ def _fibonacci(n: int) -> np.ndarray:
     return np.stack([rxy * np.cos(phi), rxy * np.sin(phi), z], axis=1).astype(np.float32)
 
 
-def _trace(scene: _native.Scene, origin: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+def _trace(scene: Scene, origin: np.ndarray, dirs: np.ndarray) -> np.ndarray:
     """Hit distances of rays from ``origin`` (inf where they escape)."""
     origins = np.ascontiguousarray(np.broadcast_to(origin.astype(np.float32), dirs.shape))
     t, tri, _ = scene.intersect(origins, np.ascontiguousarray(dirs))
     return np.where(tri >= 0, t, np.inf)
 
 
-def free_distance(scene: _native.Scene, eye: np.ndarray) -> float:
+def free_distance(scene: Scene, eye: np.ndarray) -> float:
     """Median distance rays from ``eye`` travel before a surface (the scene's diagonal when
     most escape)."""
     t = _trace(scene, eye, _fibonacci(256))
     return float(min(np.median(t), scene.diagonal))
 
 
-def _candidates(
-    scene: _native.Scene, eyes: Sequence[np.ndarray], radii: Sequence[float]
-) -> list[Pose]:
+def _candidates(scene: Scene, eyes: Sequence[np.ndarray], radii: Sequence[float]) -> list[Pose]:
     axes = np.eye(3, dtype=np.float32)
     diag = np.array(
         [[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float32
@@ -208,7 +206,7 @@ def _candidates(
     ]
 
 
-def _voxels(scene: _native.Scene, points: np.ndarray, normals: np.ndarray) -> set[int]:
+def _voxels(scene: Scene, points: np.ndarray, normals: np.ndarray) -> set[int]:
     lo, _ = scene.bounds
     cell = scene.diagonal / VOXELS
     ijk = np.floor((points - np.asarray(lo, dtype=np.float32)) / cell).astype(np.int64) + 1
@@ -220,7 +218,7 @@ def _voxels(scene: _native.Scene, points: np.ndarray, normals: np.ndarray) -> se
 
 
 def _hits(
-    scene: _native.Scene, tris: np.ndarray, pose: Pose, size: int
+    scene: Scene, tris: np.ndarray, pose: Pose, size: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Position, geometric normal facing the eye, triangle and barycentrics of a pose's rays."""
     dirs, cos = pose.rays(size)
@@ -240,9 +238,9 @@ def _hits(
 
 
 def pick(
-    scene: _native.Scene,
+    scene: Scene,
     triangles: np.ndarray,
-    user_views: Sequence[_native.View],
+    user_views: Sequence[View],
     region: Region,
 ) -> tuple[list[Pose], float, float, list[float]]:
     """The coverage poses for ``user_views`` (greedy set cover, see the module docs), the share
@@ -274,15 +272,15 @@ def pick(
 
 
 def coverage_view(
-    scene: _native.Scene,
+    scene: Scene,
     triangles: np.ndarray,
     pose: Pose,
     size: int,
-    target: _native.VplSet,
+    target: VplSet,
     *,
     name: str,
     seed: int = 0,
-) -> _native.View:
+) -> View:
     """A coverage view of ``pose``: traced G-buffer, direct light, ``target``'s indirect image."""
     hit, pos, normal, tri, bary, depth = _hits(scene, triangles, pose, size)
     albedo = np.zeros_like(pos)
@@ -302,16 +300,16 @@ def coverage_view(
         world_to_clip=pose.world_to_clip().astype(np.float32),
         name=name,
     )
-    bare = _native.View(direct=zeros, diffuse_direct=zeros, **common)
-    diffuse_direct = _native.direct_light(scene, bare, samples=DIRECT_SAMPLES, seed=seed)
+    bare = View(direct=zeros, diffuse_direct=zeros, **common)
+    diffuse_direct = direct_light(scene, bare, samples=DIRECT_SAMPLES, seed=seed)
     direct = diffuse_direct * common["albedo"]
-    lit = _native.View(direct=direct, diffuse_direct=diffuse_direct, **common)
-    indirect, _ = _native.evaluate(scene, lit, target)
+    lit = View(direct=direct, diffuse_direct=diffuse_direct, **common)
+    indirect, _ = evaluate(scene, lit, target)
     rho = common["albedo"]
     diffuse_indirect = np.where(rho > 1e-6, indirect / np.maximum(rho, 1e-6), 0.0).astype(
         np.float32
     )
-    return _native.View(
+    return View(
         direct=direct,
         diffuse_direct=diffuse_direct,
         diffuse_indirect=diffuse_indirect,
@@ -321,9 +319,9 @@ def coverage_view(
 
 
 def cover(
-    scene: _native.Scene,
+    scene: Scene,
     triangles: np.ndarray,
-    user_views: Sequence[_native.View],
+    user_views: Sequence[View],
     region: Region,
     *,
     seed: int = 0,
@@ -340,11 +338,11 @@ def cover(
     poses, before, after, radii = pick(scene, triangles, user_views, region)
     views = []
     if poses:
-        target = _native.uniform_vpls(
+        target = uniform_vpls(
             scene,
             TARGET_VPLS,
             seed=seed + 7717,
-            bounces=_native.MAX_BOUNCES,
+            bounces=MAX_BOUNCES,
             profile=profile,
             radius=radius,
         )
