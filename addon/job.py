@@ -163,10 +163,6 @@ class Prepared:
         """The written VPLs' specular factor (``writeback.stage.vpl_specular``)."""
         return vpl_specular(self.exported)
 
-    def radius(self, job: Job) -> float:
-        """The job's near-field radius in this scene."""
-        return job.radius if job.radius is not None else self.scene.near_field_radius
-
 
 def prepare(
     bl_scene: bpy.types.Scene,
@@ -221,7 +217,7 @@ def prepare(
                 job.views.region(),
                 seed=job.seed,
                 profile=job.profile,
-                radius=job.radius if job.radius is not None else scene.near_field_radius,
+                radius=job.radius_in(scene),
             )
         timer.log(f"[vplace] {cover.describe()}")
     ref = None

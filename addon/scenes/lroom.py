@@ -32,10 +32,8 @@ from .rooms import (
     _principled,
     _render_settings,
     _write,
-    packed_image,
-    plank_texture,
     plant,
-    room_shell,
+    plastered_shell,
     sofa,
     table,
 )
@@ -44,7 +42,7 @@ LROOM_BLEND = REPO / "blend_scenes" / "lroom" / "lroom.blend"
 #: The interior box, ``(min corner, max corner)`` in metres; :data:`LROOM_BLOCK` fills part of it.
 LROOM_INTERIOR = ((-3.0, -2.0, 0.0), (3.0, 2.0, 2.8))
 #: The solid block that makes the L (its faces at ``x = 0`` and ``y = 0`` are walls).
-LROOM_BLOCK = ((0.0, -2.0, 0.0), (3.0, 0.0, 2.8))
+LROOM_BLOCK: tuple[Vec3, Vec3] = ((0.0, -2.0, 0.0), (3.0, 0.0, 2.8))
 #: The sun: irradiance (W/m^2), elevation and the heading it shines toward (radians from +x,
 #: counter-clockwise): from the east, low enough to reach the wing's floor through its window.
 SUN_STRENGTH = 6.0
@@ -107,26 +105,9 @@ def build_lroom(scene: bpy.types.Scene | None = None) -> bpy.types.Scene:
     """Adds the L-shaped room (see the module docs) to ``scene``."""
     scene = scene or bpy.context.scene
     coll = scene.collection
-    white = _principled("Plaster white", (0.75, 0.74, 0.7))
-    floor = _principled(
-        "Wooden floor", (0.3, 0.16, 0.07), 0.6, image=packed_image("Wooden planks", plank_texture())
-    )
-    room_shell(
-        coll,
-        LROOM_INTERIOR,
-        floor,
-        _principled("Ceiling white", (0.8, 0.8, 0.78)),
-        {
-            "north": _principled("Terracotta wall", (0.7, 0.22, 0.08)),
-            "south": white,
-            "east": _principled("Sage green wall", (0.2, 0.45, 0.22)),
-            "west": white,
-        },
-        windows={"east": [(1.0, 1.2, 0.8, 1.4)], "west": [(-0.8, 0.8, 1.0, 1.0)]},
-    )
-    lo, hi = LROOM_BLOCK
-    block: tuple[Vec3, Vec3] = (lo, hi)
-    _boxes("Corner block", [block], _principled("Block yellow", (0.75, 0.6, 0.25)), coll)
+    windows = {"east": [(1.0, 1.2, 0.8, 1.4)], "west": [(-0.8, 0.8, 1.0, 1.0)]}
+    plastered_shell(coll, LROOM_INTERIOR, windows)
+    _boxes("Corner block", [LROOM_BLOCK], _principled("Block yellow", (0.75, 0.6, 0.25)), coll)
     wood = _principled("Dark wood", (0.12, 0.06, 0.03), 0.5)
     table("Table", (-1.8, 0.6), (1.2, 0.8, 0.75), wood, coll)
     sofa("Sofa", (0.9, 1.1), (2.5, 1.95), "+y", _principled("Sofa fabric", (0.5, 0.1, 0.12)), coll)

@@ -488,6 +488,33 @@ def room_shell(
         _boxes(name, wall_boxes(lo, hi, axis, holes), walls[side], collection)
 
 
+def plastered_shell(
+    collection: bpy.types.Collection,
+    interior: tuple[Vec3, Vec3],
+    windows: dict[str, Sequence[Window]],
+) -> None:
+    """:func:`room_shell` with a textured wooden floor, a white ceiling, a terracotta north
+    wall, a sage-green east wall and white plaster south and west (the sky room's and the
+    L-shaped room's walls)."""
+    white = _principled("Plaster white", (0.75, 0.74, 0.7))
+    floor = _principled(
+        "Wooden floor", (0.3, 0.16, 0.07), 0.6, image=packed_image("Wooden planks", plank_texture())
+    )
+    room_shell(
+        collection,
+        interior,
+        floor,
+        _principled("Ceiling white", (0.8, 0.8, 0.78)),
+        {
+            "north": _principled("Terracotta wall", (0.7, 0.22, 0.08)),
+            "south": white,
+            "east": _principled("Sage green wall", (0.2, 0.45, 0.22)),
+            "west": white,
+        },
+        windows=windows,
+    )
+
+
 def table(
     name: str,
     centre: tuple[float, float],
@@ -652,22 +679,10 @@ def build_skyroom(scene: bpy.types.Scene | None = None) -> bpy.types.Scene:
     """Adds the sky-lit room (see the module docs) to ``scene``."""
     scene = scene or bpy.context.scene
     coll = scene.collection
-    white = _principled("Plaster white", (0.75, 0.74, 0.7))
-    floor = _principled(
-        "Wooden floor", (0.3, 0.16, 0.07), 0.6, image=packed_image("Wooden planks", plank_texture())
-    )
-    room_shell(
+    plastered_shell(
         coll,
         SKYROOM_INTERIOR,
-        floor,
-        _principled("Ceiling white", (0.8, 0.8, 0.78)),
         {
-            "north": _principled("Terracotta wall", (0.7, 0.22, 0.08)),
-            "south": white,
-            "east": _principled("Sage green wall", (0.2, 0.45, 0.22)),
-            "west": white,
-        },
-        windows={
             "south": [(-1.5, 1.2, 0.8, 1.5), (1.2, 1.2, 0.8, 1.5)],
             "west": [(0.6, 1.0, 0.9, 1.4)],
         },

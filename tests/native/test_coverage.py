@@ -3,28 +3,10 @@
 import numpy as np
 import pytest
 import vplace
-from test_layout import box_scene
+from test_layout import box_mesh, box_scene
 from vplace import coverage, job
 
-BOX_V = np.array(
-    [
-        p
-        for q in [
-            [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)],
-            [(-1, -1, 2), (-1, 1, 2), (1, 1, 2), (1, -1, 2)],
-            [(-1, -1, 0), (-1, 1, 0), (-1, 1, 2), (-1, -1, 2)],
-            [(1, -1, 0), (1, -1, 2), (1, 1, 2), (1, 1, 0)],
-            [(-1, 1, 0), (1, 1, 0), (1, 1, 2), (-1, 1, 2)],
-            [(-1, -1, 0), (-1, -1, 2), (1, -1, 2), (1, -1, 0)],
-        ]
-        for p in q
-    ],
-    dtype=np.float32,
-)
-BOX_T = np.array(
-    [[b, b + 1, b + 2] for b in range(0, 24, 4)] + [[b, b + 2, b + 3] for b in range(0, 24, 4)],
-    dtype=np.uint32,
-)
+BOX_V, BOX_T = box_mesh()
 
 
 @pytest.fixture(scope="module")

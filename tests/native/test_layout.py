@@ -13,8 +13,8 @@ POWER = 20.0
 LUM = np.array(vplace.LUMINANCE)
 
 
-def box_scene() -> vplace.Scene:
-    """The box [-1, 1]^2 x [0, 2], inward faces, albedo 0.5, a point light inside."""
+def box_mesh() -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and triangles of the box [-1, 1]^2 x [0, 2], faces inward."""
     corners = [
         [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)],
         [(-1, -1, 2), (-1, 1, 2), (1, 1, 2), (1, -1, 2)],
@@ -28,6 +28,12 @@ def box_scene() -> vplace.Scene:
         [[b, b + 1, b + 2] for b in range(0, 24, 4)] + [[b, b + 2, b + 3] for b in range(0, 24, 4)],
         dtype=np.uint32,
     )
+    return v, t
+
+
+def box_scene() -> vplace.Scene:
+    """The box of :func:`box_mesh`, albedo 0.5, a point light inside."""
+    v, t = box_mesh()
     ids = np.zeros(len(t), dtype=np.uint32)
     albedo = np.array([[0.5, 0.5, 0.5]], dtype=np.float32)
     return vplace.Scene(v, t, ids, albedo, [vplace.Light.point(LIGHT.tolist(), [POWER] * 3)])

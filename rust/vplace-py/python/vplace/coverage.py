@@ -30,6 +30,7 @@ No Cycles render is made: a coverage view costs rays only (about ``size^2`` prim
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -104,12 +105,16 @@ class Pose:
     forward: np.ndarray
     up: np.ndarray
 
-    def world_to_clip(self) -> np.ndarray:
-        """(4, 4) OpenGL world-to-clip matrix of a 90-degree square view."""
+    def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Unit forward, right and up vectors of the view (right-handed, up orthogonalized)."""
         f = self.forward / np.linalg.norm(self.forward)
         right = np.cross(f, self.up)
         right /= np.linalg.norm(right)
-        up = np.cross(right, f)
+        return f, right, np.cross(right, f)
+
+    def world_to_clip(self) -> np.ndarray:
+        """(4, 4) OpenGL world-to-clip matrix of a 90-degree square view."""
+        f, right, up = self.basis()
         view = np.eye(4)
         view[0, :3], view[1, :3], view[2, :3] = right, up, -f
         view[:3, 3] = -view[:3, :3] @ self.eye
@@ -123,10 +128,7 @@ class Pose:
     def rays(self, size: int) -> tuple[np.ndarray, np.ndarray]:
         """Unit directions (size*size, 3) through the pixel centres (row 0 at the top), and the
         cosine of each with the forward axis (planar depth = distance x cosine)."""
-        f = self.forward / np.linalg.norm(self.forward)
-        right = np.cross(f, self.up)
-        right /= np.linalg.norm(right)
-        up = np.cross(right, f)
+        f, right, up = self.basis()
         s = (np.arange(size) + 0.5) / size * 2.0 - 1.0
         x, y = np.meshgrid(s, -s)
         d = f[None, :] + x.reshape(-1, 1) * right + y.reshape(-1, 1) * up
@@ -329,8 +331,6 @@ def cover(
     radius: float | None = None,
 ) -> Coverage:
     """The coverage views of the region around ``user_views`` (see the module docs)."""
-    import time
-
     region.validate()
     start = time.perf_counter()
     if region.count == 0 or not user_views:

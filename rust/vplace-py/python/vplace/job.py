@@ -82,6 +82,10 @@ class LayoutSettings:
     #: One of :data:`FEATURE_MODES`.
     feature_mode: str = "auto"
 
+    def radius_in(self, scene: vplace.Scene) -> float:
+        """The near-field radius in ``scene``: :attr:`radius`, or the scene's own."""
+        return self.radius if self.radius is not None else scene.near_field_radius
+
 
 def fit(scene: vplace.Scene, views: Sequence[vplace.View], settings: LayoutSettings) -> vplace.Fit:
     """The regression on ``views`` with the settings' cells and feature mode. Coverage views
@@ -125,7 +129,7 @@ def lay_out(
     give a one-shot layout); ``fitted`` is the model (fitted here when None)."""
     timer = timer or quiet_timer()
     n = settings.n_vpls
-    radius = settings.radius if settings.radius is not None else scene.near_field_radius
+    radius = settings.radius_in(scene)
     views = list(views)
     profile = settings.profile
     start = time.perf_counter()
