@@ -156,6 +156,11 @@ def _report_options(sub: argparse._SubParsersAction) -> None:
         "--held-out-cameras", nargs="+", default=[], metavar="NAME",
         help="with --blend: cameras scored with the same lights, never laid out for",
     )  # fmt: skip
+    rep.add_argument(
+        "--generated-views", type=int, default=None, metavar="N",
+        help="held-out views to make in the region around the first fit camera (0-8; default: "
+        "2 where the scene names no held-out camera, else 0)",
+    )  # fmt: skip
     rep.add_argument("--budgets", type=int, nargs="+", default=[16, 64, 256, 1024])
     rep.add_argument("--methods", nargs="+", default=["uniform", "rsm", "vplace", "vplace+refit"])
     rep.add_argument("--out", type=Path, default=Path("out/report"))
@@ -258,6 +263,7 @@ def run(args: argparse.Namespace) -> None:
             cache_dir=args.cache,
             coverage=args.coverage,
             region_radius=args.region_radius,
+            generated_views=args.generated_views,
         )
         if args.eevee_samples is not None:
             config.eevee_samples = args.eevee_samples

@@ -353,6 +353,8 @@ def summary(
         evaluator.best_iteration = laid.layout.best
     if laid.refit is not None:
         evaluator.refit_error = [laid.refit.error_before, laid.refit.error_after]
+        evaluator.refit_ridge = laid.refit.ridge
+        evaluator.refit_cv = [list(c) for c in laid.refit.cv] or None
     return vplace.job.JobSummary(
         scene=scene_label(bl_scene),
         triangles=prepared.scene.triangle_count,

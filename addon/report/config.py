@@ -36,11 +36,20 @@ GRID_BUDGET = 256
 #: held-out views against the fit views' mean, EEVEE against the evaluator.
 SSIM_MARGIN = 0.05
 HELD_OUT_SPREAD = 0.03
+#: Issue 20: the one-time cost for one camera's region at most this many Cycles + OIDN frames
+#: of that camera at this many samples, the same size.
+COST_FRAMES = 2
+COST_SAMPLES = 16
 EEVEE_SPREAD = 0.02
 BRIGHTNESS_TOLERANCE = 0.03
 FIT_VIEW_SSIM = 0.90
 #: The default capture's layout against the curve's largest sample count.
 CAPTURE_SPREAD = 0.01
+#: Held-out views made around the fit camera of a scene that names none, and the most allowed.
+GENERATED_VIEWS = 2
+MAX_GENERATED = 8
+#: The name of a made held-out view's camera (removed when the scene's report is done).
+GENERATED_PREFIX = "vplace held-out "
 
 
 @dataclass(frozen=True)
@@ -143,6 +152,16 @@ class ReportConfig:
     #: Ray-traced coverage views of the region around the fit cameras (``vplace.coverage``).
     coverage: int = 0
     region_radius: float = 0.0
+    #: Held-out views made in the region around the first fit camera (``vplace.coverage.
+    #: held_out_poses``): None, :data:`GENERATED_VIEWS` where the scene names no held-out
+    #: camera (so every run scores views the lights were not laid out for), else none.
+    generated_views: int | None = None
+
+    def generated_for(self, preset: ScenePreset) -> int:
+        """How many held-out views the report makes for ``preset``."""
+        if self.generated_views is not None:
+            return self.generated_views
+        return 0 if preset.held_out_views else GENERATED_VIEWS
 
     def presets(self) -> list[ScenePreset]:
         """The scenes to run. A .blend is named after its file and captured at the main job's
@@ -167,6 +186,10 @@ class ReportConfig:
             vplace.coverage.Region(self.coverage, self.region_radius).validate()
         except ValueError as err:
             raise ReportError(str(err)) from None
+        if self.generated_views is not None and not 0 <= self.generated_views <= MAX_GENERATED:
+            raise ReportError(
+                f"generated views must be 0 to {MAX_GENERATED}, got {self.generated_views}"
+            )
         unknown = [m for m in self.methods if m not in METHODS]
         if unknown:
             raise ReportError(f"unknown methods {unknown}: choose from {list(METHODS)}")
@@ -235,6 +258,8 @@ class RowDetails:
     refit_seconds: float | None = None
     refit_error_before: float | None = None
     refit_error_after: float | None = None
+    #: The refit's ridge (chosen by cross-validation over blocks of the captured pixels).
+    refit_ridge: float | None = None
     switched_off: int | None = None
     #: Rows averaged over seeds (``summary.aggregate``): how many, each seed's scores, spreads.
     seeds: int | None = None

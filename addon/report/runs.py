@@ -43,6 +43,7 @@ from typing import Any
 
 import bpy
 import numpy as np
+from mathutils import Matrix, Vector
 
 from .. import job as pipeline
 from ..capture import passes as capture
@@ -58,6 +59,7 @@ from .config import (
     CAPTURE_CURVE,
     CAPTURE_SEED,
     CURVE_SEED,
+    GENERATED_PREFIX,
     RELAYOUT,
     TRUTH_SEED,
     WITH_RT,
@@ -105,6 +107,48 @@ class SceneData:
     capture_seconds: float
 
 
+def generate_held_out(
+    bl_scene: bpy.types.Scene,
+    prepared: pipeline.Prepared,
+    camera: bpy.types.Object,
+    count: int,
+    config: ReportConfig,
+) -> list[bpy.types.Object]:
+    """``count`` new cameras (copies of ``camera``'s lens) at the poses of
+    ``vplace.coverage.held_out_poses`` around ``camera``, linked to ``bl_scene``; named
+    :data:`GENERATED_PREFIX` ``k``. :func:`remove_generated` takes them out again."""
+    m = camera.matrix_world
+    eye = list(m.translation)
+    forward = list(m.to_3x3() @ Vector((0.0, 0.0, -1.0)))
+    poses = vplace.coverage.held_out_poses(
+        prepared.scene, eye, forward, count, seed=0, radius=config.region_radius
+    )
+    if len(poses) < count:
+        raise ReportError(
+            f"only {len(poses)} of {count} held-out views fit around {camera.name!r} "
+            "(set --generated-views or name --held-out-cameras)"
+        )
+    made = []
+    for k, pose in enumerate(poses, start=1):
+        f, right, up = pose.basis()
+        rot = Matrix((right, up, -f)).transposed()  # columns: the camera's x, y and z axes
+        data = camera.data.copy()
+        obj = bpy.data.objects.new(f"{GENERATED_PREFIX}{k}", data)
+        obj.matrix_world = Matrix.Translation(Vector(pose.eye.tolist())) @ rot.to_4x4()
+        bl_scene.collection.objects.link(obj)
+        made.append(obj)
+    return made
+
+
+def remove_generated() -> None:
+    """Removes the cameras :func:`generate_held_out` made (and their camera data)."""
+    for obj in [o for o in bpy.data.objects if o.name.startswith(GENERATED_PREFIX)]:
+        data = obj.data
+        bpy.data.objects.remove(obj)
+        if data is not None and data.users == 0:
+            bpy.data.cameras.remove(data)
+
+
 def load_scene(
     bl_scene: bpy.types.Scene,
     preset: ScenePreset,
@@ -137,8 +181,15 @@ def load_scene(
     prepared = pipeline.prepare(bl_scene, job, timer, views=specs)
     if prepared.skipped:
         raise ReportError(f"fit views left out: {prepared.skipped}")
+    held_out = list(preset.held_out_views)
+    made = config.generated_for(preset)
+    if made:
+        for cam in generate_held_out(bl_scene, prepared, cams[preset.fit_views[0]], made, config):
+            cams[cam.name] = cam
+            held_out.append(cam.name)
+        log(f"[vplace] {made} held-out views made in the region: {held_out[-made:]}")
     views = []
-    for name in (*preset.fit_views, *preset.held_out_views):
+    for name in (*preset.fit_views, *held_out):
         role = "fit" if name in preset.fit_views else "held-out"
         with timer.stage(f"ground truth {name} ({truth_samples} spp, cached)"):
             truth = capture.capture(
@@ -232,6 +283,7 @@ def lay_out_all(
                         refit_seconds=guided.refit_seconds,
                         refit_error_before=refitted.error_before,
                         refit_error_after=refitted.error_after,
+                        refit_ridge=refitted.ridge,
                         switched_off=int((refitted.scales == 0).sum()),
                     )
                 rows.append(LaidSet(method, n, seed, vpls, t, details))
@@ -571,12 +623,28 @@ def run_scene(
     log: Callable[[str], None],
 ) -> tuple[list[Row], dict[str, Any]]:
     """Every view of one scene: rows, plus the fit summary and image paths."""
-    from . import plots as report_plots
 
     blend = preset.blend or default_scene.builtin_scene(preset.name)
     default_scene.open_blend(blend)
     log(f"[vplace] report: {preset.name} ({blend.name})")
     bl_scene = bpy.context.scene
+    try:
+        return _run_scene(bl_scene, preset, config, out, cache_dir, log)
+    finally:
+        remove_generated()
+
+
+def _run_scene(
+    bl_scene: bpy.types.Scene,
+    preset: ScenePreset,
+    config: ReportConfig,
+    out: Path,
+    cache_dir: Path,
+    log: Callable[[str], None],
+) -> tuple[list[Row], dict[str, Any]]:
+    """:func:`run_scene` on the opened scene."""
+    from . import plots as report_plots
+
     data = load_scene(bl_scene, preset, config, cache_dir, log)
     fit_seconds, fitted = _timed(lambda: pipeline.fit(data.prepared, data.job))
     log(

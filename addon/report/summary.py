@@ -15,6 +15,8 @@ from .config import (
     BRIGHTNESS_TOLERANCE,
     CAPTURE_CURVE,
     CAPTURE_SPREAD,
+    COST_FRAMES,
+    COST_SAMPLES,
     EEVEE_SPREAD,
     FIT_VIEW_SSIM,
     HELD_OUT_SPREAD,
@@ -193,6 +195,23 @@ def targets(rows: list[Row]) -> list[dict[str, Any]]:
                         gap >= SSIM_MARGIN,
                         f"{shown.ssim:.4f} against {volume.ssim:.4f}: {gap:+.4f}",
                     )
+        once = [ours[v] for v in fit_views if ours.get(v) is not None]
+        cycles = [
+            r
+            for r in mine
+            if r.method == "cycles+oidn" and r.samples == COST_SAMPLES and r.view in fit_views
+        ]
+        if once and cycles:
+            # Captures, fit, layout and refit (coverage views included), per fit camera.
+            per_camera = once[0].one_time_seconds / len(fit_views)
+            frame = float(np.mean([r.frame_seconds for r in cycles]))
+            check(
+                f"{scene} N={n}: one-time cost per camera at most {COST_FRAMES} Cycles + OIDN "
+                f"{COST_SAMPLES} spp frames",
+                per_camera / frame,
+                per_camera <= COST_FRAMES * frame,
+                f"{per_camera:.2f} s per camera against {frame:.2f} s a frame",
+            )
         curve = [r for r in mine if r.method == CAPTURE_CURVE and r.role == "fit"]
         spps = sorted({r.samples for r in curve if r.samples})
         default = pipeline.Job().samples

@@ -3,9 +3,10 @@
 Re-running replaces that collection and the lights in it, and nothing else. The lights are the
 ones the evaluator renders (``vplace.VplSet`` carries profile and near-field radius):
 
-- cosine profile: an AREA disk of diameter ``2 R`` (``R`` the set's near-field radius) facing
-  along the surface normal, power ``Phi``: Blender's disk is exactly the near-field kernel of
-  ``vplace_core::shading``, so EEVEE and Cycles show no hot spot the evaluator did not compute.
+- cosine profile: an AREA disk of diameter ``2 R_j`` (``R_j`` the VPL's near-field radius,
+  ``VplSet.radii``: the patch it stands for) facing along the surface normal, power ``Phi``:
+  Blender's disk is exactly the near-field kernel of ``vplace_core::shading``, so EEVEE and
+  Cycles show no hot spot the evaluator did not compute.
   Omni profile: a POINT light of radius 0, power ``2 Phi``, a point on both sides (its near
   field is singular in Blender and in the evaluator alike; see ``shading.rs``).
 - ``diffuse_factor`` 1, ``transmission_factor`` and ``volume_factor`` 0. ``specular_factor``
@@ -254,7 +255,8 @@ def write_vpls(
             f"{n} VPLs is more than EEVEE can render ({MAX_VPLS}); lower the VPL budget"
         )
     find_collection(name)  # refuses a foreign collection of that name before any change
-    radius = vpls.radius if vpls.radius > 0 else 0.5 * POINT_DISK_DIAGONALS * scene_diagonal
+    point = 0.5 * POINT_DISK_DIAGONALS * scene_diagonal
+    radii = vpls.radii if vpls.radius > 0 else np.full(n, point, dtype=np.float32)
     position, normal, flux = vpls.position, vpls.normal, vpls.flux
     power = vpls.blender_power
     # Build the new collection unlinked; only a complete one replaces the old one.
@@ -273,7 +275,7 @@ def write_vpls(
                 flux[i],
                 power[i],
                 vpls.profile,
-                radius,
+                float(radii[i]),
                 CUTOFF_DIAGONALS * scene_diagonal,
                 shadows and int(i) in shadowed,
                 SHADOW_TEXEL_DIAGONALS * scene_diagonal,

@@ -117,6 +117,7 @@ CASES = [
     Case(["report", "--budgets", "16", "-5"], "budgets must be positive VPL counts, got [16, -5]"),
     Case(["report", "--methods", "magic"], "unknown methods ['magic']"),
     Case(["report", "--coverage", "99"], "coverage views must be 0 to 16, got 99"),
+    Case(["report", "--generated-views", "9"], "generated views must be 0 to 8, got 9"),
     Case(["report", "--eevee-methods", "magic"], "unknown EEVEE methods ['magic']"),
     Case(["report", "--alternatives", "magic"], "unknown alternatives ['magic']"),
     Case(["report", "--capture-samples", "0"], "capture samples must be at least 1, got 0"),

@@ -6,6 +6,7 @@ import csv
 import json
 
 import bpy
+import mathutils
 import numpy as np
 import pytest
 
@@ -299,3 +300,50 @@ def test_a_blend_is_named_after_its_file_and_captured_at_the_main_jobs_samples(t
         assert bpy.context.scene.vplace.samples == Job.samples
     finally:
         addon.unregister()
+
+
+def test_the_one_time_cost_is_checked_against_two_cycles_frames_per_camera():
+    rows = [
+        _row("A", "vplace+refit", 256, 0.9, one_time_seconds=6.0),
+        _row("B", "vplace+refit", 256, 0.9, one_time_seconds=6.0),
+        _row("A", "cycles+oidn", None, 0.8, renderer="cycles", samples=16, frame_seconds=1.0),
+        _row("B", "cycles+oidn", None, 0.8, renderer="cycles", samples=16, frame_seconds=2.0),
+        _row("A", "cycles+oidn", None, 0.7, renderer="cycles", samples=4, frame_seconds=0.1),
+    ]
+    name = "s N=256: one-time cost per camera at most 2 Cycles + OIDN 16 spp frames"
+    cost = {c["check"]: c for c in summary.targets(rows)}[name]
+    # 6 s for two cameras: 3 s a camera, against 2 x 1.5 s.
+    assert cost["met"] and cost["value"] == pytest.approx(2.0)
+    rows[0] = _row("A", "vplace+refit", 256, 0.9, one_time_seconds=6.2)
+    assert not {c["check"]: c for c in summary.targets(rows)}[name]["met"]
+
+
+def test_held_out_views_are_made_in_the_region_and_removed_after():
+    from types import SimpleNamespace
+
+    from addon.report.config import GENERATED_PREFIX, ScenePreset
+    from addon.scene.convert import build_scene
+    from addon.scene.export import export_scene
+
+    default_scene.open_blend(default_scene.builtin_scene("cornell"))
+    scene = bpy.context.scene
+    cam = scene.objects["Cornell camera"]
+    cameras, objects = len(bpy.data.cameras), len(bpy.data.objects)
+    native = build_scene(export_scene(scene))
+    made = report.generate_held_out(scene, SimpleNamespace(scene=native), cam, 2, ReportConfig())
+    assert [o.name for o in made] == [f"{GENERATED_PREFIX}1", f"{GENERATED_PREFIX}2"]
+    for obj in made:
+        assert obj.type == "CAMERA" and obj.data is not cam.data and obj.data.lens == cam.data.lens
+        assert obj.name in scene.objects
+        assert (obj.matrix_world.translation - cam.matrix_world.translation).length > 0
+        # Turned away from the camera's heading, level.
+        fwd = obj.matrix_world.to_3x3() @ mathutils.Vector((0, 0, -1))
+        assert abs(fwd.z) < 1e-5
+    report.remove_generated()
+    assert (len(bpy.data.cameras), len(bpy.data.objects)) == (cameras, objects)
+    # Made only where the scene names no held-out camera, unless asked.
+    named = ScenePreset("x", ("A",), ("B",), (8, 8), 1, 1)
+    bare = ScenePreset("x", ("A",), (), (8, 8), 1, 1)
+    assert ReportConfig().generated_for(named) == 0
+    assert ReportConfig().generated_for(bare) == 2
+    assert ReportConfig(generated_views=1).generated_for(named) == 1

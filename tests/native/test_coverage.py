@@ -77,3 +77,26 @@ def test_bad_regions_are_refused(region, message):
 def test_no_coverage_views_when_off(scene):
     cov = coverage.cover(scene, BOX_V[BOX_T], [user_view(scene)], coverage.Region(count=0))
     assert cov.views == [] and cov.poses == []
+
+
+def test_held_out_poses_stay_in_the_region_and_look_elsewhere(scene):
+    eye, forward = np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])
+    poses = coverage.held_out_poses(scene, eye, forward, 5, seed=3)
+    assert len(poses) == 5
+    radius = coverage.REGION_FRACTION * coverage.free_distance(scene, eye.astype(np.float32))
+    lo, hi = (np.asarray(b) for b in scene.bounds)
+    for p in poses:
+        moved = float(np.linalg.norm(p.eye - eye))
+        assert 0.1 * radius <= moved <= coverage.HELD_OUT_REACH[1] * radius + 1e-6
+        assert ((p.eye > lo) & (p.eye < hi)).all()  # inside the box
+        f = p.forward / np.linalg.norm(p.forward)
+        turn = np.degrees(np.arccos(np.clip(f @ forward, -1, 1)))
+        assert coverage.HELD_OUT_TURN[0] - 1e-6 <= turn <= coverage.HELD_OUT_TURN[1] + 1e-6
+        assert abs(f[2]) < 1e-9  # level, like the camera
+    again = coverage.held_out_poses(scene, eye, forward, 5, seed=3)
+    assert all(np.array_equal(a.eye, b.eye) for a, b in zip(poses, again, strict=True))
+    other = coverage.held_out_poses(scene, eye, forward, 5, seed=4)
+    assert not np.array_equal(poses[0].eye, other[0].eye)
+    # Given a radius, the poses keep to it.
+    near = coverage.held_out_poses(scene, eye, forward, 3, seed=3, radius=0.2)
+    assert all(np.linalg.norm(p.eye - eye) <= 0.2 * coverage.HELD_OUT_REACH[1] + 1e-6 for p in near)

@@ -135,3 +135,22 @@ def test_input_errors(setup):
         vplace.refit(scene, [v], vpls, vplace.RefitParams(stride=0))
     with pytest.raises(vplace.InputError, match="ridge"):
         vplace.refit(scene, [v], vpls, vplace.RefitParams(ridge=-1.0))
+
+
+def test_the_ridge_is_chosen_by_held_out_blocks():
+    scene = box_scene()
+    d = floor_view(128)
+    base = inward_vpls()
+    truth = np.array([0.5, 2.0, 1.0, 0.0, 1.5, 0.8, 3.0])
+    target, _ = vplace.evaluate(
+        scene, view(d), base.with_flux((base.flux * truth[:, None]).astype("f4"))
+    )
+    v = view(d, indirect=target)
+    assert vplace.RefitParams().select_ridge and not vplace.RefitParams(ridge=1.0).select_ridge
+    out = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2))
+    # The VPLs reproduce the target exactly: the weakest pull predicts left-out blocks best.
+    assert [r for r, _ in out.cv] == [0.01, 0.1, 1.0, 10.0, 100.0]
+    assert out.ridge == 0.01 and min(e for _, e in out.cv) == out.cv[0][1]
+    given = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, ridge=0.01))
+    assert given.cv == [] and given.ridge == 0.01
+    np.testing.assert_allclose(given.scales, out.scales, atol=1e-9)

@@ -430,11 +430,12 @@ pub fn reference_image(
     let vec3 = |a: &[f32], p: usize| Vec3::from_slice(&a[3 * p..3 * p + 3]);
     let mut image = vec![0.0f32; 3 * g.width * g.height];
     let mut rays = 0;
+    let radii = crate::vpl::near_field_radii(vpls, radius);
     for p in (0..g.width * g.height).filter(|&p| g.covered[p]) {
         let (position, normal) = (vec3(g.position, p), vec3(g.normal, p).normalize_or_zero());
         let mut sum = Vec3::ZERO;
-        for v in vpls {
-            if let Some(c) = reference_incident(Some(scene), position, normal, v, profile, radius) {
+        for (v, &r) in vpls.iter().zip(&radii) {
+            if let Some(c) = reference_incident(Some(scene), position, normal, v, profile, r) {
                 rays += 1;
                 sum += c;
             }

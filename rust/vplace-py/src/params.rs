@@ -322,6 +322,7 @@ pub struct PyRefitParams {
 
 #[pymethods]
 impl PyRefitParams {
+    /// `ridge` given: that ridge, not selected; None: chosen by cross-validation.
     #[new]
     #[pyo3(signature = (*, stride = None, ridge = None))]
     fn new(stride: Option<usize>, ridge: Option<f64>) -> Self {
@@ -330,12 +331,13 @@ impl PyRefitParams {
             inner: RefitParams {
                 stride: stride.unwrap_or(d.stride),
                 ridge: ridge.unwrap_or(d.ridge),
+                select_ridge: ridge.is_none(),
                 ..d
             },
         }
     }
 
-    /// The default: stride 4, ridge 0.1.
+    /// The default: stride 4, the ridge chosen by cross-validation (0.1 above `CV_MAX_VPLS`).
     #[classattr]
     #[allow(non_snake_case)]
     fn DEFAULT() -> Self {
@@ -354,11 +356,16 @@ impl PyRefitParams {
     fn ridge(&self) -> f64 {
         self.inner.ridge
     }
+    /// Whether the ridge is chosen by cross-validation (`ridge` applies above `CV_MAX_VPLS`).
+    #[getter]
+    fn select_ridge(&self) -> bool {
+        self.inner.select_ridge
+    }
 
     fn __repr__(&self) -> String {
         format!(
-            "RefitParams(stride={}, ridge={:?})",
-            self.inner.stride, self.inner.ridge
+            "RefitParams(stride={}, ridge={:?}, select_ridge={})",
+            self.inner.stride, self.inner.ridge, self.inner.select_ridge
         )
     }
 }

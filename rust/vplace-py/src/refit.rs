@@ -69,6 +69,19 @@ impl PyRefit {
         self.r.exchanges
     }
 
+    /// The ridge used (relative to `trace(A^T A) / n`).
+    #[getter]
+    fn ridge(&self) -> f64 {
+        self.r.ridge
+    }
+
+    /// The ridge's cross-validation: `(ridge, held-out RMSE)` per ridge tried (empty when the
+    /// ridge was given or the set is above `CV_MAX_VPLS`).
+    #[getter]
+    fn cv(&self) -> Vec<(f64, f64)> {
+        self.r.cv.clone()
+    }
+
     /// Wall time, seconds.
     #[getter]
     fn seconds(&self) -> f64 {

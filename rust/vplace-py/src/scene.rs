@@ -633,5 +633,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
         "NEAR_FIELD_FRACTION",
         vplace_core::scene::NEAR_FIELD_FRACTION,
     )?;
+    m.add("MAX_RADIUS_FACTOR", vplace_core::vpl::MAX_RADIUS_FACTOR)?;
+    m.add("SPACING_NEIGHBOURS", vplace_core::vpl::SPACING_NEIGHBOURS)?;
     Ok(())
 }

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use vplace_core::{
     layout::rsm,
     shade::evaluator::{self, validate_vpls, EvalParams, EvalStats},
-    vpl::{self, Profile, Vpl},
+    vpl::{self, near_field_radii, Profile, Vpl},
 };
 
 use crate::arrays::{array, slice, Dim};
@@ -176,10 +176,25 @@ impl PyVplSet {
         profile_name(self.profile)
     }
 
-    /// The near-field radius of every VPL, metres (see `vplace.evaluate`).
+    /// The set's near-field radius, metres: the smallest disk radius of a cosine VPL (see
+    /// `radii`).
     #[getter]
     fn radius(&self) -> f32 {
         self.radius
+    }
+
+    /// The near-field radius of each VPL (N,) float32, metres: the radius of the surface patch
+    /// it stands for (from the spacing of its nearest VPLs), between `radius` and
+    /// `MAX_RADIUS_FACTOR * radius`. The evaluator and the refit shade a cosine VPL as a disk
+    /// of this radius, and the write-back writes it (AREA disk of diameter `2 R_j`). Omni VPLs
+    /// are points: all 0.
+    #[getter]
+    fn radii<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
+        let radii = match self.profile {
+            Profile::Cosine => near_field_radii(&self.vpls, self.radius),
+            Profile::Omni => vec![0.0; self.vpls.len()],
+        };
+        PyArray1::from_vec(py, radii)
     }
 
     fn __repr__(&self) -> String {

@@ -10,6 +10,17 @@
 //!
 //! one scale per VPL (its colour is kept), `lambda = ridge * trace(A^T A) / n`. The pull toward
 //! 1 keeps VPLs that no strided pixel sees at their power and makes the problem strictly convex.
+//!
+//! **The ridge** is chosen by cross-validation, never by the fitted pixels alone (they always
+//! prefer the smallest): the strided pixels fall in [`CV_FOLDS`] folds by blocks of
+//! [`CV_BLOCK_PX`] pixels (a hash of the view and the block), each ridge of [`RIDGE_GRID`] is
+//! refitted on all folds but one and scored on the one left out, and the ridge with the least
+//! summed error is refitted on all pixels. Blocks, not single pixels, are left out, so the
+//! validation asks what the written lights must do: light surfaces the refit did not see with
+//! the layout's light-path powers, not interpolate between neighbouring pixels. (Leaving out
+//! whole views instead needs three or more captures, and captures of one region mostly see the
+//! same surfaces.) Each fold keeps its own normal equations, so the selection traces no extra
+//! ray: it costs `folds x grid` solves, and runs up to [`CV_MAX_VPLS`] VPLs.
 //! `s = 1` is feasible and scores the error before the refit, so the refitted error is never
 //! larger: if rounding ever made it so, the refit returns `s = 1`.
 //!
@@ -46,29 +57,35 @@ use crate::scene::Scene;
 use crate::shade::evaluator::{check_radius, validate_vpls};
 use crate::shade::shading::{Batch, Receiver, VplSoa};
 use crate::view::{GBuffer, View};
-use crate::vpl::{Profile, Vpl};
+use crate::vpl::{near_field_radii, Profile, Vpl};
 
 /// Settings of the refit. `Copy`, with a default.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RefitParams {
     /// How VPLs radiate, as in the evaluator.
     pub profile: Profile,
-    /// Distance clamp (metres), as in the evaluator.
+    /// The set's near-field radius (metres), as in the evaluator (`EvalParams::radius`).
     pub radius: f32,
     /// Fit on every `stride`-th pixel in x and y (`>= 1`; 4 is quarter resolution).
     pub stride: usize,
     /// Weight of the pull toward scale 1, relative to the mean diagonal `trace(A^T A) / n`
     /// (`>= 0`). Values below [`MIN_RIDGE`] are raised to it, so the system stays definite.
+    /// With [`RefitParams::select_ridge`], the ridge used where the selection does not run.
     pub ridge: f64,
+    /// Choose the ridge among [`RIDGE_GRID`] by [`CV_FOLDS`]-fold cross-validation over blocks
+    /// of pixels (see the module docs), for sets of at most [`CV_MAX_VPLS`] VPLs.
+    pub select_ridge: bool,
 }
 
 impl RefitParams {
-    /// Cosine profile, 1 cm clamp, quarter resolution, ridge `0.1`.
+    /// Cosine profile, 1 cm radius, quarter resolution, the ridge chosen by cross-validation
+    /// (`0.1` above [`CV_MAX_VPLS`] VPLs).
     pub const DEFAULT: Self = Self {
         profile: Profile::Cosine,
         radius: 0.01,
         stride: 4,
         ridge: 0.1,
+        select_ridge: true,
     };
 }
 
@@ -80,6 +97,20 @@ impl Default for RefitParams {
 
 /// The smallest relative ridge used: keeps the Gram matrix definite when columns coincide.
 pub const MIN_RIDGE: f64 = 1e-9;
+
+/// The ridges the cross-validation tries (relative, as [`RefitParams::ridge`]): from a refit
+/// that follows the pixels to one that barely leaves the layout's powers.
+pub const RIDGE_GRID: [f64; 5] = [0.01, 0.1, 1.0, 10.0, 100.0];
+
+/// Folds of the ridge's cross-validation.
+pub const CV_FOLDS: usize = 4;
+
+/// Side of the square blocks of pixels (full-resolution pixels) that go to one fold.
+pub const CV_BLOCK_PX: usize = 32;
+
+/// The most VPLs for which the ridge is cross-validated: the folds keep one `n x n` Gram matrix
+/// each (4 x 8 MB at 1,024), and each fold and ridge is a solve.
+pub const CV_MAX_VPLS: usize = 1024;
 
 /// At most this many block exchanges before the solver falls back to coordinate descent.
 pub const MAX_EXCHANGES: usize = 64;
@@ -105,6 +136,11 @@ pub struct Refitted {
     pub shadow_rays: u64,
     /// Block exchanges the solver made (0 when the unconstrained optimum was non-negative).
     pub exchanges: usize,
+    /// The ridge used (relative, as [`RefitParams::ridge`]).
+    pub ridge: f64,
+    /// The cross-validation: each ridge of [`RIDGE_GRID`] with its RMSE on the held-out folds
+    /// (empty where the ridge was not selected).
+    pub cv: Vec<(f64, f64)>,
     /// Wall time, seconds.
     pub seconds: f64,
 }
@@ -131,7 +167,6 @@ fn pixel_rows(
     recv: &Receiver,
     soa: &VplSoa,
     profile: Profile,
-    radius_sq: f32,
     batch: &mut Batch,
     mut occluded: impl FnMut(&Ray) -> bool,
     rows: &mut [f64],
@@ -140,7 +175,7 @@ fn pixel_rows(
     rows.fill(0.0);
     let (red, rest) = rows.split_at_mut(n);
     let (green, blue) = rest.split_at_mut(n);
-    batch.prepare(soa, recv, profile, radius_sq);
+    batch.prepare(soa, recv, profile);
     let mut rays = 0u64;
     for (j, c) in batch.unshadowed(soa) {
         rays += 1;
@@ -153,34 +188,74 @@ fn pixel_rows(
     rays
 }
 
-/// Traces the strided pixels `pixels` block by block and accumulates the normal equations.
+impl Normal {
+    fn zero(n: usize) -> Self {
+        Self {
+            gram: vec![0.0; n * n],
+            atb: vec![0.0; n],
+            btb: 0.0,
+            rays: 0,
+        }
+    }
+
+    /// `||A s - b||^2` from the normal equations, clamped at 0 against rounding (NaN stays).
+    fn sq_error(&self, s: &[f64]) -> f64 {
+        let dot: f64 = s.iter().zip(&self.atb).map(|(a, b)| a * b).sum();
+        let e = quadratic(&self.gram, s) - 2.0 * dot + self.btb;
+        if e < 0.0 {
+            0.0
+        } else {
+            e
+        }
+    }
+}
+
+/// The normal equations of each group of strided pixels (`groups`: the folds), traced block by
+/// block; the progress counts the blocks of all groups and one step for the solve.
 fn normal_equations(
     scene: &Scene,
     sources: &[(GBuffer<'_>, &[f32])],
     vpls: &[Vpl],
-    pixels: &[(usize, usize)],
+    groups: &[Vec<(usize, usize)>],
     params: &RefitParams,
     progress: Option<&Progress>,
-) -> Result<Normal> {
+) -> Result<Vec<Normal>> {
     let n = vpls.len();
     // About 24 MB of rows per block (3 rows of n f64 per pixel), 128..1024 pixels.
     let block = ((1usize << 20) / n).clamp(128, 1024);
-    let blocks = pixels.len().div_ceil(block);
+    let blocks: usize = groups.iter().map(|g| g.len().div_ceil(block)).sum();
     if let Some(p) = progress {
         p.total.store(blocks + 1, Ordering::Relaxed);
         p.done.store(0, Ordering::Relaxed);
     }
+    let soa = VplSoa::new(vpls, &near_field_radii(vpls, params.radius));
+    let mut rows = vec![0.0f64; 3 * block * n];
+    groups
+        .iter()
+        .map(|pixels| {
+            group_equations(
+                scene, sources, &soa, pixels, block, &mut rows, params, progress,
+            )
+        })
+        .collect()
+}
+
+/// The normal equations of `pixels`, traced `block` pixels at a time into `rows`.
+#[allow(clippy::too_many_arguments)]
+fn group_equations(
+    scene: &Scene,
+    sources: &[(GBuffer<'_>, &[f32])],
+    soa: &VplSoa,
+    pixels: &[(usize, usize)],
+    block: usize,
+    rows: &mut [f64],
+    params: &RefitParams,
+    progress: Option<&Progress>,
+) -> Result<Normal> {
+    let n = soa.len();
     let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
     let eps = scene.ray_epsilon();
-    let radius_sq = params.radius * params.radius;
-    let soa = VplSoa::new(vpls);
-    let mut out = Normal {
-        gram: vec![0.0; n * n],
-        atb: vec![0.0; n],
-        btb: 0.0,
-        rays: 0,
-    };
-    let mut rows = vec![0.0f64; 3 * block * n];
+    let mut out = Normal::zero(n);
     for chunk in pixels.chunks(block) {
         if cancelled() {
             return Err(VplaceError::Cancelled);
@@ -200,15 +275,7 @@ fn normal_equations(
                     .map(|(px_rows, &(v, p))| {
                         let recv = Receiver::of_pixel(&sources[v].0, p, eps);
                         let occluded = |ray: &_| scene.occluded_ray(&mut state, ray);
-                        pixel_rows(
-                            &recv,
-                            &soa,
-                            params.profile,
-                            radius_sq,
-                            &mut batch,
-                            occluded,
-                            px_rows,
-                        )
+                        pixel_rows(&recv, soa, params.profile, &mut batch, occluded, px_rows)
                     })
                     .sum::<u64>()
             })
@@ -357,6 +424,51 @@ fn nnls_bpp(
     Ok(Solved { s: x, exchanges })
 }
 
+/// The fold of block `(bx, by)` of view `v`: a hash of the block, so neighbouring blocks fall
+/// in different folds and every fold spreads over the image.
+fn fold_of(v: usize, bx: usize, by: usize, folds: usize) -> usize {
+    let mut h = (v as u64) << 42 ^ (by as u64) << 21 ^ bx as u64;
+    // splitmix64's finalizer.
+    h ^= h >> 30;
+    h = h.wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    h ^= h >> 27;
+    h = h.wrapping_mul(0x94d4_049b_b133_111e);
+    h ^= h >> 31;
+    (h % folds as u64) as usize
+}
+
+/// `acc += part` (Gram matrix, `A^T b`, `b^T b`, rays).
+fn add_to(acc: &mut Normal, part: &Normal) {
+    acc.gram
+        .iter_mut()
+        .zip(&part.gram)
+        .for_each(|(a, b)| *a += b);
+    acc.atb.iter_mut().zip(&part.atb).for_each(|(a, b)| *a += b);
+    acc.btb += part.btb;
+    acc.rays += part.rays;
+}
+
+/// The refitted scales of the normal equations `ne` with relative ridge `ridge`
+/// (`lambda = ridge * trace / n`, the pull toward 1); all 1 where the trace is 0 (no pixel
+/// sees a VPL).
+fn solve(ne: &Normal, ridge: f64, cancelled: &dyn Fn() -> bool) -> Result<Solved> {
+    let n = ne.atb.len();
+    let trace: f64 = (0..n).map(|i| ne.gram[i * n + i]).sum();
+    if trace <= 0.0 {
+        return Ok(Solved {
+            s: vec![1.0; n],
+            exchanges: 0,
+        });
+    }
+    let lambda = ridge.max(MIN_RIDGE) * trace / n as f64;
+    let mut q = ne.gram.clone();
+    for i in 0..n {
+        q[i * n + i] += lambda;
+    }
+    let c: Vec<f64> = ne.atb.iter().map(|&v| v + lambda).collect();
+    nnls_bpp(&q, &c, MAX_EXCHANGES, cancelled)
+}
+
 /// Refits the flux of `vpls` against the indirect image `indirect` (`I = G - D`, `H x W x 3`,
 /// finite on covered pixels) over the covered pixels of the strided grid of `gbuffer`.
 ///
@@ -422,36 +534,52 @@ pub fn refit(
         })
         .collect();
     let n = vpls.len();
-    let ne = normal_equations(scene, &sources, vpls, &pixels, params, progress)?;
-    let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
-    let trace: f64 = (0..n).map(|i| ne.gram[i * n + i]).sum();
-    let ones = vec![1.0f64; n];
-    let mut scales = ones.clone();
-    let mut exchanges = 0;
-    if trace > 0.0 {
-        let lambda = params.ridge.max(MIN_RIDGE) * trace / n as f64;
-        let mut q = ne.gram.clone();
-        for i in 0..n {
-            q[i * n + i] += lambda;
-        }
-        let c: Vec<f64> = ne.atb.iter().map(|&v| v + lambda).collect();
-        let solved = nnls_bpp(&q, &c, MAX_EXCHANGES, &cancelled)?;
-        scales = solved.s;
-        exchanges = solved.exchanges;
-    }
-    let sq_error = |s: &[f64]| {
-        let dot: f64 = s.iter().zip(&ne.atb).map(|(a, b)| a * b).sum();
-        // Clamps rounding below zero; NaN stays NaN.
-        let e = quadratic(&ne.gram, s) - 2.0 * dot + ne.btb;
-        if e < 0.0 {
-            0.0
-        } else {
-            e
-        }
+    let folds = if params.select_ridge && n <= CV_MAX_VPLS {
+        CV_FOLDS
+    } else {
+        1
     };
+    let mut groups = vec![Vec::new(); folds];
+    for &(v, p) in &pixels {
+        let w = sources[v].0.width;
+        groups[fold_of(v, (p % w) / CV_BLOCK_PX, (p / w) / CV_BLOCK_PX, folds)].push((v, p));
+    }
+    let parts = normal_equations(scene, &sources, vpls, &groups, params, progress)?;
+    let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
+    let mut ne = Normal::zero(n);
+    for part in &parts {
+        add_to(&mut ne, part);
+    }
+    // The ridge: the one of the grid whose refits on all folds but one predict the left-out
+    // fold best (summed squared error); ties to the larger ridge. Folds without pixels are
+    // skipped; with fewer than two usable folds the ridge is not selected.
+    let usable: Vec<usize> = (0..folds).filter(|&k| !groups[k].is_empty()).collect();
+    let mut cv = Vec::new();
+    let mut ridge = params.ridge;
+    if usable.len() >= 2 {
+        let mut best = f64::INFINITY;
+        for &r in &RIDGE_GRID {
+            let mut err = 0.0;
+            for &k in &usable {
+                let mut train = Normal::zero(n);
+                for part in (0..folds).filter(|&j| j != k).map(|j| &parts[j]) {
+                    add_to(&mut train, part);
+                }
+                let s = solve(&train, r, &cancelled)?.s;
+                err += parts[k].sq_error(&s);
+            }
+            cv.push((r, (err / (3.0 * pixels.len() as f64)).sqrt()));
+            if err <= best {
+                (best, ridge) = (err, r);
+            }
+        }
+    }
+    let ones = vec![1.0f64; n];
+    let solved = solve(&ne, ridge, &cancelled)?;
+    let (mut scales, exchanges) = (solved.s, solved.exchanges);
     let rows = 3.0 * pixels.len().max(1) as f64;
-    let before = sq_error(&ones);
-    let mut after = sq_error(&scales);
+    let before = ne.sq_error(&ones);
+    let mut after = ne.sq_error(&scales);
     // Worse than no refit (rounding), or not a number: keep the original powers.
     if !scales.iter().all(|s| s.is_finite()) || after.is_nan() || after > before {
         scales = ones;
@@ -476,6 +604,8 @@ pub fn refit(
         pixels: pixels.len(),
         shadow_rays: ne.rays,
         exchanges,
+        ridge,
+        cv,
         seconds: start.elapsed().as_secs_f64(),
     })
 }
@@ -531,6 +661,7 @@ mod tests {
         RefitParams {
             stride,
             ridge,
+            select_ridge: false,
             ..RefitParams::DEFAULT
         }
     }
@@ -567,6 +698,48 @@ mod tests {
                 assert!((v.flux - b.flux * s as f32).abs().max_element() < 1e-6);
             }
         }
+    }
+
+    /// The ridge is chosen on held-out blocks: on a target the VPLs reproduce exactly, the
+    /// smallest ridge of the grid predicts the left-out blocks best and the largest (which barely
+    /// leaves the powers) far worse; every ridge is listed with its error; a given ridge skips the
+    /// selection; a view of one block (one usable fold) keeps the given ridge.
+    #[test]
+    fn cross_validation_picks_the_ridge() {
+        let scene = closed_box(vec![]);
+        let fv = FloorView::new(128, Vec3::new(0.0, 0.0, 1.0), 10.0);
+        let base = vpls();
+        let truth = [0.5, 2.0, 1.0, 0.0, 1.5, 0.8, 3.0];
+        let target = render(&scene, &fv, &scaled(&base, &truth));
+        let v = fv.view_with(Some(&target));
+        let chosen = RefitParams {
+            stride: 2,
+            ..RefitParams::DEFAULT
+        };
+        let r = refit(&scene, &[&v], &base, &chosen, None).unwrap();
+        let ridges: Vec<f64> = r.cv.iter().map(|c| c.0).collect();
+        assert_eq!(ridges, RIDGE_GRID);
+        assert_eq!(r.ridge, RIDGE_GRID[0], "{:?}", r.cv);
+        assert!(r.cv.iter().all(|c| c.1 >= r.cv[0].1), "{:?}", r.cv);
+        assert!(r.cv[4].1 > 10.0 * r.cv[0].1, "{:?}", r.cv);
+        assert!(r.error_after < 0.1 * r.error_before);
+        // The same ridge given: the same scales (the folds only split the sums).
+        let given = refit(&scene, &[&v], &base, &params(2, RIDGE_GRID[0]), None).unwrap();
+        assert!(given.cv.is_empty() && given.ridge == RIDGE_GRID[0]);
+        for (a, b) in given.scales.iter().zip(&r.scales) {
+            assert!((a - b).abs() < 1e-9, "{:?} {:?}", given.scales, r.scales);
+        }
+        let small = FloorView::new(24, Vec3::new(0.0, 0.0, 1.0), 10.0);
+        let target = render(&scene, &small, &base);
+        let one_block = refit(
+            &scene,
+            &[&small.view_with(Some(&target))],
+            &base,
+            &chosen,
+            None,
+        );
+        let one_block = one_block.unwrap();
+        assert!(one_block.cv.is_empty() && one_block.ridge == chosen.ridge);
     }
 
     /// The error before is the RMSE of the evaluator's image on the strided grid: the columns
@@ -674,7 +847,6 @@ mod tests {
         let (scene, arrays, vpls) = shading_cases();
         let g = arrays.gbuffer();
         let n = vpls.len();
-        let soa = VplSoa::new(&vpls);
         let eps = scene.ray_epsilon();
         let vec3 = |a: &[f32], p: usize| Vec3::from_slice(&a[3 * p..3 * p + 3]);
         for profile in [Profile::Cosine, Profile::Omni] {
@@ -684,8 +856,11 @@ mod tests {
                     radius,
                     stride: 1,
                     ridge: 0.1,
+                    select_ridge: false,
                 };
                 let pixels: Vec<usize> = (0..144).filter(|&p| g.covered[p]).collect();
+                let radii = near_field_radii(&vpls, radius);
+                let soa = VplSoa::new(&vpls, &radii);
                 let mut expect = Vec::new();
                 let mut expect_rays = 0;
                 let (mut state, mut batch) = (scene.shadow_state(), Batch::new(n));
@@ -696,8 +871,9 @@ mod tests {
                     let mut pixel_rays = 0;
                     let a: Vec<Vec3> = vpls
                         .iter()
-                        .map(|v| {
-                            let c = reference_incident(Some(&scene), x, nrm, v, profile, radius);
+                        .zip(&radii)
+                        .map(|(v, &r)| {
+                            let c = reference_incident(Some(&scene), x, nrm, v, profile, r);
                             pixel_rays += u64::from(c.is_some());
                             brdf * c.unwrap_or(Vec3::ZERO)
                         })
@@ -707,7 +883,6 @@ mod tests {
                         &Receiver::of_pixel(&g, p, eps),
                         &soa,
                         profile,
-                        radius * radius,
                         &mut batch,
                         |ray| scene.occluded_ray(&mut state, ray),
                         &mut rows,
@@ -727,7 +902,10 @@ mod tests {
                 let target: Vec<f32> = (0..3 * 144).map(|i| 0.01 * (i % 7) as f32).collect();
                 let sources = [(g, &target[..])];
                 let pairs: Vec<(usize, usize)> = pixels.iter().map(|&p| (0, p)).collect();
-                let ne = normal_equations(&scene, &sources, &vpls, &pairs, &params, None).unwrap();
+                let groups = [pairs];
+                let ne = normal_equations(&scene, &sources, &vpls, &groups, &params, None)
+                    .unwrap()
+                    .remove(0);
                 assert_eq!(ne.rays, expect_rays);
                 let (mut atb, mut gram) = (vec![0.0f64; n], vec![0.0f64; n * n]);
                 for (k, &p) in pixels.iter().enumerate() {

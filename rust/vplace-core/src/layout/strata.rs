@@ -468,7 +468,6 @@ pub fn view_efficiency(
     if samples.is_empty() {
         return vec![0.0; emitters.len()];
     }
-    let radius_sq = radius * radius;
     let norm = samples.len() as f64 * f64::from(PI);
     emitters
         .par_chunks(EMITTER_CHUNK)
@@ -481,11 +480,11 @@ pub fn view_efficiency(
                     flux: Vec3::ONE,
                 })
                 .collect();
-            let soa = VplSoa::new(&unit);
+            let soa = VplSoa::new(&unit, &vec![radius; unit.len()]);
             let mut batch = Batch::new(soa.len());
             let mut sum = vec![0.0f64; chunk.len()];
             for &(p, n, albedo) in samples {
-                batch.prepare_unshadowed(&soa, p, n, Profile::Cosine, radius_sq);
+                batch.prepare_unshadowed(&soa, p, n, Profile::Cosine);
                 for (acc, &s) in sum.iter_mut().zip(batch.scales()) {
                     *acc += f64::from(albedo * s);
                 }

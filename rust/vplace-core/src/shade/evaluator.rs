@@ -19,15 +19,17 @@ use crate::scene::Scene;
 use crate::shade::shading::{Batch, Receiver, VplSoa};
 use crate::shade::shadow_cache::{self, ShadowCache};
 use crate::view::GBuffer;
-use crate::vpl::{Profile, Vpl};
+use crate::vpl::{near_field_radii, Profile, Vpl};
 
 /// Evaluator settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EvalParams {
     /// How VPLs radiate.
     pub profile: Profile,
-    /// Minimum distance clamp `radius` (metres) that bounds the `1 / r^2` singularity near a VPL.
-    /// Must be `>= 0`; 0 disables the clamp (use only to compare with an unclamped renderer).
+    /// The set's near-field radius (metres), the smallest disk radius of a cosine VPL: each VPL's
+    /// own is [`crate::vpl::near_field_radii`], between this and `MAX_RADIUS_FACTOR` times it.
+    /// Must be `>= 0`; 0 makes every VPL a point (use only to compare with an unclamped
+    /// renderer).
     pub radius: f32,
     /// Side of the square pixel tiles scheduled on the thread pool.
     pub tile: usize,
@@ -224,7 +226,7 @@ fn evaluate_with(
         p.total.store(tiles.len(), Ordering::Relaxed);
         p.done.store(0, Ordering::Relaxed);
     }
-    let soa = VplSoa::new(vpls);
+    let soa = VplSoa::new(vpls, &near_field_radii(vpls, params.radius));
     // With a cache: the answers it holds for these VPLs, and the size of this evaluation's bit
     // rows (per pixel, `known` then `visible`).
     let reuse = cache.as_deref().and_then(|c| c.reuse(vpls, w, h));
@@ -236,7 +238,6 @@ fn evaluate_with(
     let rays = AtomicU64::new(0);
     let reused = AtomicU64::new(0);
     let eps = scene.ray_epsilon();
-    let radius_sq = params.radius * params.radius;
     let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
     let results: Vec<Option<Tile>> = tiles
         .par_iter()
@@ -258,7 +259,7 @@ fn evaluate_with(
                         continue;
                     }
                     let recv = Receiver::of_pixel(gbuffer, p, eps);
-                    batch.prepare(&soa, &recv, params.profile, radius_sq);
+                    batch.prepare(&soa, &recv, params.profile);
                     let row = bits.len();
                     bits.resize(row + 2 * words, 0);
                     let (known, visible) = bits[row..].split_at_mut(words);

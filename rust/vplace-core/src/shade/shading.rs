@@ -152,16 +152,21 @@ pub(crate) struct VplSoa {
     mx: Vec<f32>,
     my: Vec<f32>,
     mz: Vec<f32>,
+    /// Squared near-field radius of each VPL (`crate::vpl::near_field_radii`).
+    r2: Vec<f32>,
     /// Flux of each VPL.
     pub flux: Vec<Vec3>,
 }
 
 impl VplSoa {
-    /// The columns of `vpls`.
+    /// The columns of `vpls`, VPL `j` of near-field radius `radii[j]` (`radii` as long as
+    /// `vpls`).
     #[must_use]
-    pub(crate) fn new(vpls: &[Vpl]) -> Self {
+    pub(crate) fn new(vpls: &[Vpl], radii: &[f32]) -> Self {
+        debug_assert_eq!(vpls.len(), radii.len());
         let col = |f: fn(&Vpl) -> f32| vpls.iter().map(f).collect::<Vec<f32>>();
         Self {
+            r2: radii.iter().map(|r| r * r).collect(),
             px: col(|v| v.position.x),
             py: col(|v| v.position.y),
             pz: col(|v| v.position.z),
@@ -228,18 +233,12 @@ impl Batch {
 
     /// Shades `recv` by every VPL of `v` (at most as many as [`Batch::new`] was given) and
     /// builds the shadow rays from `recv.origin`.
-    pub(crate) fn prepare(
-        &mut self,
-        v: &VplSoa,
-        recv: &Receiver,
-        profile: Profile,
-        radius_sq: f32,
-    ) {
+    pub(crate) fn prepare(&mut self, v: &VplSoa, recv: &Receiver, profile: Profile) {
         self.origin = recv.origin;
         let (pos, n, origin) = (recv.position, recv.normal, recv.origin);
         match profile {
-            Profile::Cosine => self.prepare_with::<true, true>(v, pos, n, origin, radius_sq),
-            Profile::Omni => self.prepare_with::<false, true>(v, pos, n, origin, radius_sq),
+            Profile::Cosine => self.prepare_with::<true, true>(v, pos, n, origin),
+            Profile::Omni => self.prepare_with::<false, true>(v, pos, n, origin),
         }
     }
 
@@ -251,12 +250,11 @@ impl Batch {
         position: Vec3,
         normal: Vec3,
         profile: Profile,
-        radius_sq: f32,
     ) {
         let p = position;
         match profile {
-            Profile::Cosine => self.prepare_with::<true, false>(v, p, normal, p, radius_sq),
-            Profile::Omni => self.prepare_with::<false, false>(v, p, normal, p, radius_sq),
+            Profile::Cosine => self.prepare_with::<true, false>(v, p, normal, p),
+            Profile::Omni => self.prepare_with::<false, false>(v, p, normal, p),
         }
     }
 
@@ -267,9 +265,9 @@ impl Batch {
         pos: Vec3,
         n: Vec3,
         origin: Vec3,
-        radius_sq: f32,
     ) {
         let m = v.len();
+        let r2 = &v.r2[..m];
         self.count = m;
         let (px, py, pz) = (&v.px[..m], &v.py[..m], &v.pz[..m]);
         let (mx, my, mz) = (&v.mx[..m], &v.my[..m], &v.mz[..m]);
@@ -284,9 +282,9 @@ impl Batch {
             scale[j] = if COSINE {
                 let h = -((mx[j] * ex) + (my[j] * ey) + (mz[j] * ez));
                 let nm = (n.x * mx[j]) + (n.y * my[j]) + (n.z * mz[j]);
-                irradiance_per_flux(Profile::Cosine, e2, ne, h, nm, radius_sq)
+                irradiance_per_flux(Profile::Cosine, e2, ne, h, nm, r2[j])
             } else {
-                irradiance_per_flux(Profile::Omni, e2, ne, 0.0, 0.0, radius_sq)
+                irradiance_per_flux(Profile::Omni, e2, ne, 0.0, 0.0, 0.0)
             };
             if RAYS {
                 // The shadow ray from `origin`, as `Scene::occluded` and `Ray::new` make it.
@@ -468,8 +466,7 @@ mod tests {
                 ..*v
             })
             .collect();
-        let soa = VplSoa::new(&unit);
-        let mut batch = Batch::new(soa.len());
+        let mut batch = Batch::new(unit.len());
         let mut rng = Rng::new(5, 0);
         let mut r = || 2.0 * rng.next_f32() - 1.0;
         let eps = scene.ray_epsilon();
@@ -483,8 +480,8 @@ mod tests {
             let recv = Receiver::new(position, normal, Vec3::splat(0.5), eps);
             for profile in [Profile::Cosine, Profile::Omni] {
                 for radius in [0.0, 0.1] {
-                    let radius_sq = radius * radius;
-                    batch.prepare(&soa, &recv, profile, radius_sq);
+                    let soa = VplSoa::new(&unit, &vec![radius; unit.len()]);
+                    batch.prepare(&soa, &recv, profile);
                     let scales = batch.scales().to_vec();
                     let unshadowed: Vec<usize> = batch.unshadowed(&soa).map(|(j, _)| j).collect();
                     let mut expect = Vec::new();
@@ -518,7 +515,7 @@ mod tests {
                         );
                     }
                     assert_eq!(unshadowed, expect);
-                    batch.prepare_unshadowed(&soa, position, recv.normal, profile, radius_sq);
+                    batch.prepare_unshadowed(&soa, position, recv.normal, profile);
                     assert_eq!(batch.scales(), &scales[..]);
                 }
             }

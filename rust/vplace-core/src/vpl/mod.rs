@@ -46,6 +46,61 @@ impl Profile {
     }
 }
 
+/// Neighbours counted by [`near_field_radii`]: the area a VPL stands for is that of the disk
+/// reaching its `k`-th nearest VPL, shared by the `k` VPLs inside it (a k-nearest-neighbour
+/// density estimate, as in photon mapping).
+pub const SPACING_NEIGHBOURS: usize = 8;
+
+/// The largest near-field radius [`near_field_radii`] gives, in multiples of the set's radius.
+pub const MAX_RADIUS_FACTOR: f32 = 10.0;
+
+/// The near-field radius of each VPL of a set whose radius is `radius` (see
+/// `shade::shading`): the radius of the surface patch the VPL stands for, `R_j = d_k / sqrt(k)`
+/// with `d_k` the distance from VPL `j` to its `k`-th nearest VPL ([`SPACING_NEIGHBOURS`]),
+/// clamped to `[radius, MAX_RADIUS_FACTOR * radius]`.
+///
+/// Why: a VPL carries the light its patch reflects. Drawn as a disk of the patch's size, a VPL
+/// that stands for a large, sparsely sampled area (where a layout places few, strong VPLs)
+/// spreads its flux over that area near its surface instead of a bright spot, and a VPL among
+/// many stays small and sharp. Far from the VPL the disk is a point light, so the far field and
+/// the total flux are unchanged. The radii depend on the positions only (not on the flux), so a
+/// refit that rescales the powers keeps them, and the evaluator, the refit and the write-back
+/// compute the same radii from the same set. `radius = 0` gives points (all radii 0); a set of
+/// fewer than two VPLs keeps `radius`.
+///
+/// Brute force, `O(n^2)` distance tests (rayon over VPLs): 0.05 s for 8,192 VPLs.
+#[must_use]
+pub fn near_field_radii(vpls: &[Vpl], radius: f32) -> Vec<f32> {
+    use rayon::prelude::*;
+    let n = vpls.len();
+    if n < 2 || radius <= 0.0 {
+        return vec![radius.max(0.0); n];
+    }
+    let k = SPACING_NEIGHBOURS.min(n - 1);
+    let scale = 1.0 / (k as f32).sqrt();
+    let cap = MAX_RADIUS_FACTOR * radius;
+    vpls.par_iter()
+        .enumerate()
+        .map(|(i, v)| {
+            // The k smallest squared distances to the other VPLs, ascending.
+            let mut best = [f32::INFINITY; SPACING_NEIGHBOURS];
+            for (j, u) in vpls.iter().enumerate() {
+                let d2 = (u.position - v.position).length_squared();
+                if j == i || d2 >= best[k - 1] {
+                    continue;
+                }
+                let mut at = k - 1;
+                while at > 0 && best[at - 1] > d2 {
+                    best[at] = best[at - 1];
+                    at -= 1;
+                }
+                best[at] = d2;
+            }
+            (best[k - 1].sqrt() * scale).clamp(radius, cap)
+        })
+        .collect()
+}
+
 /// A virtual point light.
 ///
 /// Invariants: `normal` is unit length; `position` lies a small offset
@@ -64,4 +119,50 @@ pub struct Vpl {
 impl Vpl {
     /// Offset of a VPL off its surface, as a fraction of the scene diagonal.
     pub const SURFACE_OFFSET: f32 = 1e-3;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at(p: Vec3) -> Vpl {
+        Vpl {
+            position: p,
+            normal: Vec3::Z,
+            flux: Vec3::ONE,
+        }
+    }
+
+    /// On a square grid of spacing `a`, an inner VPL's eighth neighbour is a diagonal one
+    /// (`a sqrt 2`), so its patch radius is `a sqrt 2 / sqrt 8 = a / 2`; the set's radius bounds it
+    /// below and `MAX_RADIUS_FACTOR` times it above; an isolated VPL gets the cap; radius 0 and
+    /// sets of one keep the radius.
+    #[test]
+    fn near_field_radii_follow_the_spacing() {
+        let a = 0.1f32;
+        let mut vpls: Vec<Vpl> = (0..100)
+            .map(|i| at(Vec3::new(a * (i % 10) as f32, a * (i / 10) as f32, 0.0)))
+            .collect();
+        let inner = 5 * 10 + 5;
+        let r = near_field_radii(&vpls, 0.01);
+        assert!((r[inner] - a / 2.0).abs() < 1e-6, "{}", r[inner]);
+        assert!(r.iter().all(|&x| (0.01..=0.1).contains(&x)));
+        assert_eq!(near_field_radii(&vpls, 0.06)[inner], 0.06);
+        assert_eq!(
+            near_field_radii(&vpls, 0.001)[inner],
+            MAX_RADIUS_FACTOR * 0.001
+        );
+        vpls.push(at(Vec3::new(50.0, 0.0, 0.0)));
+        assert_eq!(
+            *near_field_radii(&vpls, 0.01).last().unwrap(),
+            MAX_RADIUS_FACTOR * 0.01
+        );
+        assert!(near_field_radii(&vpls, 0.0).iter().all(|&x| x == 0.0));
+        assert_eq!(near_field_radii(&vpls[..1], 0.02), vec![0.02]);
+        assert!(near_field_radii(&[], 0.02).is_empty());
+        // Three VPLs: the farthest other one is the k-th neighbour.
+        let three = [Vec3::ZERO, Vec3::X * 0.3, Vec3::X * 0.5].map(at);
+        let r = near_field_radii(&three, 0.05);
+        assert!((r[0] - 0.5 / 2f32.sqrt()).abs() < 1e-6, "{r:?}");
+    }
 }

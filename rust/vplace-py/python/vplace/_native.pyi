@@ -12,6 +12,8 @@ VPL_SURFACE_OFFSET: float
 MAX_BOUNCES: int
 LUMINANCE: list[float]
 NEAR_FIELD_FRACTION: float
+MAX_RADIUS_FACTOR: float
+SPACING_NEIGHBOURS: int
 
 # --- errors -------------------------------------------------------------------------------
 class VplaceError(Exception): ...
@@ -232,6 +234,8 @@ class VplSet:
     def profile(self) -> str: ...
     @property
     def radius(self) -> float: ...
+    @property
+    def radii(self) -> npt.NDArray[np.float32]: ...
 
 @final
 class EvalStats:
@@ -552,6 +556,10 @@ class Refit:
     @property
     def exchanges(self) -> int: ...
     @property
+    def ridge(self) -> float: ...
+    @property
+    def cv(self) -> list[tuple[float, float]]: ...
+    @property
     def seconds(self) -> float: ...
 
 @final
@@ -562,6 +570,8 @@ class RefitParams:
     def stride(self) -> int: ...
     @property
     def ridge(self) -> float: ...
+    @property
+    def select_ridge(self) -> bool: ...
 
 def refit(
     scene: Scene,

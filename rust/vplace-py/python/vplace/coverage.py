@@ -353,3 +353,49 @@ def cover(
                 )
             )
     return Coverage(views, poses, before, after, radii, time.perf_counter() - start)
+
+
+#: The held-out poses' distance from the camera, as fractions of the region's radius.
+HELD_OUT_REACH = (0.3, 0.8)
+#: The held-out poses' turn about the world's up axis away from the camera's heading, degrees.
+HELD_OUT_TURN = (30.0, 90.0)
+
+
+def held_out_poses(
+    scene: Scene,
+    eye: Sequence[float],
+    forward: Sequence[float],
+    count: int,
+    *,
+    seed: int = 0,
+    radius: float = 0.0,
+) -> list[Pose]:
+    """``count`` camera poses a user may take next in the region around a camera at ``eye``
+    looking along ``forward`` (world, z up), which no capture and no coverage view takes: each
+    stands a random :data:`HELD_OUT_REACH` share of the region's radius (``radius``, or the
+    default of :class:`Region`) away in a random, mostly horizontal direction (pulled back from
+    the surface it would reach by :data:`WALL_MARGIN`), and turns a random
+    :data:`HELD_OUT_TURN` away from the camera's heading, level pitch kept. Deterministic for
+    ``seed``; a pose whose centre ray escapes the scene is drawn again (up to 64 draws each)."""
+    e = np.asarray(eye, dtype=np.float64)
+    f0 = np.asarray(forward, dtype=np.float64)
+    f0 = f0 / max(float(np.linalg.norm(f0)), 1e-12)
+    r = radius or REGION_FRACTION * free_distance(scene, e.astype(np.float32))
+    rng = np.random.default_rng([seed, 20])
+    z = np.array([0.0, 0.0, 1.0])
+    poses: list[Pose] = []
+    for _ in range(count):
+        for _draw in range(64):
+            u = rng.normal(size=3) * np.array([1.0, 1.0, 0.3])
+            u /= max(float(np.linalg.norm(u)), 1e-12)
+            hit = float(_trace(scene, e.astype(np.float32), u[None, :].astype(np.float32))[0])
+            reach = min(r * rng.uniform(*HELD_OUT_REACH), WALL_MARGIN * hit)
+            turn = math.radians(rng.uniform(*HELD_OUT_TURN)) * rng.choice([-1.0, 1.0])
+            c, s = math.cos(turn), math.sin(turn)
+            f = np.array([c * f0[0] - s * f0[1], s * f0[0] + c * f0[1], f0[2]])
+            p = e + reach * u
+            sees = _trace(scene, p.astype(np.float32), f[None, :].astype(np.float32))[0]
+            if reach >= 0.1 * r and np.isfinite(sees) and abs(float(f @ z)) < 0.95:
+                poses.append(Pose(p, f, z))
+                break
+    return poses

@@ -300,6 +300,9 @@ class EvaluatorSummary:
     best_iteration: int | None = None
     #: The refit's error before and after (``vplace+refit``).
     refit_error: list[float] | None = None
+    #: The refit's ridge and its cross-validation: ``[ridge, held-out RMSE]`` per ridge tried.
+    refit_ridge: float | None = None
+    refit_cv: list[list[float]] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready, without the figures a method does not have."""
@@ -437,9 +440,9 @@ def write_files(
     vpls = computed.vpls
     np.savetxt(
         out_dir / "vpls.csv",
-        np.hstack([vpls.position, vpls.normal, vpls.flux]),
+        np.hstack([vpls.position, vpls.normal, vpls.flux, vpls.radii[:, None]]),
         delimiter=",",
-        header="x,y,z,nx,ny,nz,flux_r,flux_g,flux_b",
+        header="x,y,z,nx,ny,nz,flux_r,flux_g,flux_b,radius",
         comments="",
         fmt="%.6g",
     )
