@@ -39,6 +39,10 @@ HELD_OUT_SPREAD = 0.03
 #: Issue 20: the one-time cost for one camera's region at most this many Cycles + OIDN frames
 #: of that camera at this many samples, the same size.
 COST_FRAMES = 2
+#: Issue 21: EEVEE's RMSE at most this many times the evaluator's for the same lights, and at
+#: most this share of hot-spot pixels (``vplace.job.outliers``).
+EEVEE_RMSE_RATIO = 1.25
+HOT_SHARE = 0.001
 COST_SAMPLES = 16
 EEVEE_SPREAD = 0.02
 BRIGHTNESS_TOLERANCE = 0.03
@@ -292,6 +296,10 @@ class Row:
     one_time_seconds: float
     #: One frame: the evaluator's image, an EEVEE or a Cycles render.
     frame_seconds: float
+    #: ``vplace.job.outliers``: the share of hot-spot pixels and of the squared error in the
+    #: worst 1 % of pixels.
+    hot_pixels: float = math.nan
+    worst_share: float = math.nan
     shadow_rays: int = 0
     seed: int | None = None
     details: RowDetails = field(default_factory=lambda: RowDetails())
@@ -323,6 +331,8 @@ CSV_FIELDS = (
     "ssim",
     "one_minus_ssim",
     "brightness",
+    "hot_pixels",
+    "worst_share",
     "one_time_seconds",
     "frame_seconds",
     "shadow_rays",

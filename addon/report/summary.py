@@ -17,9 +17,11 @@ from .config import (
     CAPTURE_SPREAD,
     COST_FRAMES,
     COST_SAMPLES,
+    EEVEE_RMSE_RATIO,
     EEVEE_SPREAD,
     FIT_VIEW_SSIM,
     HELD_OUT_SPREAD,
+    HOT_SHARE,
     SSIM_MARGIN,
     WITH_RT,
     Row,
@@ -37,7 +39,16 @@ def aggregate(rows: Sequence[Row]) -> list[Row]:
         key = (r.scene, r.view, r.method, r.renderer, r.n_vpls, r.samples)
         groups.setdefault(key, []).append(r)
     out = []
-    keys = ("rmse", "relative_mse", "ssim", "brightness", "one_time_seconds", "frame_seconds")
+    keys = (
+        "rmse",
+        "relative_mse",
+        "ssim",
+        "brightness",
+        "hot_pixels",
+        "worst_share",
+        "one_time_seconds",
+        "frame_seconds",
+    )
     for members in groups.values():
         first = members[0]
         mean = {k: float(np.mean([getattr(r, k) for r in members])) for k in keys}
@@ -48,7 +59,12 @@ def aggregate(rows: Sequence[Row]) -> list[Row]:
             capture_seconds=d.capture_seconds,
             seeds=len(members),
             by_seed={
-                str(r.seed): {"ssim": r.ssim, "rmse": r.rmse, "brightness": r.brightness}
+                str(r.seed): {
+                    "ssim": r.ssim,
+                    "rmse": r.rmse,
+                    "brightness": r.brightness,
+                    "hot_pixels": r.hot_pixels,
+                }
                 for r in members
                 if r.seed is not None
             },
@@ -79,7 +95,12 @@ def same_lights(evaluator: Row, shown: Row) -> dict[str, float]:
     by_seed = evaluator.details.by_seed or {}
     if shown.seed is not None and str(shown.seed) in by_seed:
         return dict(by_seed[str(shown.seed)])
-    return {"ssim": evaluator.ssim, "rmse": evaluator.rmse, "brightness": evaluator.brightness}
+    return {
+        "ssim": evaluator.ssim,
+        "rmse": evaluator.rmse,
+        "brightness": evaluator.brightness,
+        "hot_pixels": evaluator.hot_pixels,
+    }
 
 
 def _at(
@@ -162,7 +183,23 @@ def targets(rows: list[Row]) -> list[dict[str, Any]]:
                 )
             shown = _at(mine, scene, v, "vplace+refit", "eevee", n)
             if shown is not None:
-                evaluated = same_lights(us, shown)["ssim"]
+                lights = {"rmse": us.rmse, "hot_pixels": us.hot_pixels, **same_lights(us, shown)}
+                ratio = shown.rmse / max(lights["rmse"], 1e-12)
+                check(
+                    f"{scene} {v} ({role}): EEVEE's RMSE at most {EEVEE_RMSE_RATIO}x the "
+                    "evaluator's (the same lights)",
+                    ratio,
+                    ratio <= EEVEE_RMSE_RATIO,
+                    f"EEVEE {shown.rmse:.4f}, evaluator {lights['rmse']:.4f}",
+                )
+                check(
+                    f"{scene} {v} ({role}): EEVEE's hot-spot pixels at most {HOT_SHARE:.1%}",
+                    shown.hot_pixels,
+                    shown.hot_pixels <= HOT_SHARE,
+                    f"EEVEE {shown.hot_pixels:.3%}, evaluator "
+                    f"{lights.get('hot_pixels', float('nan')):.3%}",
+                )
+                evaluated = lights["ssim"]
                 gap = evaluated - shown.ssim
                 check(
                     f"{scene} {v} ({role}): EEVEE with the VPLs within {EEVEE_SPREAD} SSIM "

@@ -76,6 +76,21 @@ def test_score_of_the_truth_is_perfect_and_ssim_needs_11_pixels():
     assert s["rmse"] == 0 and s["ssim"] == pytest.approx(1) and s["brightness"] == pytest.approx(1)
     assert np.isnan(vjob.score(img[:10, :10], img[:10, :10])["ssim"])
     assert vjob.score(2 * img, img)["brightness"] == pytest.approx(2, rel=1e-5)
+    assert (s["hot_pixels"], s["worst_share"]) == (0.0, 0.0)
+
+
+def test_outliers_find_hot_spots_and_where_the_error_sits():
+    truth = np.full((20, 20, 3), 0.5, np.float32)
+    spot = truth.copy()
+    spot[3, 4] = 5.0  # one hot pixel: all the error in the worst 1 % (4 pixels)
+    o = vjob.outliers(spot, truth)
+    assert o["hot_pixels"] == pytest.approx(1 / 400) and o["worst_share"] == pytest.approx(1.0)
+    # Twice the truth plus the floor is not hot; just above it is.
+    edge = np.full_like(truth, vjob.HOT_FACTOR * 0.5 + vjob.HOT_FLOOR - 1e-3)
+    assert vjob.outliers(edge, truth)["hot_pixels"] == 0.0
+    assert vjob.outliers(edge + 2e-3, truth)["hot_pixels"] == 1.0
+    # An error spread evenly: the worst 1 % hold 1 % of it.
+    assert vjob.outliers(truth * 1.1, truth)["worst_share"] == pytest.approx(0.01)
 
 
 def test_baselines_share_the_fit_and_leave_the_method_out(room):

@@ -10,6 +10,7 @@ worker thread (``progress`` cancels the long calls).
 from __future__ import annotations
 
 import json
+import math
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -182,9 +183,36 @@ def lay_out(
     return out
 
 
+#: A hot-spot pixel: its luminance above this many times the truth's plus :data:`HOT_FLOOR`.
+HOT_FACTOR = 2.0
+#: The absolute floor of a hot-spot pixel (linear radiance, the scene's units).
+HOT_FLOOR = 0.05
+#: The outlier share: the share of the squared error in this fraction of the worst pixels.
+WORST_FRACTION = 0.01
+
+
+def outliers(image: np.ndarray, truth: np.ndarray) -> dict[str, float]:
+    """How much of ``image``'s error sits in a few pixels: ``hot_pixels``, the share of pixels
+    whose luminance exceeds :data:`HOT_FACTOR` times the truth's plus :data:`HOT_FLOOR`, and
+    ``worst_share``, the share of the squared error (RGB) in the worst :data:`WORST_FRACTION`
+    of pixels (0 for a perfect image)."""
+    lum = np.asarray(vplace.LUMINANCE, dtype=np.float64)
+    a = np.asarray(image, dtype=np.float64)[..., :3]
+    b = np.asarray(truth, dtype=np.float64)[..., :3]
+    hot = (a @ lum) > HOT_FACTOR * (b @ lum) + HOT_FLOOR
+    err = np.sort(((a - b) ** 2).sum(axis=-1).ravel())[::-1]
+    total = float(err.sum())
+    worst = max(1, math.ceil(WORST_FRACTION * err.size))
+    return {
+        "hot_pixels": float(hot.mean()),
+        "worst_share": float(err[:worst].sum()) / total if total > 0 else 0.0,
+    }
+
+
 def score(image: np.ndarray, truth: np.ndarray) -> dict[str, float]:
     """RMSE, relative MSE (linear HDR), SSIM (display luminance) of ``image`` against ``truth``,
-    and its brightness (mean luminance over the truth's); SSIM is NaN below 11 x 11 pixels."""
+    its brightness (mean luminance over the truth's) and its :func:`outliers`; SSIM is NaN
+    below 11 x 11 pixels."""
     image = np.ascontiguousarray(image, dtype=np.float32)
     truth = np.ascontiguousarray(truth, dtype=np.float32)
     ssim = vplace.ssim(image, truth) if min(truth.shape[:2]) >= 11 else float("nan")
@@ -195,6 +223,7 @@ def score(image: np.ndarray, truth: np.ndarray) -> dict[str, float]:
         "relative_mse": vplace.relative_mse(image, truth),
         "ssim": ssim,
         "brightness": float((image[..., :3] @ lum).mean()) / mean_truth,
+        **outliers(image, truth),
     }
 
 
