@@ -42,10 +42,12 @@ def view_set(args: argparse.Namespace) -> ViewSet:
 
 def add_region_arguments(parser: argparse.ArgumentParser) -> None:
     """``--coverage N`` and ``--region-radius M`` (``vplace.coverage``)."""
+    from .capture.views import ViewSet
+
     parser.add_argument(
-        "--coverage", type=int, default=0, metavar="N",
-        help="add N ray-traced coverage views of the region around the cameras (0-16; default "
-        "0: the cameras' captures only)",
+        "--coverage", type=int, default=ViewSet.coverage, metavar="N",
+        help="add N ray-traced coverage views of the region around the cameras, which the "
+        f"layout places for (0-16; default {ViewSet.coverage}; 0: the cameras' captures only)",
     )  # fmt: skip
     parser.add_argument(
         "--region-radius", type=float, default=0.0, metavar="M",

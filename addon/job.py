@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -94,6 +95,8 @@ class Job(vplace.job.LayoutSettings):
             raise AddonError(f"the capture size must be at least 8 pixels, got {self.size}")
         if self.iterations < 0:
             raise AddonError(f"layout iterations must be 0 (off) or more, got {self.iterations}")
+        if self.radius is not None and not (self.radius >= 0 and math.isfinite(self.radius)):
+            raise AddonError(f"the near-field radius must be 0 or more metres, got {self.radius:g}")
         self.views.validate()
 
     def capture_resolution(self, scene: bpy.types.Scene) -> tuple[int, int]:

@@ -48,9 +48,8 @@ class ViewSet:
     orbit_radius: float = 0.0
     orbit_angle: float = 30.0
     #: Coverage views added for the region around these views (``vplace.coverage``; 0: none).
-    #: Off by default until it pays on every scene: on ``lroom`` 4 views raise the held-out
-    #: views' SSIM (.836 -> .844, .817 -> .849) but leave them below ``uniform``'s.
-    coverage: int = 0
+    #: The layout places for them; the refit fits the captures only.
+    coverage: int = vplace.coverage.DEFAULT_COUNT
     #: The region's radius around each camera, metres; 0: from the room the camera stands in.
     region_radius: float = 0.0
 

@@ -154,7 +154,7 @@ class ReportConfig:
     par2d: bool = True
     cache_dir: Path | None = None
     #: Ray-traced coverage views of the region around the fit cameras (``vplace.coverage``).
-    coverage: int = 0
+    coverage: int = vplace.coverage.DEFAULT_COUNT
     region_radius: float = 0.0
     #: Held-out views made in the region around the first fit camera (``vplace.coverage.
     #: held_out_poses``): None, :data:`GENERATED_VIEWS` where the scene names no held-out

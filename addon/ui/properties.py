@@ -132,7 +132,7 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
         name="Coverage views",
         description="Ray-traced views added around the cameras, so the lights also hold where "
         "the camera moves next (0: the cameras' captures only)",
-        default=0,
+        default=ViewSet.coverage,
         min=0,
         max=16,
     )

@@ -82,7 +82,7 @@ CASES = [
     Case(["demo", "--coverage", "-1"], "coverage views must be 0 to 16", quick_demo=True),
     Case(["demo", "--region-radius", "-2"], "region radius", quick_demo=True),
     Case(["demo", "--alpha", "2"], "alpha = 2 is out of range", quick_demo=True),
-    Case(["demo", "--radius", "-1"], "radius = -1 is out of range", quick_demo=True),
+    Case(["demo", "--radius", "-1"], "the near-field radius must be 0 or more metres, got -1"),
     Case(["demo", "--iterations", "-1"], "layout iterations must be 0", quick_demo=True),
     Case(["demo", "--truth-samples", "-1"], "truth samples must be at least 1", quick_demo=True),
     # demo: the output and the machine

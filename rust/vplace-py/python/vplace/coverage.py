@@ -38,6 +38,8 @@ import numpy as np
 
 from vplace._native import MAX_BOUNCES, Scene, View, VplSet, direct_light, evaluate, uniform_vpls
 
+#: Coverage views a job adds by default (the demo, the panel, the report).
+DEFAULT_COUNT = 4
 #: The region's default radius: this fraction of the median free distance around a camera.
 REGION_FRACTION = 1.0
 #: A candidate point is kept this fraction of the free distance away from the surface it meets.
@@ -80,7 +82,7 @@ class Region:
     """Where the user's camera may go, and how many coverage views stand for it."""
 
     #: Coverage views to add (0: none, the layout sees the user's views only).
-    count: int = 4
+    count: int = DEFAULT_COUNT
     #: Metres a camera may move from the user's; 0: :data:`REGION_FRACTION` of the free
     #: distance around it.
     radius: float = 0.0

@@ -175,8 +175,11 @@ def lay_out(
     if settings.method == "vplace+refit" and all(v.has_indirect for v in views):
         with timer.stage("refit VPL powers"):
             start = time.perf_counter()
+            # The captures only: a coverage view's target is itself light-path VPLs, and
+            # fitting powers to it fits that estimate's noise (the layout uses it to place).
+            captured = [v for v in views if not is_coverage(v)] or views
             out.refit = vplace.refit(
-                scene, views, laid.vpls, vplace.RefitParams(stride=stride), progress=progress
+                scene, captured, laid.vpls, vplace.RefitParams(stride=stride), progress=progress
             )
             out.refit_seconds = time.perf_counter() - start
         out.vpls = out.refit.vpls
