@@ -15,7 +15,10 @@
 //! prefer the smallest): the strided pixels fall in [`CV_FOLDS`] folds by blocks of
 //! [`CV_BLOCK_PX`] pixels (a hash of the view and the block), each ridge of [`RIDGE_GRID`] is
 //! refitted on all folds but one and scored on the one left out, and the ridge with the least
-//! summed error is refitted on all pixels. Blocks, not single pixels, are left out, so the
+//! summed error is refitted on all pixels. The error is that of the left-out cells' mean light
+//! ([`CV_CELL_PX`] cells), not of single pixels: a capture's target is a few-sample render whose
+//! per-pixel noise would otherwise decide between ridges whose predictions differ less than it.
+//! Blocks, not single pixels, are left out, so the
 //! validation asks what the written lights must do: light surfaces the refit did not see with
 //! the layout's light-path powers, not interpolate between neighbouring pixels. (Leaving out
 //! whole views instead needs three or more captures, and captures of one region mostly see the
@@ -47,6 +50,7 @@ use glam::Vec3;
 use nalgebra::{Cholesky, DMatrix, DMatrixView, DMatrixViewMut, DVector};
 use obvhs::ray::Ray;
 use rayon::prelude::*;
+use std::collections::HashMap;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
@@ -108,6 +112,10 @@ pub const CV_FOLDS: usize = 4;
 /// Side of the square blocks of pixels (full-resolution pixels) that go to one fold.
 pub const CV_BLOCK_PX: usize = 32;
 
+/// Side of the cells (full-resolution pixels, inside the blocks) whose mean light the
+/// cross-validation compares: the regression's cell size.
+pub const CV_CELL_PX: usize = 16;
+
 /// The most VPLs for which the ridge is cross-validated: the folds keep one `n x n` Gram matrix
 /// each (4 x 8 MB at 1,024), and each fold and ridge is a solve.
 pub const CV_MAX_VPLS: usize = 1024;
@@ -152,6 +160,16 @@ struct Normal {
     atb: Vec<f64>,
     btb: f64,
     rays: u64,
+    /// With cross-validation: per cell of [`CV_CELL_PX`] pixels (view, cell x, cell y), the
+    /// sums of its pixels' rows (R, G, B: `3 n`), of their targets, and the pixel count.
+    cells: HashMap<(usize, usize, usize), Cell>,
+}
+
+/// One cell's sums (see [`Normal::cells`]).
+struct Cell {
+    a: Vec<f64>,
+    b: [f64; 3],
+    pixels: usize,
 }
 
 /// Columns of the Gram matrix one task updates.
@@ -195,7 +213,27 @@ impl Normal {
             atb: vec![0.0; n],
             btb: 0.0,
             rays: 0,
+            cells: HashMap::new(),
         }
+    }
+
+    /// The squared error of the cells' mean light, summed over cells and channels: how far the
+    /// refitted VPLs put each cell's light level from its target's (the pixels' noise averages
+    /// out in a cell).
+    fn cell_error(&self, s: &[f64]) -> f64 {
+        let n = s.len();
+        self.cells
+            .values()
+            .map(|cell| {
+                (0..3)
+                    .map(|c| {
+                        let a = &cell.a[c * n..(c + 1) * n];
+                        let got: f64 = a.iter().zip(s).map(|(x, y)| x * y).sum();
+                        ((got - cell.b[c]) / cell.pixels as f64).powi(2)
+                    })
+                    .sum::<f64>()
+            })
+            .sum()
     }
 
     /// `||A s - b||^2` from the normal equations, clamped at 0 against rounding (NaN stays).
@@ -210,8 +248,9 @@ impl Normal {
     }
 }
 
-/// The normal equations of each group of strided pixels (`groups`: the folds), traced block by
-/// block; the progress counts the blocks of all groups and one step for the solve.
+/// The normal equations of each group of strided pixels (`groups`: the folds; with more than
+/// one, each keeps its cells' sums too), traced block by block; the progress counts the blocks
+/// of all groups and one step for the solve.
 fn normal_equations(
     scene: &Scene,
     sources: &[(GBuffer<'_>, &[f32])],
@@ -233,8 +272,9 @@ fn normal_equations(
     groups
         .iter()
         .map(|pixels| {
+            let cells = groups.len() > 1;
             group_equations(
-                scene, sources, &soa, pixels, block, &mut rows, params, progress,
+                scene, sources, &soa, pixels, block, &mut rows, params, cells, progress,
             )
         })
         .collect()
@@ -250,6 +290,7 @@ fn group_equations(
     block: usize,
     rows: &mut [f64],
     params: &RefitParams,
+    cells: bool,
     progress: Option<&Progress>,
 ) -> Result<Normal> {
     let n = soa.len();
@@ -281,12 +322,29 @@ fn group_equations(
             })
             .sum::<u64>();
         for (k, &(v, p)) in chunk.iter().enumerate() {
+            let w = sources[v].0.width;
+            let key = (v, (p % w) / CV_CELL_PX, (p / w) / CV_CELL_PX);
+            let mut cell = cells.then(|| {
+                out.cells.entry(key).or_insert_with(|| Cell {
+                    a: vec![0.0; 3 * n],
+                    b: [0.0; 3],
+                    pixels: 0,
+                })
+            });
+            if let Some(cell) = cell.as_mut() {
+                cell.pixels += 1;
+            }
             for c in 0..3 {
                 let b = f64::from(sources[v].1[3 * p + c]);
                 out.btb += b * b;
                 let row = &rows[(3 * k + c) * n..(3 * k + c + 1) * n];
                 for (acc, &a) in out.atb.iter_mut().zip(row) {
                     *acc += a * b;
+                }
+                if let Some(cell) = cell.as_mut() {
+                    cell.b[c] += b;
+                    let sums = &mut cell.a[c * n..(c + 1) * n];
+                    sums.iter_mut().zip(row).for_each(|(acc, &a)| *acc += a);
                 }
             }
         }
@@ -566,9 +624,10 @@ pub fn refit(
                     add_to(&mut train, part);
                 }
                 let s = solve(&train, r, &cancelled)?.s;
-                err += parts[k].sq_error(&s);
+                err += parts[k].cell_error(&s);
             }
-            cv.push((r, (err / (3.0 * pixels.len() as f64)).sqrt()));
+            let cells: usize = usable.iter().map(|&k| parts[k].cells.len()).sum();
+            cv.push((r, (err / (3.0 * cells.max(1) as f64)).sqrt()));
             if err <= best {
                 (best, ridge) = (err, r);
             }
