@@ -101,6 +101,21 @@ def _demo_options(sub: argparse._SubParsersAction) -> None:
         help="lay out for COUNT views around the scene camera: turned about a pivot RADIUS m in "
         "front of it (0: the scene's centre) by up to ANGLE degrees",
     )
+    views.add_argument(
+        "--animate", type=int, nargs=3, metavar=("START", "END", "STEP"),
+        help="capture the scene camera at frames START, START+STEP, ..., END, lay out each with "
+        "the same random numbers and write one set of lights keyed over them (linear keys); "
+        "scores every frame against a Cycles truth of it",
+    )  # fmt: skip
+    demo.add_argument(
+        "--score-between", action="store_true",
+        help="with --animate: also capture and score the frames between the captured ones "
+        "(the keyed lights interpolated there, against a still layout of that frame)",
+    )  # fmt: skip
+    demo.add_argument(
+        "--cycles-samples", type=int, nargs="*", default=[],
+        help="with --animate: also score Cycles + OpenImageDenoise at these samples per frame",
+    )  # fmt: skip
     demo.add_argument(
         "--samples", type=int, default=Job.samples, help="Cycles samples of each capture"
     )
@@ -285,6 +300,22 @@ def run(args: argparse.Namespace) -> None:
         iterations=args.iterations,
         feature_mode=args.feature_mode,
     )
+    if args.animate:
+        from .animation import run_animated_job
+
+        done = run_animated_job(
+            bpy.context.scene,
+            args.out,
+            tuple(args.animate),
+            job=job,
+            truth_samples=args.truth_samples or None,
+            score_between=args.score_between,
+            cycles_samples=args.cycles_samples,
+            eevee=not args.no_eevee,
+        )
+        print(vplace_md(args.out))
+        print(f"[vplace] {done.slots} keyed lights; results in {args.out}")
+        return
     run_main_job(
         bpy.context.scene,
         args.out,
@@ -293,6 +324,11 @@ def run(args: argparse.Namespace) -> None:
         truth_samples=args.truth_samples or None,
     )
     print(f"[vplace] results in {args.out}")
+
+
+def vplace_md(out: Path) -> str:
+    """The animated run's Markdown report (``animation.md`` in ``out``)."""
+    return (out / "animation.md").read_text()
 
 
 def main(argv: list[str] | None = None) -> int:

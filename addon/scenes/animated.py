@@ -1,8 +1,8 @@
 """Two animated built-in scenes built from code (issue 23), for ``demo --animate``:
 
 - ``cornell_moving``: the Cornell box (``registry.build_cornell_moving``: the box, then
-  :func:`key_cornell_lamp`) with its ceiling lamp keyed to slide from the left half of the ceiling to the right
-  (:data:`CORNELL_LAMP_PATH`, x in metres) while its power falls to
+  :func:`key_cornell_lamp`) with its ceiling lamp keyed to slide from the left half of the
+  ceiling to the right (:data:`CORNELL_LAMP_PATH`, x in metres) while its power falls to
   :data:`CORNELL_LAMP_DIM` of the original over frames :data:`FRAMES`.
 - ``skyroom_afternoon``: the sky-lit room (:func:`.rooms.build_skyroom`) with the Sky
   Texture's sun keyed to sweep from the south, high, to the west, low

@@ -1,0 +1,362 @@
+"""The animated job (issue 23, ``demo --animate START END STEP``): lights keyed over frames.
+
+For each captured frame ``START, START + STEP, ..., END`` (at most
+:data:`MAX_ANIMATED_FRAMES`) the scene is set to that frame and the one job runs on it as on a
+still (:func:`job.prepare`: export and capture of the scene camera at the job's capture
+samples, cached by what Blender renders, so a frame that renders as an earlier one reuses its
+capture; then fit, layout and refit with the job's seed, the same on every frame, so the same
+light paths and random numbers). The frames' VPLs are matched into slots
+(``vplace.temporal.track``) and written as ONE set of lights keyed over the captured frames
+(``writeback.keyed``; linear keys, a dark slot keyed to 0 W), replacing only the ``vplace
+VPLs`` collection. The scene's frame is put back.
+
+Then every frame from ``START`` to ``END`` (captured or between; ``score_between``) or only the
+captured ones is scored against a Cycles truth of that frame (``truth_samples``): the
+evaluator's image of the keyed lights at that frame (``vplace.temporal.at_frame``: what
+Blender's linear keys give there), the evaluator's image of a still layout laid out for that
+frame alone, the direct light alone, and, when asked, Cycles + OpenImageDenoise at a few
+samples (its seed the frame's, as Cycles' animated seed) and EEVEE with the keyed lights. Per
+image and frame: SSIM, RMSE, brightness; per image: the temporal error
+(``vplace.temporal.temporal_error``) over the scored frames. Files: ``results.csv`` (a
+``frame`` column), ``animation.json``, ``animation.md``, ``scene.blend`` (a copy with the
+keyed lights).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import bpy
+import numpy as np
+
+from .capture.stage import Captured, render_reference
+from .errors import AddonError, WriteBackError, output_folder, run_operator
+from .job import Job, StageTimer, prepare, reference_render
+from .native import vplace
+from .writeback import eevee_render, eevee_setup, keyed
+
+#: The most frames one animated layout captures: each costs a capture and a layout, and every
+#: frame's lights are keyed on every slot.
+MAX_ANIMATED_FRAMES = 120
+#: The image kinds scored per frame, in the tables' order.
+KEYED = "vplace keyed (evaluator)"
+STILL = "vplace still (evaluator)"
+DIRECT = "direct only"
+EEVEE = "EEVEE + keyed VPLs"
+
+
+def cycles_kind(samples: int) -> str:
+    """The image kind of Cycles + OpenImageDenoise at ``samples``."""
+    return f"Cycles + OIDN {samples} spp"
+
+
+def animated_frames(start: int, end: int, step: int) -> list[int]:
+    """The captured frames ``start, start + step, ..., end`` (``end`` always included), or an
+    :class:`AddonError` for an empty or reversed range, a step below 1 or more than
+    :data:`MAX_ANIMATED_FRAMES` frames."""
+    if step < 1:
+        raise AddonError(f"the animation step must be at least 1 frame, got {step}")
+    if end < start:
+        raise AddonError(f"the frame range {start}..{end} is empty: the end comes before the start")
+    frames = list(range(start, end + 1, step))
+    if frames[-1] != end:
+        frames.append(end)
+    if len(frames) > MAX_ANIMATED_FRAMES:
+        raise AddonError(
+            f"frames {start}..{end} step {step} are {len(frames)} frames, more than the "
+            f"{MAX_ANIMATED_FRAMES} an animated layout takes: use a larger step"
+        )
+    return frames
+
+
+@dataclass
+class FrameCost:
+    """One captured frame's one-time seconds: export and capture (wall, and Cycles' own render
+    seconds of the captures, as when first rendered), then fit + layout + refit."""
+
+    frame: int
+    prepare_seconds: float
+    capture_render_seconds: float
+    layout_seconds: float
+
+    @property
+    def total(self) -> float:
+        """Export, capture, fit, layout and refit."""
+        return self.prepare_seconds + self.layout_seconds
+
+
+@dataclass
+class AnimationSummary:
+    """What an animated run measured (``to_dict`` for JSON)."""
+
+    scene: str
+    frames: list[int]
+    scored_frames: list[int]
+    resolution: list[int]
+    n_vpls: int
+    slots: int
+    truth: str
+    #: One dict per (frame, image): frame, captured, image, ssim, rmse, brightness, seconds.
+    rows: list[dict[str, float | int | str | bool]] = field(default_factory=list)
+    #: Image -> temporal error over the scored frames.
+    temporal_error: dict[str, float] = field(default_factory=dict)
+    costs: list[FrameCost] = field(default_factory=list)
+    #: Image -> seconds of one frame of it (mean over the scored frames).
+    seconds_per_frame: dict[str, float] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, object]:
+        """The summary as plain JSON values."""
+        return asdict(self)
+
+    def mean(self, image: str, metric: str) -> float:
+        """The mean of ``metric`` of ``image`` over the scored frames."""
+        vals = [float(r[metric]) for r in self.rows if r["image"] == image]
+        return float(np.mean(vals)) if vals else float("nan")
+
+
+@dataclass
+class _Frame:
+    """One frame's capture, reference and still layout (kept for the scores and the keys)."""
+
+    frame: int
+    prepared: object
+    reference: vplace.job.Reference
+    computed: vplace.job.Computed
+
+
+def _run_frame(
+    bl_scene: bpy.types.Scene, frame: int, job: Job, truth_samples: int | None, timer: StageTimer
+) -> tuple[_Frame, FrameCost]:
+    """The still job at ``frame``: capture, reference, fit, layout, refit, evaluator."""
+    bl_scene.frame_set(frame)
+    start = time.perf_counter()
+    prepared = prepare(bl_scene, job, timer)
+    prepare_seconds = time.perf_counter() - start
+    n = len(prepared.captures)
+    reference = render_reference(
+        bl_scene,
+        prepared.scene,
+        prepared.exported,
+        Captured(prepared.captures, prepared.views[:n], prepared.gloss),
+        reference_render(job, truth_samples),
+        capture_samples=job.samples,
+        cache_dir=job.cache_dir,
+        stage=timer.stage,
+    )
+    start = time.perf_counter()
+    computed = vplace.job.compute(prepared.scene, prepared.views, job, reference, timer=timer)
+    laid_seconds = time.perf_counter() - start - computed.stats.seconds
+    cost = FrameCost(
+        frame,
+        prepare_seconds,
+        sum(c.render_seconds for c in prepared.captures),
+        laid_seconds,
+    )
+    return _Frame(frame, prepared, reference, computed), cost
+
+
+def run_animated_job(
+    bl_scene: bpy.types.Scene,
+    out_dir: Path,
+    frame_range: tuple[int, int, int],
+    *,
+    job: Job,
+    truth_samples: int | None = None,
+    score_between: bool = False,
+    cycles_samples: Sequence[int] = (),
+    eevee: bool = False,
+    write_back: bool = True,
+    log: Callable[[str], None] = print,
+) -> AnimationSummary:
+    """Lays out, keys and scores an animation (see the module docs). ``frame_range`` is
+    ``(START, END, STEP)``; the job's views must be the scene camera (``ViewSet()``)."""
+    frames = animated_frames(*frame_range)
+    job.validate()
+    if job.views.mode != "active":
+        raise AddonError("an animated layout captures the scene camera at each frame only")
+    if truth_samples is not None and truth_samples < 1:
+        raise AddonError(f"truth samples must be at least 1, got {truth_samples}")
+    for n in cycles_samples:
+        if n < 1:
+            raise AddonError(f"Cycles sample counts must be at least 1, got {n}")
+    if job.cache_dir is None:
+        job.cache_dir = out_dir / "cache"
+    output_folder(out_dir)
+    timer = StageTimer(log)
+    original = bl_scene.frame_current
+    scored = list(range(frame_range[0], frame_range[1] + 1)) if score_between else frames
+    try:
+        runs: dict[int, _Frame] = {}
+        costs = []
+        for f in frames:
+            log(f"[vplace] frame {f}")
+            runs[f], cost = _run_frame(bl_scene, f, job, truth_samples, timer)
+            costs.append(cost)
+        first = runs[frames[0]]
+        scene = first.prepared.scene  # type: ignore[attr-defined]
+        with timer.stage(f"match VPLs over {len(frames)} frames"):
+            tracked = vplace.temporal.track([runs[f].computed.vpls for f in frames], scene.diagonal)
+        log(f"[vplace] {tracked.position.shape[1]} keyed lights for {job.n_vpls} VPLs a frame")
+        if write_back:
+            with timer.stage("write back keyed lights"):
+                keyed.write_keyed(
+                    bl_scene,
+                    frames,
+                    tracked,
+                    scene_diagonal=scene.diagonal,
+                    specular=first.prepared.vpl_specular,  # type: ignore[attr-defined]
+                    emitters=first.prepared.stand_ins.emitters,  # type: ignore[attr-defined]
+                    suns=[runs[f].prepared.stand_ins.sun for f in frames],  # type: ignore[attr-defined]
+                )
+                blend = out_dir / "scene.blend"
+                run_operator(
+                    "wm.save_as_mainfile",
+                    f"cannot save a copy of the file to {blend}",
+                    WriteBackError,
+                    filepath=str(blend),
+                    copy=True,
+                )
+        summary = AnimationSummary(
+            scene=Path(bpy.data.filepath).stem or bl_scene.name,
+            frames=frames,
+            scored_frames=scored,
+            resolution=[first.reference.gi.shape[1], first.reference.gi.shape[0]],
+            n_vpls=job.n_vpls,
+            slots=int(tracked.position.shape[1]),
+            truth=first.reference.label,
+            costs=costs,
+        )
+        images: dict[str, list[np.ndarray]] = {}
+        truths: list[np.ndarray] = []
+        seconds: dict[str, list[float]] = {}
+
+        def add(frame: int, kind: str, image: np.ndarray, truth: np.ndarray, s: float) -> None:
+            images.setdefault(kind, []).append(image)
+            seconds.setdefault(kind, []).append(s)
+            row: dict[str, float | int | str | bool] = {
+                "frame": frame,
+                "captured": frame in runs,
+                "image": kind,
+                **vplace.job.score(image, truth),
+                "seconds": s,
+            }
+            summary.rows.append(row)
+
+        for f in scored:
+            run = runs.get(f)
+            if run is None:
+                log(f"[vplace] frame {f} (between captured frames: scored only)")
+                run, _ = _run_frame(bl_scene, f, job, truth_samples, timer)
+            ref = run.reference
+            truths.append(ref.gi)
+            start = time.perf_counter()
+            lights = vplace.temporal.at_frame(tracked, frames, f)
+            indirect, _ = vplace.evaluate(run.prepared.scene, ref.view, lights)  # type: ignore[attr-defined]
+            add(f, KEYED, ref.direct + indirect, ref.gi, time.perf_counter() - start)
+            add(f, STILL, ref.direct + run.computed.indirect, ref.gi, run.computed.stats.seconds)
+            add(f, DIRECT, ref.direct, ref.gi, 0.0)
+            height, width = ref.gi.shape[:2]
+            for n in cycles_samples:
+                with timer.stage(f"Cycles + OIDN {n} spp, frame {f}"):
+                    img = eevee_render.render(
+                        bl_scene,
+                        resolution=(width, height),
+                        samples=n,
+                        setup=eevee_render.SETUPS["cycles+oidn"],
+                        seed=f,
+                        cache_dir=job.cache_dir,
+                    )
+                add(f, cycles_kind(n), img.image, ref.gi, img.seconds)
+            if eevee and write_back:
+                with timer.stage(f"EEVEE, frame {f}"):
+                    with eevee_setup.world_volume_for_render(bl_scene):
+                        img = eevee_render.render(
+                            bl_scene,
+                            resolution=(width, height),
+                            samples=eevee_render.EEVEE_SAMPLES,
+                            setup=eevee_render.SETUPS["vpl"],
+                            cache_dir=job.cache_dir,
+                        )
+                add(f, EEVEE, img.image, ref.gi, img.seconds)
+    finally:
+        bl_scene.frame_set(original)
+    if len(truths) >= 2:
+        summary.temporal_error = {
+            kind: vplace.temporal.temporal_error(imgs, truths) for kind, imgs in images.items()
+        }
+    summary.seconds_per_frame = {k: float(np.mean(v)) for k, v in seconds.items()}
+    write_files(out_dir, summary)
+    return summary
+
+
+def write_files(out_dir: Path, summary: AnimationSummary) -> None:
+    """``results.csv`` (one row per frame and image), ``animation.json`` and ``animation.md``."""
+    columns = ["frame", "captured", "image", "ssim", "rmse", "relative_mse", "brightness"]
+    columns.append("seconds")
+    with (out_dir / "results.csv").open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=columns, extrasaction="ignore")
+        w.writeheader()
+        for row in summary.rows:
+            w.writerow(row)
+    (out_dir / "animation.json").write_text(json.dumps(summary.to_dict(), indent=1))
+    (out_dir / "animation.md").write_text(animation_report(summary))
+
+
+def animation_report(summary: AnimationSummary) -> str:
+    """The per-frame and temporal tables in Markdown."""
+    kinds = list(dict.fromkeys(str(r["image"]) for r in summary.rows))
+    lines = [
+        f"# {summary.scene}: animated layout",
+        "",
+        f"Captured frames {summary.frames}, scored frames {summary.scored_frames}; "
+        f"{summary.resolution[0]}x{summary.resolution[1]}, {summary.n_vpls} VPLs a frame, "
+        f"{summary.slots} keyed lights (linear keys); truth: {summary.truth}.",
+        "",
+        "## SSIM per frame (brightness)",
+        "",
+    ]
+    rows: list[list[str]] = []
+    for f in summary.scored_frames:
+        cells = [f"{f}" + ("" if f in summary.frames else " (between)")]
+        for k in kinds:
+            r = next((r for r in summary.rows if r["frame"] == f and r["image"] == k), None)
+            cells.append("" if r is None else f"{r['ssim']:.3f} ({r['brightness']:.3f})")
+        rows.append(cells)
+    lines += vplace.markdown.table(["frame", *kinds], rows)
+    lines += ["", "## Over the frames", ""]
+    rows = []
+    for k in kinds:
+        te = summary.temporal_error.get(k, float("nan"))
+        rows.append(
+            [
+                k,
+                f"{summary.mean(k, 'ssim'):.3f}",
+                f"{summary.mean(k, 'rmse'):.4f}",
+                f"{te:.4f}",
+                f"{summary.seconds_per_frame.get(k, float('nan')):.2f}",
+            ]
+        )
+    lines += vplace.markdown.table(
+        ["image", "mean SSIM", "mean RMSE", "temporal error", "s per frame"], rows
+    )
+    lines += ["", "## One-time cost per captured frame (s)", ""]
+    rows = []
+    for c in summary.costs:
+        rows.append(
+            [
+                str(c.frame),
+                f"{c.prepare_seconds:.2f}",
+                f"{c.capture_render_seconds:.2f}",
+                f"{c.layout_seconds:.2f}",
+            ]
+        )
+    lines += vplace.markdown.table(
+        ["frame", "export + capture (wall)", "captures' Cycles render", "fit + layout + refit"],
+        rows,
+    )
+    return "\n".join(lines) + "\n"
