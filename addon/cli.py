@@ -300,6 +300,10 @@ def run(args: argparse.Namespace) -> None:
         iterations=args.iterations,
         feature_mode=args.feature_mode,
     )
+    if not args.animate and (args.score_between or args.cycles_samples):
+        from .errors import AddonError
+
+        raise AddonError("--score-between and --cycles-samples go with --animate")
     if args.animate:
         from .animation import run_animated_job
 

@@ -69,8 +69,9 @@ def _key_light(
         light.color = tuple(float(c) for c in color[k])
         light.keyframe_insert("energy", frame=frame)
         light.keyframe_insert("color", frame=frame)
-    make_keys_linear(obj)
-    make_keys_linear(light)
+    for owner in (obj, light):
+        make_keys_linear(owner)
+        owner.animation_data.action[apply.VPL_MARKER] = True
 
 
 def write_keyed(
@@ -126,7 +127,7 @@ def write_keyed(
                 specular,
             )
             obj[SLOT_PROPERTY] = s
-            obj.name = obj.data.name = f"vplace VPL slot {s:04d}"
+            obj.name = obj.data.name = slot_name(s)
             _key_light(
                 obj,
                 frames,
@@ -148,8 +149,16 @@ def write_keyed(
             scene.frame_set(current)
     apply.clear_vpls(name)
     coll.name = name
+    for obj in coll.objects:  # the old lights are gone: their names are free again
+        if obj.get(SLOT_PROPERTY) is not None:
+            obj.name = obj.data.name = slot_name(obj[SLOT_PROPERTY])
     scene.collection.children.link(coll)
     return coll
+
+
+def slot_name(slot: int) -> str:
+    """The name of a keyed light (object and light data)."""
+    return f"vplace VPL slot {slot:04d}"
 
 
 def _write_keyed_sun(

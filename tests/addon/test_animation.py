@@ -1,0 +1,188 @@
+"""Issue 23: the animated scenes, the frames of ``--animate``, and the keyed write-back of
+``addon.animation.run_animated_job`` (tiny captures: 24 px, 2 spp)."""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+import pytest
+from blender_util import data_snapshot, diff, empty_file
+
+from addon import animation
+from addon.capture.passes import capture
+from addon.compat import action_fcurves
+from addon.errors import AddonError
+from addon.job import Job
+from addon.scene.export import VPL_MARKER
+from addon.scenes import animated
+from addon.scenes.registry import build_cornell_moving
+from addon.writeback import apply, keyed
+
+
+def test_frames_of_an_animation():
+    assert animation.animated_frames(1, 24, 8) == [1, 9, 17, 24]
+    assert animation.animated_frames(3, 3, 1) == [3]
+    assert animation.animated_frames(1, 9, 4) == [1, 5, 9]
+
+
+@pytest.mark.parametrize(
+    "args, says",
+    [
+        ((5, 1, 1), "the frame range 5..1 is empty"),
+        ((1, 5, 0), "the animation step must be at least 1 frame, got 0"),
+        ((1, 5, -2), "the animation step must be at least 1 frame, got -2"),
+        ((1, 1000, 1), "are 1000 frames, more than the 120"),
+    ],
+)
+def test_bad_frames_are_one_error_naming_them(args, says):
+    with pytest.raises(AddonError, match=says):
+        animation.animated_frames(*args)
+
+
+def _keys(owner: bpy.types.ID) -> dict[tuple[str, int], list[tuple[float, float]]]:
+    action = owner.animation_data.action
+    return {
+        (fc.data_path, fc.array_index): [tuple(k.co) for k in fc.keyframe_points]
+        for fc in action_fcurves(action)
+    }
+
+
+def _mean_luminance(scene: bpy.types.Scene, frame: int) -> tuple[float, float]:
+    """(left half, right half) mean luminance of a tiny Cycles capture's direct light."""
+    cap = capture(scene, resolution=(24, 24), samples=4, seed=0, frame=frame)
+    lum = cap.diffuse_direct @ np.array([0.2126, 0.7152, 0.0722])
+    return float(lum[:, :12].mean()), float(lum[:, 12:].mean())
+
+
+def test_cornell_moving_keys_its_lamp_and_the_light_follows():
+    empty_file()
+    scene = build_cornell_moving(bpy.context.scene)
+    lamp = scene.objects[animated.CORNELL_LAMP]
+    keys = _keys(lamp)
+    assert [k[0] for k in keys[("location", 0)]] == list(animated.FRAMES)
+    energy = _keys(lamp.data)[("energy", 0)]
+    assert energy[1][1] == pytest.approx(animated.CORNELL_LAMP_DIM * energy[0][1])
+    assert (scene.frame_start, scene.frame_end) == animated.FRAMES
+    first, last = _mean_luminance(scene, 1), _mean_luminance(scene, 24)
+    # The lamp moves from the left to the right and dims: the left half darkens much more.
+    assert last[0] / first[0] < 0.6
+    assert last[0] / first[0] < 0.8 * (last[1] / first[1])
+    assert scene.frame_current == 1  # the capture put the frame back
+
+
+@pytest.mark.slow
+def test_skyroom_afternoon_sweeps_its_sun():
+    empty_file()
+    scene = animated.build_skyroom_afternoon(bpy.context.scene)
+    sky = scene.world.node_tree.nodes[animated.SKY_NODE]
+    keys = _keys(scene.world.node_tree)
+    path = f'nodes["{animated.SKY_NODE}"].sun_rotation'
+    assert [k[0] for k in keys[(path, 0)]] == list(animated.FRAMES)
+    scene.frame_set(12)
+    assert animated.SKY_SUN_ROTATIONS[0] < sky.sun_rotation < animated.SKY_SUN_ROTATIONS[1]
+    scene.frame_set(1)
+    cap = [
+        capture(scene, resolution=(32, 18), samples=4, seed=0, frame=f).diffuse_direct
+        for f in animated.FRAMES
+    ]
+    lum = [c @ np.array([0.2126, 0.7152, 0.0722]) for c in cap]
+    # The sun patches move: pixels lit at one end of the afternoon are dark at the other.
+    moved = np.abs(lum[0] - lum[1]) > 0.5 * max(lum[0].max(), lum[1].max())
+    assert moved.sum() >= 3
+
+
+def _animate(tmp_path, name: str) -> animation.AnimationSummary:
+    job = Job(n_vpls=16, size=24, samples=2, iterations=1, cache_dir=tmp_path / "cache")
+    return animation.run_animated_job(
+        bpy.context.scene,
+        tmp_path / name,
+        (1, 24, 23),
+        job=job,
+        score_between=False,
+        log=lambda _line: None,
+    )
+
+
+def _written_keys() -> dict[str, dict]:
+    coll = bpy.data.collections[apply.COLLECTION_NAME]
+    return {
+        o.name: {**_keys(o), **_keys(o.data)}
+        for o in coll.objects
+        if o.get("vplace_slot") is not None
+    }
+
+
+def test_the_animated_job_keys_one_set_of_lights_the_same_on_a_rerun(tmp_path):
+    empty_file()
+    scene = build_cornell_moving(bpy.context.scene)
+    bpy.context.view_layer.update()
+    scene.frame_set(7)
+    scene.render.image_settings.file_format = "PNG"  # as test_operators: a saved file has it set
+    before = data_snapshot()
+    actions = len(bpy.data.actions)
+    done = _animate(tmp_path, "a")
+    assert scene.frame_current == 7
+    assert diff(before, data_snapshot()) == []  # only the VPL collection is new
+    first = _written_keys()
+    assert 16 <= len(first) == done.slots
+    for keys in first.values():
+        # Location, rotation, energy and colour keyed on both captured frames, linearly.
+        assert {p for p, _ in keys} == {"location", "rotation_quaternion", "energy", "color"}
+        assert all([k[0] for k in v] == [1.0, 24.0] for v in keys.values())
+    coll = bpy.data.collections[apply.COLLECTION_NAME]
+    for o in coll.objects:
+        for fc in action_fcurves(o.animation_data.action):
+            assert {k.interpolation for k in fc.keyframe_points} == {"LINEAR"}
+    # A light lit on one frame only is keyed to 0 W on the other.
+    energies = np.array([[v for _, v in keys[("energy", 0)]] for keys in first.values()])
+    assert (energies >= 0).all() and (energies.max(axis=1) > 0).all()
+    lit = (energies > 0).sum(axis=0)
+    assert (0 < lit).all() and (lit <= 16).all()  # each frame's VPLs the refit kept, no more
+    # The keyed lights at a captured frame are that frame's lights: Blender's evaluated power.
+    scene.frame_set(24)
+    total = sum(o.data.energy * np.array(o.data.color) for o in coll.objects)
+    refit = [r for r in done.rows if r["frame"] == 24 and r["image"] == animation.KEYED]
+    assert len(refit) == 1 and total.max() > 0
+    scene.frame_set(7)
+
+    again = _animate(tmp_path, "b")
+    assert again.slots == done.slots
+    assert _written_keys() == first
+    assert len([c for c in bpy.data.collections if c.get(VPL_MARKER)]) == 1
+    assert apply.clear_vpls() == done.slots
+    assert len(bpy.data.actions) == actions  # the keyed lights' actions went with them
+    assert diff(before, data_snapshot()) == []
+    # The files: a frame column, both frames, every image kind.
+    csv = (tmp_path / "a" / "results.csv").read_text().splitlines()
+    assert csv[0].startswith("frame,captured,image,ssim")
+    assert {line.split(",")[0] for line in csv[1:]} == {"1", "24"}
+    assert set(done.temporal_error) == {animation.KEYED, animation.STILL, animation.DIRECT}
+    # At the captured frames the keyed lights are the still layouts' lights.
+    for f in (1, 24):
+        k, s = (
+            next(r for r in done.rows if r["frame"] == f and r["image"] == kind)
+            for kind in (animation.KEYED, animation.STILL)
+        )
+        assert k["rmse"] == pytest.approx(s["rmse"], rel=1e-4, abs=1e-7)
+
+
+def test_a_keyed_sun_is_dark_where_the_frame_has_none():
+    from addon.writeback.stand_ins import SunLight
+
+    empty_file()
+    scene = bpy.context.scene
+    import vplace
+
+    one = vplace.VplSet(
+        np.zeros((1, 3), np.float32),
+        np.array([[0, 0, 1]], np.float32),
+        np.ones((1, 3), np.float32),
+        radius=0.01,
+    )
+    tracked = vplace.temporal.track([one, one], diagonal=10.0)
+    sun = SunLight((0.0, 0.0, 1.0), (2.0, 2.0, 1.0), 0.01)
+    keyed.write_keyed(scene, [1, 5], tracked, suns=[sun, None])
+    obj = apply.world_sun_light(scene)
+    assert obj is not None
+    energy = _keys(obj.data)[("energy", 0)]
+    assert energy == [(1.0, 2.0), (5.0, 0.0)]
