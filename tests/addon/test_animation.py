@@ -70,7 +70,6 @@ def test_cornell_moving_keys_its_lamp_and_the_light_follows():
     assert scene.frame_current == 1  # the capture put the frame back
 
 
-@pytest.mark.slow
 def test_skyroom_afternoon_sweeps_its_sun():
     empty_file()
     scene = animated.build_skyroom_afternoon(bpy.context.scene)
