@@ -248,6 +248,7 @@ def run_animated_job(
             summary.rows.append(row)
 
         for f in scored:
+            bl_scene.frame_set(f)  # the renders below are of this frame
             run = runs.get(f)
             if run is None:
                 log(f"[vplace] frame {f} (between captured frames: scored only)")

@@ -185,3 +185,28 @@ def test_a_keyed_sun_is_dark_where_the_frame_has_none():
     assert obj is not None
     energy = _keys(obj.data)[("energy", 0)]
     assert energy == [(1.0, 2.0), (5.0, 0.0)]
+
+
+@pytest.mark.slow
+def test_eevee_renders_the_keyed_lights_at_each_frame(tmp_path):
+    """EEVEE with the keyed lights at both ends of cornell_moving: at the truth's brightness on
+    each frame. Lights stuck at frame 1's power would make frame 24 (lamp at 0.4) about 1.7x
+    too bright; lights missing would make it about 0.5x."""
+    empty_file()
+    build_cornell_moving(bpy.context.scene)
+    bpy.context.view_layer.update()
+    job = Job(n_vpls=32, size=32, samples=4, cache_dir=tmp_path / "cache")
+    done = animation.run_animated_job(
+        bpy.context.scene,
+        tmp_path / "out",
+        (1, 24, 23),
+        job=job,
+        truth_samples=64,
+        eevee=True,
+        log=lambda _line: None,
+    )
+    rows = {r["frame"]: r for r in done.rows if r["image"] == animation.EEVEE}
+    assert sorted(rows) == [1, 24]
+    for r in rows.values():
+        assert 0.8 < r["brightness"] < 1.2, r
+    assert animation.EEVEE in done.temporal_error
