@@ -36,7 +36,7 @@ import numpy as np
 
 from .capture.stage import Captured, render_reference
 from .errors import AddonError, WriteBackError, output_folder, run_operator
-from .job import Job, StageTimer, prepare, reference_render
+from .job import Job, Prepared, StageTimer, prepare, reference_render
 from .native import vplace
 from .writeback import eevee_render, eevee_setup, keyed
 
@@ -124,7 +124,7 @@ class _Frame:
     """One frame's capture, reference and still layout (kept for the scores and the keys)."""
 
     frame: int
-    prepared: object
+    prepared: Prepared
     reference: vplace.job.Reference
     computed: vplace.job.Computed
 
@@ -160,6 +160,71 @@ def _run_frame(
     return _Frame(frame, prepared, reference, computed), cost
 
 
+def check_animation(job: Job, frame_range: tuple[int, int, int]) -> list[int]:
+    """The captured frames of ``frame_range`` (:func:`animated_frames`), after checking the job
+    can animate: valid, and its views the scene camera."""
+    frames = animated_frames(*frame_range)
+    job.validate()
+    if job.views.mode != "active":
+        raise AddonError("an animated layout captures the scene camera at each frame only")
+    return frames
+
+
+def capture_frames(
+    bl_scene: bpy.types.Scene, frames: Sequence[int], job: Job, timer: StageTimer
+) -> list[Prepared]:
+    """:func:`job.prepare` (export and capture, cached) at each of ``frames``; the scene's frame
+    is put back. Uses bpy: the main thread (the panel's first half)."""
+    original = bl_scene.frame_current
+    try:
+        out = []
+        for f in frames:
+            bl_scene.frame_set(f)
+            out.append(prepare(bl_scene, job, timer))
+        return out
+    finally:
+        bl_scene.frame_set(original)
+
+
+def lay_out_frames(
+    prepared: Sequence[Prepared],
+    job: Job,
+    progress: vplace.Progress | None = None,
+) -> list[vplace.VplSet]:
+    """Each frame's VPLs (fit, layout, refit with the job's seed: the same random numbers on
+    every frame). No bpy: safe on a worker thread (the panel's second half)."""
+    return [vplace.job.lay_out(p.scene, p.views, job, progress=progress).vpls for p in prepared]
+
+
+def key_lights(
+    bl_scene: bpy.types.Scene,
+    frames: Sequence[int],
+    prepared: Sequence[Prepared],
+    vpl_sets: Sequence[vplace.VplSet],
+    timer: StageTimer,
+    *,
+    write_back: bool = True,
+) -> vplace.temporal.Keyed:
+    """The frames' VPLs matched into slots (``vplace.temporal.track``) and, with
+    ``write_back``, written as one set of keyed lights (``writeback.keyed``) with the world's
+    sun of each frame and the first frame's emitter lights."""
+    scene = prepared[0].scene
+    with timer.stage(f"match VPLs over {len(frames)} frames"):
+        tracked = vplace.temporal.track(vpl_sets, scene.diagonal)
+    if write_back:
+        with timer.stage("write back keyed lights"):
+            keyed.write_keyed(
+                bl_scene,
+                frames,
+                tracked,
+                scene_diagonal=scene.diagonal,
+                specular=prepared[0].vpl_specular,
+                emitters=prepared[0].stand_ins.emitters,
+                suns=[p.stand_ins.sun for p in prepared],
+            )
+    return tracked
+
+
 def run_animated_job(
     bl_scene: bpy.types.Scene,
     out_dir: Path,
@@ -175,10 +240,7 @@ def run_animated_job(
 ) -> AnimationSummary:
     """Lays out, keys and scores an animation (see the module docs). ``frame_range`` is
     ``(START, END, STEP)``; the job's views must be the scene camera (``ViewSet()``)."""
-    frames = animated_frames(*frame_range)
-    job.validate()
-    if job.views.mode != "active":
-        raise AddonError("an animated layout captures the scene camera at each frame only")
+    frames = check_animation(job, frame_range)
     if truth_samples is not None and truth_samples < 1:
         raise AddonError(f"truth samples must be at least 1, got {truth_samples}")
     for n in cycles_samples:
@@ -198,29 +260,24 @@ def run_animated_job(
             runs[f], cost = _run_frame(bl_scene, f, job, truth_samples, timer)
             costs.append(cost)
         first = runs[frames[0]]
-        scene = first.prepared.scene  # type: ignore[attr-defined]
-        with timer.stage(f"match VPLs over {len(frames)} frames"):
-            tracked = vplace.temporal.track([runs[f].computed.vpls for f in frames], scene.diagonal)
+        tracked = key_lights(
+            bl_scene,
+            frames,
+            [runs[f].prepared for f in frames],
+            [runs[f].computed.vpls for f in frames],
+            timer,
+            write_back=write_back,
+        )
         log(f"[vplace] {tracked.position.shape[1]} keyed lights for {job.n_vpls} VPLs a frame")
         if write_back:
-            with timer.stage("write back keyed lights"):
-                keyed.write_keyed(
-                    bl_scene,
-                    frames,
-                    tracked,
-                    scene_diagonal=scene.diagonal,
-                    specular=first.prepared.vpl_specular,  # type: ignore[attr-defined]
-                    emitters=first.prepared.stand_ins.emitters,  # type: ignore[attr-defined]
-                    suns=[runs[f].prepared.stand_ins.sun for f in frames],  # type: ignore[attr-defined]
-                )
-                blend = out_dir / "scene.blend"
-                run_operator(
-                    "wm.save_as_mainfile",
-                    f"cannot save a copy of the file to {blend}",
-                    WriteBackError,
-                    filepath=str(blend),
-                    copy=True,
-                )
+            blend = out_dir / "scene.blend"
+            run_operator(
+                "wm.save_as_mainfile",
+                f"cannot save a copy of the file to {blend}",
+                WriteBackError,
+                filepath=str(blend),
+                copy=True,
+            )
         summary = AnimationSummary(
             scene=Path(bpy.data.filepath).stem or bl_scene.name,
             frames=frames,
@@ -257,7 +314,7 @@ def run_animated_job(
             truths.append(ref.gi)
             start = time.perf_counter()
             lights = vplace.temporal.at_frame(tracked, frames, f)
-            indirect, _ = vplace.evaluate(run.prepared.scene, ref.view, lights)  # type: ignore[attr-defined]
+            indirect, _ = vplace.evaluate(run.prepared.scene, ref.view, lights)
             add(f, KEYED, ref.direct + indirect, ref.gi, time.perf_counter() - start)
             add(f, STILL, ref.direct + run.computed.indirect, ref.gi, run.computed.stats.seconds)
             add(f, DIRECT, ref.direct, ref.gi, 0.0)
