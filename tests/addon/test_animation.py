@@ -210,3 +210,36 @@ def test_eevee_renders_the_keyed_lights_at_each_frame(tmp_path):
     for r in rows.values():
         assert 0.8 < r["brightness"] < 1.2, r
     assert animation.EEVEE in done.temporal_error
+
+
+def test_the_panel_animates_the_lights_undoably(tmp_path, monkeypatch):
+    """ "Frames: animate" in the panel: "Lay out and apply" keys the lights over the frames."""
+    import addon
+    from addon.ui import operators
+
+    monkeypatch.setattr(operators, "cache_dir", lambda: tmp_path / "cache")
+    addon.register()
+    try:
+        empty_file()
+        scene = build_cornell_moving(bpy.context.scene)
+        bpy.context.view_layer.update()
+        s = scene.vplace
+        s.capture_size, s.samples, s.vpl_budget, s.iterations = 24, 2, 16, 1
+        s.view_mode = "animate"
+        s.frame_start, s.frame_end, s.frame_step = 1, 24, 23
+        assert s.view_set().mode == "active" and s.animate_frames() == (1, 24, 23)
+        assert "UNDO" in operators.VPLACE_OT_apply.bl_options
+        assert bpy.ops.vplace.apply() == {"FINISHED"}
+        lights = [
+            o for o in apply.find_collection().objects if o.get(keyed.SLOT_PROPERTY) is not None
+        ]
+        assert len(lights) >= 16
+        for o in lights:
+            assert [k[0] for k in _keys(o.data)[("energy", 0)]] == [1.0, 24.0]
+        assert scene.frame_current == 1
+        s.frame_step = 1
+        s.frame_end = 500
+        with pytest.raises(RuntimeError, match="more than the 120"):
+            bpy.ops.vplace.apply()
+    finally:
+        addon.unregister()
