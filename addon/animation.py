@@ -15,7 +15,8 @@ captured ones is scored against a Cycles truth of that frame (``truth_samples``)
 evaluator's image of the keyed lights at that frame (``vplace.temporal.at_frame``: what
 Blender's linear keys give there), the evaluator's image of a still layout laid out for that
 frame alone, the direct light alone, and, when asked, Cycles + OpenImageDenoise at a few
-samples (its seed the frame's, as Cycles' animated seed) and EEVEE with the keyed lights. Per
+samples (its seed the frame's, as Cycles' animated seed), EEVEE with the keyed lights and
+EEVEE's ray tracing with a light probe volume baked once at the first scored frame. Per
 image and frame: SSIM, RMSE, brightness; per image: the temporal error
 (``vplace.temporal.temporal_error``) over the scored frames. Files: ``results.csv`` (a
 ``frame`` column), ``animation.json``, ``animation.md``, ``scene.blend`` (a copy with the
@@ -34,10 +35,12 @@ from pathlib import Path
 import bpy
 import numpy as np
 
+from .capture.passes import hide_vpls
 from .capture.stage import Captured, render_reference
 from .errors import AddonError, WriteBackError, output_folder, run_operator
 from .job import Job, Prepared, StageTimer, prepare, reference_render
 from .native import vplace
+from .settings import override
 from .writeback import eevee_render, eevee_setup, keyed
 
 #: The most frames one animated layout captures: each costs a capture and a layout, and every
@@ -48,6 +51,7 @@ KEYED = "vplace keyed (evaluator)"
 STILL = "vplace still (evaluator)"
 DIRECT = "direct only"
 EEVEE = "EEVEE + keyed VPLs"
+VOLUME_ONCE = "EEVEE RT + volume baked once"
 
 
 def cycles_kind(samples: int) -> str:
@@ -235,6 +239,7 @@ def run_animated_job(
     score_between: bool = False,
     cycles_samples: Sequence[int] = (),
     eevee: bool = False,
+    volume_once: bool = False,
     write_back: bool = True,
     log: Callable[[str], None] = print,
 ) -> AnimationSummary:
@@ -341,6 +346,8 @@ def run_animated_job(
                             cache_dir=job.cache_dir,
                         )
                 add(f, EEVEE, img.image, ref.gi, img.seconds)
+        if volume_once:
+            _score_volume_once(bl_scene, scored, truths, job, add, timer)
     finally:
         bl_scene.frame_set(original)
     if len(truths) >= 2:
@@ -350,6 +357,35 @@ def run_animated_job(
     summary.seconds_per_frame = {k: float(np.mean(v)) for k, v in seconds.items()}
     write_files(out_dir, summary)
     return summary
+
+
+def _score_volume_once(
+    bl_scene: bpy.types.Scene,
+    scored: Sequence[int],
+    truths: Sequence[np.ndarray],
+    job: Job,
+    add: Callable[[int, str, np.ndarray, np.ndarray, float], None],
+    timer: StageTimer,
+) -> None:
+    """EEVEE ray tracing with a light probe volume baked once, at the first scored frame (with
+    vplace's lights hidden), rendered at every scored frame: what a user gets from one bake.
+    Not cached: a render's key does not say at which frame its volume was baked."""
+    height, width = truths[0].shape[:2]
+    bl_scene.frame_set(scored[0])
+    with override() as g:
+        hide_vpls(g)
+        with eevee_setup.temporary_volume(bl_scene) as bake_seconds:
+            timer.log(f"[vplace] light probe volume baked once in {bake_seconds:.1f} s")
+            for f, truth in zip(scored, truths, strict=True):
+                bl_scene.frame_set(f)
+                with timer.stage(f"EEVEE RT + volume baked once, frame {f}"):
+                    img = eevee_render.render(
+                        bl_scene,
+                        resolution=(width, height),
+                        samples=eevee_render.EEVEE_SAMPLES,
+                        setup=eevee_render.SETUPS["rt+volume"],
+                    )
+                add(f, VOLUME_ONCE, img.image, truth, img.seconds)
 
 
 def write_files(out_dir: Path, summary: AnimationSummary) -> None:

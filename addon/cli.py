@@ -117,6 +117,11 @@ def _demo_options(sub: argparse._SubParsersAction) -> None:
         help="with --animate: also score Cycles + OpenImageDenoise at these samples per frame",
     )  # fmt: skip
     demo.add_argument(
+        "--volume-once", action="store_true",
+        help="with --animate: also score EEVEE ray tracing with a light probe volume baked once "
+        "at the first frame",
+    )  # fmt: skip
+    demo.add_argument(
         "--samples", type=int, default=Job.samples, help="Cycles samples of each capture"
     )
     add_region_arguments(demo)
@@ -300,10 +305,10 @@ def run(args: argparse.Namespace) -> None:
         iterations=args.iterations,
         feature_mode=args.feature_mode,
     )
-    if not args.animate and (args.score_between or args.cycles_samples):
+    if not args.animate and (args.score_between or args.cycles_samples or args.volume_once):
         from .errors import AddonError
 
-        raise AddonError("--score-between and --cycles-samples go with --animate")
+        raise AddonError("--score-between, --cycles-samples and --volume-once go with --animate")
     if args.animate:
         from .animation import run_animated_job
 
@@ -316,6 +321,7 @@ def run(args: argparse.Namespace) -> None:
             score_between=args.score_between,
             cycles_samples=args.cycles_samples,
             eevee=not args.no_eevee,
+            volume_once=args.volume_once,
         )
         print(vplace_md(args.out))
         print(f"[vplace] {done.slots} keyed lights; results in {args.out}")

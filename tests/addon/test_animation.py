@@ -203,6 +203,7 @@ def test_eevee_renders_the_keyed_lights_at_each_frame(tmp_path):
         job=job,
         truth_samples=64,
         eevee=True,
+        volume_once=True,
         log=lambda _line: None,
     )
     rows = {r["frame"]: r for r in done.rows if r["image"] == animation.EEVEE}
@@ -210,6 +211,10 @@ def test_eevee_renders_the_keyed_lights_at_each_frame(tmp_path):
     for r in rows.values():
         assert 0.8 < r["brightness"] < 1.2, r
     assert animation.EEVEE in done.temporal_error
+    # The volume baked once, at frame 1: rendered at both frames, and removed after.
+    once = [r["frame"] for r in done.rows if r["image"] == animation.VOLUME_ONCE]
+    assert once == [1, 24] and animation.VOLUME_ONCE in done.temporal_error
+    assert not any(o.type == "LIGHT_PROBE" for o in bpy.data.objects)
 
 
 def test_the_panel_animates_the_lights_undoably(tmp_path, monkeypatch):
