@@ -275,6 +275,7 @@ def run_animated_job(
         )
         log(f"[vplace] {tracked.position.shape[1]} keyed lights for {job.n_vpls} VPLs a frame")
         if write_back:
+            bl_scene.frame_set(original)  # the copy opens at the user's frame
             blend = out_dir / "scene.blend"
             run_operator(
                 "wm.save_as_mainfile",

@@ -151,6 +151,10 @@ def test_the_animated_job_keys_one_set_of_lights_the_same_on_a_rerun(tmp_path):
     assert apply.clear_vpls() == done.slots
     assert len(bpy.data.actions) == actions  # the keyed lights' actions went with them
     assert diff(before, data_snapshot()) == []
+    # The copy of the file opens at the user's frame, with the keyed lights.
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "a" / "scene.blend"))
+    assert bpy.context.scene.frame_current == 7
+    assert len(bpy.data.collections[apply.COLLECTION_NAME].objects) == done.slots
     # The files: a frame column, both frames, every image kind.
     csv = (tmp_path / "a" / "results.csv").read_text().splitlines()
     assert csv[0].startswith("frame,captured,image,ssim")
