@@ -107,8 +107,10 @@ class AnimationSummary:
     truth: str
     #: One dict per (frame, image): frame, captured, image, ssim, rmse, brightness, seconds.
     rows: list[dict[str, float | int | str | bool]] = field(default_factory=list)
-    #: Image -> temporal error over the scored frames.
+    #: Image -> temporal error over the scored frames, and its term at each step (frame t of
+    #: the scored frames against the one before).
     temporal_error: dict[str, float] = field(default_factory=dict)
+    temporal_steps: dict[str, list[float]] = field(default_factory=dict)
     costs: list[FrameCost] = field(default_factory=list)
     #: Image -> seconds of one frame of it (mean over the scored frames).
     seconds_per_frame: dict[str, float] = field(default_factory=dict)
@@ -352,9 +354,10 @@ def run_animated_job(
     finally:
         bl_scene.frame_set(original)
     if len(truths) >= 2:
-        summary.temporal_error = {
-            kind: vplace.temporal.temporal_error(imgs, truths) for kind, imgs in images.items()
-        }
+        for kind, imgs in images.items():
+            steps = vplace.temporal.temporal_steps(imgs, truths)
+            summary.temporal_steps[kind] = [float(x) for x in steps]
+            summary.temporal_error[kind] = float(steps.mean())
     summary.seconds_per_frame = {k: float(np.mean(v)) for k, v in seconds.items()}
     write_files(out_dir, summary)
     return summary
@@ -455,3 +458,34 @@ def animation_report(summary: AnimationSummary) -> str:
         rows,
     )
     return "\n".join(lines) + "\n"
+
+
+def plot_animation(summary: AnimationSummary, path: Path) -> Path:
+    """Two panels across the scored frames, one line per image: SSIM against the truth, and
+    the temporal error's term at each step (:attr:`AnimationSummary.temporal_steps`). PNG;
+    matplotlib is imported only here (the report's plots do the same)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    kinds = list(dict.fromkeys(str(r["image"]) for r in summary.rows))
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
+    for kind in kinds:
+        rows = [r for r in summary.rows if r["image"] == kind]
+        top.plot([r["frame"] for r in rows], [r["ssim"] for r in rows], marker=".", label=kind)
+        steps = summary.temporal_steps.get(kind)
+        if steps:
+            bottom.plot(summary.scored_frames[1:], steps, marker=".", label=kind)
+    for f in summary.frames:
+        for ax in (top, bottom):
+            ax.axvline(f, color="0.85", lw=0.8, zorder=0)
+    top.set_ylabel("SSIM against the truth")
+    bottom.set_ylabel("temporal error at the step to this frame")
+    bottom.set_xlabel("frame (grey: captured frames)")
+    top.set_title(f"{summary.scene}: {summary.n_vpls} VPLs, {summary.slots} keyed lights")
+    top.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -252,3 +252,32 @@ def test_the_panel_animates_the_lights_undoably(tmp_path, monkeypatch):
             bpy.ops.vplace.apply()
     finally:
         addon.unregister()
+
+
+def test_report_animate_scores_every_frame_and_plots_them(tmp_path):
+    """``report --blend F --animate``: every frame from START to END scored (the middle one
+    between the captured ones), the temporal error's steps, a plot."""
+    import json
+
+    from addon import cli
+
+    empty_file()
+    build_cornell_moving(bpy.context.scene)
+    blend = tmp_path / "moving.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    out = tmp_path / "report"
+    argv = ["report", "--blend", str(blend), "--animate", "1", "3", "2", "--budgets", "16"]
+    argv += ["--resolution", "24", "24", "--capture-samples", "2", "--truth-samples", "8"]
+    argv += ["--cycles-samples", "1", "--no-eevee", "--out", str(out)]
+    assert cli.main(argv) == 0
+    summary = json.loads((out / "animation.json").read_text())
+    assert summary["frames"] == [1, 3] and summary["scored_frames"] == [1, 2, 3]
+    assert summary["n_vpls"] == 16
+    images = {animation.KEYED, animation.STILL, animation.DIRECT, animation.cycles_kind(1)}
+    assert set(summary["temporal_steps"]) == images
+    for kind, steps in summary["temporal_steps"].items():
+        assert len(steps) == 2
+        assert np.mean(steps) == pytest.approx(summary["temporal_error"][kind])
+    rows = (out / "results.csv").read_text().splitlines()[1:]
+    assert sorted({int(r.split(",")[0]) for r in rows}) == [1, 2, 3]
+    assert (out / "animation.png").read_bytes()[:4] == b"\x89PNG"

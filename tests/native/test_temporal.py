@@ -37,6 +37,11 @@ def test_a_known_flicker_gives_its_amplitude_over_the_mean():
     for k in (1, 3):
         half[k][:6] += d
     assert temporal.temporal_error(half, truths) == pytest.approx(0.5 * d / c, rel=1e-5)
+    # Step by step: one flicker, at the second step only.
+    once = [_grey(c), _grey(c), _grey(c + d), _grey(c + d)]
+    steps = temporal.temporal_steps(once, truths)
+    assert steps == pytest.approx([0.0, d / c, 0.0], abs=1e-6)
+    assert temporal.temporal_error(once, truths) == pytest.approx(d / c / 3, rel=1e-5)
 
 
 def test_the_temporal_error_refuses_what_it_cannot_score():

@@ -41,6 +41,12 @@ def _luminance(image: np.ndarray) -> np.ndarray:
 def temporal_error(images: Sequence[np.ndarray], truths: Sequence[np.ndarray]) -> float:
     """The temporal error of ``images`` against ``truths`` (see the module docs): two sequences
     of (H, W, 3) linear images of at least two frames, of one shape."""
+    return float(temporal_steps(images, truths).mean())
+
+
+def temporal_steps(images: Sequence[np.ndarray], truths: Sequence[np.ndarray]) -> np.ndarray:
+    """Each step's term of :func:`temporal_error` (F - 1 values: frame t against t - 1), each
+    over the truth's mean luminance of all frames; their mean is the temporal error."""
     if len(images) != len(truths):
         raise ValueError(f"{len(images)} images against {len(truths)} truth frames")
     if len(images) < 2:
@@ -51,7 +57,7 @@ def temporal_error(images: Sequence[np.ndarray], truths: Sequence[np.ndarray]) -
         raise ValueError(f"images of shape {e.shape[1:]} against truths of shape {t.shape[1:]}")
     mean_truth = max(float(t.mean()), 1e-12)
     change = np.abs(np.diff(e, axis=0) - np.diff(t, axis=0))
-    return float(change.mean(axis=(1, 2)).mean()) / mean_truth
+    return change.mean(axis=(1, 2)) / mean_truth
 
 
 @dataclass
