@@ -41,7 +41,7 @@ from .errors import AddonError, WriteBackError, output_folder, run_operator
 from .job import Job, Prepared, StageTimer, prepare, reference_render
 from .native import vplace
 from .settings import override
-from .writeback import eevee_render, eevee_setup, keyed
+from .writeback import apply, eevee_render, eevee_setup, keyed
 
 #: The most frames one animated layout captures: each costs a capture and a layout, and every
 #: frame's lights are keyed on every slot.
@@ -51,6 +51,7 @@ KEYED = "vplace keyed (evaluator)"
 STILL = "vplace still (evaluator)"
 DIRECT = "direct only"
 EEVEE = "EEVEE + keyed VPLs"
+EEVEE_STILL = "EEVEE + still VPLs of the frame"
 VOLUME_ONCE = "EEVEE RT + volume baked once"
 
 
@@ -241,6 +242,7 @@ def run_animated_job(
     score_between: bool = False,
     cycles_samples: Sequence[int] = (),
     eevee: bool = False,
+    eevee_still: bool = False,
     volume_once: bool = False,
     write_back: bool = True,
     log: Callable[[str], None] = print,
@@ -312,12 +314,14 @@ def run_animated_job(
             }
             summary.rows.append(row)
 
+        scored_runs: dict[int, _Frame] = {}
         for f in scored:
             bl_scene.frame_set(f)  # the renders below are of this frame
             run = runs.get(f)
             if run is None:
                 log(f"[vplace] frame {f} (between captured frames: scored only)")
                 run, _ = _run_frame(bl_scene, f, job, truth_samples, timer)
+            scored_runs[f] = run
             ref = run.reference
             truths.append(ref.gi)
             start = time.perf_counter()
@@ -349,6 +353,16 @@ def run_animated_job(
                             cache_dir=job.cache_dir,
                         )
                 add(f, EEVEE, img.image, ref.gi, img.seconds)
+        if eevee_still and eevee and write_back:
+            for f in scored:
+                _score_eevee_still(bl_scene, scored_runs[f], job, add, timer)
+            key_lights(  # the keyed lights back (the same keys: the same frames and sets)
+                bl_scene,
+                frames,
+                [runs[f].prepared for f in frames],
+                [runs[f].computed.vpls for f in frames],
+                timer,
+            )
         if volume_once:
             _score_volume_once(bl_scene, scored, truths, job, add, timer)
     finally:
@@ -361,6 +375,40 @@ def run_animated_job(
     summary.seconds_per_frame = {k: float(np.mean(v)) for k, v in seconds.items()}
     write_files(out_dir, summary)
     return summary
+
+
+def _score_eevee_still(
+    bl_scene: bpy.types.Scene,
+    run: _Frame,
+    job: Job,
+    add: Callable[[int, str, np.ndarray, np.ndarray, float], None],
+    timer: StageTimer,
+) -> None:
+    """EEVEE with the still layout of ``run``'s frame written as the still write-back writes it
+    (``apply.write_vpls``, with that frame's stand-ins), rendered at that frame: what the keyed
+    lights are compared with. Replaces the VPL collection (the caller writes the keyed lights
+    back)."""
+    bl_scene.frame_set(run.frame)
+    p = run.prepared
+    apply.write_vpls(
+        bl_scene,
+        run.computed.vpls,
+        scene_diagonal=p.scene.diagonal,
+        specular=p.vpl_specular,
+        emitters=p.stand_ins.emitters,
+        sun=p.stand_ins.sun,
+    )
+    height, width = run.reference.gi.shape[:2]
+    with timer.stage(f"EEVEE + still VPLs, frame {run.frame}"):
+        with eevee_setup.world_volume_for_render(bl_scene):
+            img = eevee_render.render(
+                bl_scene,
+                resolution=(width, height),
+                samples=eevee_render.EEVEE_SAMPLES,
+                setup=eevee_render.SETUPS["vpl"],
+                cache_dir=job.cache_dir,
+            )
+    add(run.frame, EEVEE_STILL, img.image, run.reference.gi, img.seconds)
 
 
 def _score_volume_once(

@@ -117,6 +117,11 @@ def _demo_options(sub: argparse._SubParsersAction) -> None:
         help="with --animate: also score Cycles + OpenImageDenoise at these samples per frame",
     )  # fmt: skip
     demo.add_argument(
+        "--eevee-still", action="store_true",
+        help="with --animate: also render EEVEE with a still layout of each scored frame "
+        "(the keyed lights are written back after)",
+    )  # fmt: skip
+    demo.add_argument(
         "--volume-once", action="store_true",
         help="with --animate: also score EEVEE ray tracing with a light probe volume baked once "
         "at the first frame",
@@ -313,10 +318,13 @@ def run(args: argparse.Namespace) -> None:
         iterations=args.iterations,
         feature_mode=args.feature_mode,
     )
-    if not args.animate and (args.score_between or args.cycles_samples or args.volume_once):
+    extra = (args.score_between, args.cycles_samples, args.volume_once, args.eevee_still)
+    if not args.animate and any(extra):
         from .errors import AddonError
 
-        raise AddonError("--score-between, --cycles-samples and --volume-once go with --animate")
+        raise AddonError(
+            "--score-between, --cycles-samples, --eevee-still and --volume-once go with --animate"
+        )
     if args.animate:
         from .animation import run_animated_job
 
@@ -329,6 +337,7 @@ def run(args: argparse.Namespace) -> None:
             score_between=args.score_between,
             cycles_samples=args.cycles_samples,
             eevee=not args.no_eevee,
+            eevee_still=args.eevee_still,
             volume_once=args.volume_once,
         )
         print(vplace_md(args.out))

@@ -95,7 +95,7 @@ CASES = [
     ),
     Case(
         ["demo", "--score-between"],
-        "--score-between, --cycles-samples and --volume-once go with --animate",
+        "--cycles-samples, --eevee-still and --volume-once go with --animate",
         quick_demo=True,
     ),
     Case(["demo", "--cell-px", "0"], "cell_px = 0 is out of range", quick_demo=True),
