@@ -207,14 +207,22 @@ def test_eevee_renders_the_keyed_lights_at_each_frame(tmp_path):
         job=job,
         truth_samples=64,
         eevee=True,
+        eevee_still=True,
         volume_once=True,
         log=lambda _line: None,
     )
+    keys_after = _written_keys()
     rows = {r["frame"]: r for r in done.rows if r["image"] == animation.EEVEE}
     assert sorted(rows) == [1, 24]
     for r in rows.values():
         assert 0.8 < r["brightness"] < 1.2, r
     assert animation.EEVEE in done.temporal_error
+    # Each frame's still layout rendered too, then the keyed lights written back, the same.
+    still = {r["frame"]: r for r in done.rows if r["image"] == animation.EEVEE_STILL}
+    assert sorted(still) == [1, 24]
+    for f in (1, 24):  # at a captured frame the keyed lights are that frame's still lights
+        assert still[f]["ssim"] == pytest.approx(rows[f]["ssim"], abs=0.01)
+    assert len(keys_after) == done.slots and all(keys_after.values())
     # The volume baked once, at frame 1: rendered at both frames, and removed after.
     once = [r["frame"] for r in done.rows if r["image"] == animation.VOLUME_ONCE]
     assert once == [1, 24] and animation.VOLUME_ONCE in done.temporal_error
