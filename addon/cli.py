@@ -103,6 +103,31 @@ def _demo_options(sub: argparse._SubParsersAction) -> None:
         help="lay out for COUNT views around the scene camera: turned about a pivot RADIUS m in "
         "front of it (0: the scene's centre) by up to ANGLE degrees",
     )
+    views.add_argument(
+        "--animate", type=int, nargs=3, metavar=("START", "END", "STEP"),
+        help="capture the scene camera at frames START, START+STEP, ..., END, lay out each with "
+        "the same random numbers and write one set of lights keyed over them (linear keys); "
+        "scores every frame against a Cycles truth of it",
+    )  # fmt: skip
+    demo.add_argument(
+        "--score-between", action="store_true",
+        help="with --animate: also capture and score the frames between the captured ones "
+        "(the keyed lights interpolated there, against a still layout of that frame)",
+    )  # fmt: skip
+    demo.add_argument(
+        "--cycles-samples", type=int, nargs="*", default=[],
+        help="with --animate: also score Cycles + OpenImageDenoise at these samples per frame",
+    )  # fmt: skip
+    demo.add_argument(
+        "--eevee-still", action="store_true",
+        help="with --animate: also render EEVEE with a still layout of each scored frame "
+        "(the keyed lights are written back after)",
+    )  # fmt: skip
+    demo.add_argument(
+        "--volume-once", action="store_true",
+        help="with --animate: also score EEVEE ray tracing with a light probe volume baked once "
+        "at the first frame",
+    )  # fmt: skip
     demo.add_argument(
         "--samples", type=int, default=Job.samples, help="Cycles samples of each capture"
     )
@@ -199,6 +224,11 @@ def _report_options(sub: argparse._SubParsersAction) -> None:
     rep.add_argument("--eevee-samples", type=int, default=None, help="EEVEE's render samples")
     rep.add_argument("--feature-mode", choices=FEATURE_MODES, default="auto")
     rep.add_argument("--no-par2d", action="store_true", help="skip the PAR 2D plot")
+    rep.add_argument(
+        "--animate", type=int, nargs=3, default=None, metavar=("START", "END", "STEP"),
+        help="with --blend: lights keyed over these frames (as demo --animate), every frame "
+        "from START to END scored against a Cycles truth with the alternatives, plotted",
+    )  # fmt: skip
     add_region_arguments(rep)
 
 
@@ -237,6 +267,9 @@ def run(args: argparse.Namespace) -> None:
     """Runs the chosen command."""
     if args.command == "par2d":
         run_par2d_demo(args.out, args.size, args.method)
+        return
+    if args.command == "report" and args.animate:
+        run_animated_report(args)
         return
     if args.command == "report":
         from .report.config import ReportConfig
@@ -293,6 +326,31 @@ def run(args: argparse.Namespace) -> None:
         iterations=args.iterations,
         feature_mode=args.feature_mode,
     )
+    extra = (args.score_between, args.cycles_samples, args.volume_once, args.eevee_still)
+    if not args.animate and any(extra):
+        from .errors import AddonError
+
+        raise AddonError(
+            "--score-between, --cycles-samples, --eevee-still and --volume-once go with --animate"
+        )
+    if args.animate:
+        from .animation import run_animated_job
+
+        done = run_animated_job(
+            bpy.context.scene,
+            args.out,
+            tuple(args.animate),
+            job=job,
+            truth_samples=args.truth_samples or None,
+            score_between=args.score_between,
+            cycles_samples=args.cycles_samples,
+            eevee=not args.no_eevee,
+            eevee_still=args.eevee_still,
+            volume_once=args.volume_once,
+        )
+        print(vplace_md(args.out))
+        print(f"[vplace] {done.slots} keyed lights; results in {args.out}")
+        return
     run_main_job(
         bpy.context.scene,
         args.out,
@@ -301,6 +359,62 @@ def run(args: argparse.Namespace) -> None:
         truth_samples=args.truth_samples or None,
     )
     print(f"[vplace] results in {args.out}")
+
+
+#: The VPL budget of ``report --animate`` when ``--budgets`` holds it (the report's headline
+#: figures are at 256); else the first budget given.
+ANIMATED_REPORT_BUDGET = 256
+
+
+def run_animated_report(args: argparse.Namespace) -> None:
+    """``report --blend F --animate START END STEP``: the animated job (``addon.animation``) on
+    the scene camera with the report's settings: one budget (:data:`ANIMATED_REPORT_BUDGET`),
+    the first seed, every frame scored against a Cycles truth (``--truth-samples``, default
+    1024), Cycles + OIDN at ``--cycles-samples``, EEVEE with the keyed lights and (``rt+volume``
+    among ``--alternatives``) a volume baked once, unless ``--no-eevee``; then the plot
+    ``animation.png``."""
+    from .animation import plot_animation, run_animated_job
+    from .errors import ReportError
+    from .job import Job, method_name
+    from .scenes.registry import open_blend
+
+    if args.blend is None:
+        raise ReportError("report --animate needs --blend (the animated .blend)")
+    if not args.budgets or min(args.budgets) < 1:
+        raise ReportError(f"budgets must be positive VPL counts, got {list(args.budgets)}")
+    open_blend(args.blend)
+    budget = ANIMATED_REPORT_BUDGET if ANIMATED_REPORT_BUDGET in args.budgets else args.budgets[0]
+    job = Job(
+        n_vpls=budget,
+        seed=args.seeds[0] if args.seeds else 0,
+        method=method_name("vplace", True),
+        alpha=args.alpha,
+        iterations=args.iterations,
+        feature_mode=args.feature_mode,
+        resolution=tuple(args.resolution) if args.resolution else None,
+        cache_dir=args.cache,
+    )
+    if args.capture_samples is not None:
+        job.samples = args.capture_samples
+    done = run_animated_job(
+        bpy.context.scene,
+        args.out,
+        tuple(args.animate),
+        job=job,
+        truth_samples=args.truth_samples or 1024,
+        score_between=True,
+        cycles_samples=args.cycles_samples,
+        eevee=not args.no_eevee,
+        volume_once=not args.no_eevee and "rt+volume" in args.alternatives,
+    )
+    plot_animation(done, args.out / "animation.png")
+    print(vplace_md(args.out))
+    print(f"[vplace] {done.slots} keyed lights; results in {args.out}")
+
+
+def vplace_md(out: Path) -> str:
+    """The animated run's Markdown report (``animation.md`` in ``out``)."""
+    return (out / "animation.md").read_text()
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -7,6 +7,9 @@
   (:func:`eevee_engine`).
 - A multilayer EXR names its passes ``DiffDir``, ``Emit``, ... before 5.0 and ``Diffuse
   Direct``, ``Emission``, ... from 5.0 (:data:`PASS_NAMES`).
+- An action keeps its F-curves in ``action.fcurves`` before 4.4 and in the channelbags of its
+  layers' strips from 4.4 (layered actions; ``action.fcurves`` is gone in 5.0)
+  (:func:`action_fcurves`).
 """
 
 from __future__ import annotations
@@ -51,3 +54,26 @@ def eevee_engine() -> str:
     """EEVEE's ``render.engine`` name in this Blender."""
     engines = bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items.keys()
     return "BLENDER_EEVEE_NEXT" if "BLENDER_EEVEE_NEXT" in engines else "BLENDER_EEVEE"
+
+
+def action_fcurves(action: bpy.types.Action) -> list[bpy.types.FCurve]:
+    """Every F-curve of ``action``, in either layout (see the module docs)."""
+    curves = list(getattr(action, "fcurves", None) or [])
+    for layer in getattr(action, "layers", None) or []:
+        for strip in layer.strips:
+            for bag in getattr(strip, "channelbags", None) or []:
+                curves.extend(bag.fcurves)
+    return curves
+
+
+def make_keys_linear(id_data: bpy.types.ID) -> int:
+    """Makes every key of ``id_data``'s action linear; returns how many keys."""
+    anim = id_data.animation_data
+    if anim is None or anim.action is None:
+        return 0
+    count = 0
+    for fcurve in action_fcurves(anim.action):
+        for key in fcurve.keyframe_points:
+            key.interpolation = "LINEAR"
+            count += 1
+    return count

@@ -12,5 +12,6 @@ import vplace.images
 import vplace.job
 import vplace.markdown
 import vplace.par2d_measure
+import vplace.temporal
 
 __all__ = ["vplace"]

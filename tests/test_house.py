@@ -118,6 +118,7 @@ ADDON_STAGES = (
     ("addon.capture",),
     ("addon.writeback",),
     ("addon.job",),
+    ("addon.animation",),
     ("addon.report",),
     ("addon.ui",),
     ("addon.cli",),

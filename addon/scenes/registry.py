@@ -1,7 +1,8 @@
 """The built-in scenes and their registry (:func:`builtin_scene`): the Cornell box (the default;
 Williams College OBJ, public domain), Sponza (glTF, CC BY 3.0), and two rooms built from code
 alone (:mod:`.builtin_rooms`: ``skyroom``, lit by a sky through windows, and ``panelroom``, lit
-by emissive panels and a screen).
+by emissive panels and a screen), and two animated ones (:mod:`.animated`: ``cornell_moving``,
+``skyroom_afternoon``).
 
 Geometry and materials come from ``CornellBox-Original.obj`` / ``.mtl`` (OBJ Y-up is turned into
 Blender Z-up: ``(x, y, z) -> (x, -z, y)``; the OBJ unit is taken as the metre). The emissive
@@ -21,7 +22,7 @@ import numpy as np
 
 from ..compat import eevee_engine, new_material, new_world
 from ..errors import AddonError, run_operator
-from . import lroom
+from . import animated, lroom
 from . import rooms as builtin_rooms
 
 REPO = Path(__file__).resolve().parents[2]
@@ -196,6 +197,13 @@ def _look_at_camera(
     return cam
 
 
+def build_cornell_moving(scene: bpy.types.Scene | None = None) -> bpy.types.Scene:
+    """The Cornell box with its lamp keyed to move and dim (``animated.key_cornell_lamp``)."""
+    scene = build_cornell_box(CORNELL_OBJ, scene)
+    animated.key_cornell_lamp(scene)
+    return scene
+
+
 def write_cornell_blend(obj_path: Path, blend_path: Path) -> Path:
     """Builds the Cornell box in a fresh file and saves it to ``blend_path``."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -363,6 +371,17 @@ BUILTIN: dict[str, tuple[Path, list[Path], Callable[[], Path]]] = {
         builtin_rooms.PANELROOM_BLEND,
         [Path(builtin_rooms.__file__)],
         lambda: builtin_rooms.write_panelroom_blend(builtin_rooms.PANELROOM_BLEND),
+    ),
+    # Animated (issue 23, ``demo --animate``): the lamp moves and dims, the sun sweeps.
+    "cornell_moving": (
+        animated.CORNELL_MOVING_BLEND,
+        [CORNELL_OBJ, Path(__file__), Path(animated.__file__)],
+        lambda: builtin_rooms._write(build_cornell_moving, animated.CORNELL_MOVING_BLEND),
+    ),
+    "skyroom_afternoon": (
+        animated.SKYROOM_AFTERNOON_BLEND,
+        [Path(animated.__file__), Path(builtin_rooms.__file__)],
+        lambda: animated.write_skyroom_afternoon_blend(animated.SKYROOM_AFTERNOON_BLEND),
     ),
 }
 

@@ -17,6 +17,7 @@ from typing import Any, ClassVar
 
 import bpy
 
+from .. import animation
 from .. import job as pipeline
 from ..native import vplace
 from ..writeback import apply, eevee_setup, par2d_bake
@@ -169,14 +170,24 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
         scene = context.scene
         self.job = _job(scene)
         self.timer = pipeline.quiet_timer()
+        animate = scene.vplace.animate_frames()
+        self.frames = None if animate is None else animation.check_animation(self.job, animate)
+        if self.frames is not None:
+            # "Frames: animate": every frame captured here, laid out in work(), keyed in finish().
+            self.frame_preps = animation.capture_frames(scene, self.frames, self.job, self.timer)
+            return
         self.prepared = pipeline.prepare(scene, self.job, self.timer)
         self.key = _model_key(self.job, self.prepared)
         self.fitted = _stored_fit(scene, self.key)
 
     def work(self, progress: vplace.Progress | None) -> Any:
+        if self.frames is not None:
+            return animation.lay_out_frames(self.frame_preps, self.job, progress)
         return pipeline.compute(self.prepared, self.job, self.timer, progress, self.fitted)
 
     def finish(self, context: bpy.types.Context, result: Any) -> set[str]:
+        if self.frames is not None:
+            return self._finish_animation(context, result)
         scene, computed = context.scene, result
         apply.write_vpls(
             scene,
@@ -193,6 +204,22 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
         emitters = summary.emitter_lights_written
         extra = f" and {emitters} lights for emissive meshes" if emitters else ""
         self.report({"INFO"}, f"wrote {summary.lights_written} VPL lights{extra}")
+        for problem in eevee_setup.problems(scene):
+            self.report({"WARNING"}, f"EEVEE: {problem} (Set up EEVEE for vplace fixes it)")
+        return {"FINISHED"}
+
+    def _finish_animation(
+        self, context: bpy.types.Context, vpl_sets: list[vplace.VplSet]
+    ) -> set[str]:
+        """Writes the lights keyed over the captured frames (``addon.animation.key_lights``)."""
+        scene = context.scene
+        assert self.frames is not None
+        tracked = animation.key_lights(scene, self.frames, self.frame_preps, vpl_sets, self.timer)
+        frames = f"{self.frames[0]}..{self.frames[-1]} ({len(self.frames)} captured)"
+        self.report(
+            {"INFO"},
+            f"wrote {tracked.position.shape[1]} VPL lights keyed over frames {frames}",
+        )
         for problem in eevee_setup.problems(scene):
             self.report({"WARNING"}, f"EEVEE: {problem} (Set up EEVEE for vplace fixes it)")
         return {"FINISHED"}

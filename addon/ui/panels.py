@@ -123,7 +123,7 @@ class VPLACE_PT_views(_Panel, bpy.types.Panel):
             col = row.column(align=True)
             col.operator("vplace.camera_add", icon="ADD", text="")
             col.operator("vplace.camera_remove", icon="REMOVE", text="")
-        elif mode == "frames":
+        elif mode in ("frames", "animate"):
             col = layout.column(align=True)
             col.prop(settings, "frame_start")
             col.prop(settings, "frame_end")

@@ -36,7 +36,15 @@ VIEW_MODE_ITEMS = [
     ("cameras", "Chosen cameras", "One set of lights for the views of the cameras listed below"),
     ("frames", "Camera animation", "One set of lights for the scene camera at several frames"),
     ("orbit", "Around the camera", "One set of lights for views turned about the scene camera"),
+    (
+        "animate",
+        "Frames: animate",
+        "Lights keyed over the frames: the scene camera captured and laid out at each frame "
+        "(start, start + step, ..., end), the lights keyed linearly between them",
+    ),
 ]
+#: The view mode that animates the lights (``addon.animation``) rather than picking views.
+ANIMATE = "animate"
 FEATURE_MODE_ITEMS = [
     (
         "auto",
@@ -174,10 +182,17 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
         """The last run's report, or an empty dict."""
         return json.loads(self.last_report) if self.last_report else {}
 
+    def animate_frames(self) -> tuple[int, int, int] | None:
+        """``(start, end, step)`` when the lights are animated ("Frames: animate"), else None."""
+        if self.view_mode != ANIMATE:
+            return None
+        return (self.frame_start, self.frame_end, self.frame_step)
+
     def view_set(self) -> ViewSet:
         """The views these settings choose."""
         return ViewSet(
-            mode=self.view_mode,
+            # Animated: the scene camera at each frame, one frame at a time (addon.animation).
+            mode="active" if self.view_mode == ANIMATE else self.view_mode,
             cameras=tuple(c.camera.name for c in self.cameras if c.camera is not None),
             frame_start=self.frame_start,
             frame_end=self.frame_end,

@@ -121,9 +121,23 @@ def _remove_collection(coll: bpy.types.Collection) -> int:
             coll.objects.unlink(obj)
             continue
         data = obj.data
+        # The keyed write-back's actions (``keyed``; the object and its light may share one),
+        # marked as vplace's: removed with their lights once nothing else uses them.
+        actions = {
+            a.animation_data.action.name
+            for a in (obj, data)
+            if a is not None
+            and a.animation_data is not None
+            and a.animation_data.action is not None
+            and a.animation_data.action.get(VPL_MARKER, False)
+        }
         bpy.data.objects.remove(obj)
         if data is not None and data.users == 0:
             bpy.data.lights.remove(data)
+        for name in sorted(actions):
+            action = bpy.data.actions.get(name)
+            if action is not None and action.users == 0:
+                bpy.data.actions.remove(action)
         count += 1
     bpy.data.collections.remove(coll)
     return count

@@ -78,6 +78,26 @@ CASES = [
     Case(["demo", "--cameras", "Nope"], "no camera object named 'Nope'", quick_demo=True),
     Case(["demo", "--frames", "5", "1", "1"], "frames 5..1 step 1", quick_demo=True),
     Case(["demo", "--orbit", "0", "1", "10"], "an orbit needs at least one view", quick_demo=True),
+    # demo --animate (issue 23)
+    Case(["demo", "--animate", "5", "1", "1"], "the frame range 5..1 is empty", quick_demo=True),
+    Case(
+        ["demo", "--animate", "1", "5", "0"],
+        "animation step must be at least 1 frame, got 0",
+        quick_demo=True,
+    ),
+    Case(
+        ["demo", "--animate", "1", "500", "1"], "are 500 frames, more than the 120", quick_demo=True
+    ),
+    Case(
+        ["demo", "--animate", "1", "2", "1", "--cycles-samples", "0"],
+        "Cycles sample counts must be at least 1, got 0",
+        quick_demo=True,
+    ),
+    Case(
+        ["demo", "--score-between"],
+        "--cycles-samples, --eevee-still and --volume-once go with --animate",
+        quick_demo=True,
+    ),
     Case(["demo", "--cell-px", "0"], "cell_px = 0 is out of range", quick_demo=True),
     Case(["demo", "--coverage", "-1"], "coverage views must be 0 to 16", quick_demo=True),
     Case(["demo", "--region-radius", "-2"], "region radius", quick_demo=True),
@@ -113,6 +133,9 @@ CASES = [
         "no camera object named 'Nope'",
     ),
     Case(["report", "--scenes", "atrium"], "unknown scenes ['atrium']"),
+    Case(["report", "--animate", "1", "5", "1"], "report --animate needs --blend"),
+    Case(["report", "--blend", "{blend}", "--animate", "5", "1", "1"], "frame range 5..1 is empty"),
+    Case(["report", "--blend", "{blend}", "--animate", "1", "5", "0"], "step must be at least 1"),
     Case(["report", "--budgets", "0"], "budgets must be positive VPL counts, got [0]"),
     Case(["report", "--budgets", "16", "-5"], "budgets must be positive VPL counts, got [16, -5]"),
     Case(["report", "--methods", "magic"], "unknown methods ['magic']"),

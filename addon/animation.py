@@ -1,0 +1,539 @@
+"""The animated job (issue 23, ``demo --animate START END STEP``): lights keyed over frames.
+
+For each captured frame ``START, START + STEP, ..., END`` (at most
+:data:`MAX_ANIMATED_FRAMES`) the scene is set to that frame and the one job runs on it as on a
+still (:func:`job.prepare`: export and capture of the scene camera at the job's capture
+samples, cached by what Blender renders, so a frame that renders as an earlier one reuses its
+capture; then fit, layout and refit with the job's seed, the same on every frame, so the same
+light paths and random numbers). The frames' VPLs are matched into slots
+(``vplace.temporal.track``) and written as ONE set of lights keyed over the captured frames
+(``writeback.keyed``; linear keys, a dark slot keyed to 0 W), replacing only the ``vplace
+VPLs`` collection. The scene's frame is put back.
+
+Then every frame from ``START`` to ``END`` (captured or between; ``score_between``) or only the
+captured ones is scored against a Cycles truth of that frame (``truth_samples``): the
+evaluator's image of the keyed lights at that frame (``vplace.temporal.at_frame``: what
+Blender's linear keys give there), the evaluator's image of a still layout laid out for that
+frame alone, the direct light alone, and, when asked, Cycles + OpenImageDenoise at a few
+samples (its seed the frame's, as Cycles' animated seed), EEVEE with the keyed lights and
+EEVEE's ray tracing with a light probe volume baked once at the first scored frame. Per
+image and frame: SSIM, RMSE, brightness; per image: the temporal error
+(``vplace.temporal.temporal_error``) over the scored frames. Files: ``results.csv`` (a
+``frame`` column), ``animation.json``, ``animation.md``, ``scene.blend`` (a copy with the
+keyed lights).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import bpy
+import numpy as np
+
+from .capture.passes import hide_vpls
+from .capture.stage import Captured, render_reference
+from .errors import AddonError, WriteBackError, output_folder, run_operator
+from .job import Job, Prepared, StageTimer, prepare, reference_render
+from .native import vplace
+from .settings import override
+from .writeback import apply, eevee_render, eevee_setup, keyed
+
+#: The most frames one animated layout captures: each costs a capture and a layout, and every
+#: frame's lights are keyed on every slot.
+MAX_ANIMATED_FRAMES = 120
+#: The image kinds scored per frame, in the tables' order.
+KEYED = "vplace keyed (evaluator)"
+STILL = "vplace still (evaluator)"
+DIRECT = "direct only"
+EEVEE = "EEVEE + keyed VPLs"
+EEVEE_STILL = "EEVEE + still VPLs of the frame"
+VOLUME_ONCE = "EEVEE RT + volume baked once"
+
+
+def cycles_kind(samples: int) -> str:
+    """The image kind of Cycles + OpenImageDenoise at ``samples``."""
+    return f"Cycles + OIDN {samples} spp"
+
+
+def animated_frames(start: int, end: int, step: int) -> list[int]:
+    """The captured frames ``start, start + step, ..., end`` (``end`` always included), or an
+    :class:`AddonError` for an empty or reversed range, a step below 1 or more than
+    :data:`MAX_ANIMATED_FRAMES` frames."""
+    if step < 1:
+        raise AddonError(f"the animation step must be at least 1 frame, got {step}")
+    if end < start:
+        raise AddonError(f"the frame range {start}..{end} is empty: the end comes before the start")
+    frames = list(range(start, end + 1, step))
+    if frames[-1] != end:
+        frames.append(end)
+    if len(frames) > MAX_ANIMATED_FRAMES:
+        raise AddonError(
+            f"frames {start}..{end} step {step} are {len(frames)} frames, more than the "
+            f"{MAX_ANIMATED_FRAMES} an animated layout takes: use a larger step"
+        )
+    return frames
+
+
+@dataclass
+class FrameCost:
+    """One captured frame's one-time seconds: export and capture (wall, and Cycles' own render
+    seconds of the captures, as when first rendered), then fit + layout + refit."""
+
+    frame: int
+    prepare_seconds: float
+    capture_render_seconds: float
+    layout_seconds: float
+
+    @property
+    def total(self) -> float:
+        """Export, capture, fit, layout and refit."""
+        return self.prepare_seconds + self.layout_seconds
+
+
+@dataclass
+class AnimationSummary:
+    """What an animated run measured (``to_dict`` for JSON)."""
+
+    scene: str
+    frames: list[int]
+    scored_frames: list[int]
+    resolution: list[int]
+    n_vpls: int
+    slots: int
+    truth: str
+    #: One dict per (frame, image): frame, captured, image, ssim, rmse, brightness, seconds.
+    rows: list[dict[str, float | int | str | bool]] = field(default_factory=list)
+    #: Image -> temporal error over the scored frames, and its term at each step (frame t of
+    #: the scored frames against the one before).
+    temporal_error: dict[str, float] = field(default_factory=dict)
+    temporal_steps: dict[str, list[float]] = field(default_factory=dict)
+    costs: list[FrameCost] = field(default_factory=list)
+    #: Image -> seconds of one frame of it (mean over the scored frames).
+    seconds_per_frame: dict[str, float] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, object]:
+        """The summary as plain JSON values."""
+        return asdict(self)
+
+    def mean(self, image: str, metric: str) -> float:
+        """The mean of ``metric`` of ``image`` over the scored frames."""
+        vals = [float(r[metric]) for r in self.rows if r["image"] == image]
+        return float(np.mean(vals)) if vals else float("nan")
+
+
+@dataclass
+class _Frame:
+    """One frame's capture, reference and still layout (kept for the scores and the keys)."""
+
+    frame: int
+    prepared: Prepared
+    reference: vplace.job.Reference
+    computed: vplace.job.Computed
+
+
+def _run_frame(
+    bl_scene: bpy.types.Scene, frame: int, job: Job, truth_samples: int | None, timer: StageTimer
+) -> tuple[_Frame, FrameCost]:
+    """The still job at ``frame``: capture, reference, fit, layout, refit, evaluator."""
+    bl_scene.frame_set(frame)
+    start = time.perf_counter()
+    prepared = prepare(bl_scene, job, timer)
+    prepare_seconds = time.perf_counter() - start
+    n = len(prepared.captures)
+    reference = render_reference(
+        bl_scene,
+        prepared.scene,
+        prepared.exported,
+        Captured(prepared.captures, prepared.views[:n], prepared.gloss),
+        reference_render(job, truth_samples),
+        capture_samples=job.samples,
+        cache_dir=job.cache_dir,
+        stage=timer.stage,
+    )
+    start = time.perf_counter()
+    computed = vplace.job.compute(prepared.scene, prepared.views, job, reference, timer=timer)
+    laid_seconds = time.perf_counter() - start - computed.stats.seconds
+    cost = FrameCost(
+        frame,
+        prepare_seconds,
+        sum(c.render_seconds for c in prepared.captures),
+        laid_seconds,
+    )
+    return _Frame(frame, prepared, reference, computed), cost
+
+
+def check_animation(job: Job, frame_range: tuple[int, int, int]) -> list[int]:
+    """The captured frames of ``frame_range`` (:func:`animated_frames`), after checking the job
+    can animate: valid, and its views the scene camera."""
+    frames = animated_frames(*frame_range)
+    job.validate()
+    if job.views.mode != "active":
+        raise AddonError("an animated layout captures the scene camera at each frame only")
+    return frames
+
+
+def capture_frames(
+    bl_scene: bpy.types.Scene, frames: Sequence[int], job: Job, timer: StageTimer
+) -> list[Prepared]:
+    """:func:`job.prepare` (export and capture, cached) at each of ``frames``; the scene's frame
+    is put back. Uses bpy: the main thread (the panel's first half)."""
+    original = bl_scene.frame_current
+    try:
+        out = []
+        for f in frames:
+            bl_scene.frame_set(f)
+            out.append(prepare(bl_scene, job, timer))
+        return out
+    finally:
+        bl_scene.frame_set(original)
+
+
+def lay_out_frames(
+    prepared: Sequence[Prepared],
+    job: Job,
+    progress: vplace.Progress | None = None,
+) -> list[vplace.VplSet]:
+    """Each frame's VPLs (fit, layout, refit with the job's seed: the same random numbers on
+    every frame). No bpy: safe on a worker thread (the panel's second half)."""
+    return [vplace.job.lay_out(p.scene, p.views, job, progress=progress).vpls for p in prepared]
+
+
+def key_lights(
+    bl_scene: bpy.types.Scene,
+    frames: Sequence[int],
+    prepared: Sequence[Prepared],
+    vpl_sets: Sequence[vplace.VplSet],
+    timer: StageTimer,
+    *,
+    write_back: bool = True,
+) -> vplace.temporal.Keyed:
+    """The frames' VPLs matched into slots (``vplace.temporal.track``) and, with
+    ``write_back``, written as one set of keyed lights (``writeback.keyed``) with the world's
+    sun of each frame and the first frame's emitter lights."""
+    scene = prepared[0].scene
+    with timer.stage(f"match VPLs over {len(frames)} frames"):
+        tracked = vplace.temporal.track(vpl_sets, scene.diagonal)
+    if write_back:
+        with timer.stage("write back keyed lights"):
+            keyed.write_keyed(
+                bl_scene,
+                frames,
+                tracked,
+                scene_diagonal=scene.diagonal,
+                specular=prepared[0].vpl_specular,
+                emitters=prepared[0].stand_ins.emitters,
+                suns=[p.stand_ins.sun for p in prepared],
+            )
+    return tracked
+
+
+def run_animated_job(
+    bl_scene: bpy.types.Scene,
+    out_dir: Path,
+    frame_range: tuple[int, int, int],
+    *,
+    job: Job,
+    truth_samples: int | None = None,
+    score_between: bool = False,
+    cycles_samples: Sequence[int] = (),
+    eevee: bool = False,
+    eevee_still: bool = False,
+    volume_once: bool = False,
+    write_back: bool = True,
+    log: Callable[[str], None] = print,
+) -> AnimationSummary:
+    """Lays out, keys and scores an animation (see the module docs). ``frame_range`` is
+    ``(START, END, STEP)``; the job's views must be the scene camera (``ViewSet()``)."""
+    frames = check_animation(job, frame_range)
+    if truth_samples is not None and truth_samples < 1:
+        raise AddonError(f"truth samples must be at least 1, got {truth_samples}")
+    for n in cycles_samples:
+        if n < 1:
+            raise AddonError(f"Cycles sample counts must be at least 1, got {n}")
+    if job.cache_dir is None:
+        job.cache_dir = out_dir / "cache"
+    output_folder(out_dir)
+    timer = StageTimer(log)
+    original = bl_scene.frame_current
+    scored = list(range(frame_range[0], frame_range[1] + 1)) if score_between else frames
+    try:
+        runs: dict[int, _Frame] = {}
+        costs = []
+        for f in frames:
+            log(f"[vplace] frame {f}")
+            runs[f], cost = _run_frame(bl_scene, f, job, truth_samples, timer)
+            costs.append(cost)
+        first = runs[frames[0]]
+        tracked = key_lights(
+            bl_scene,
+            frames,
+            [runs[f].prepared for f in frames],
+            [runs[f].computed.vpls for f in frames],
+            timer,
+            write_back=write_back,
+        )
+        log(f"[vplace] {tracked.position.shape[1]} keyed lights for {job.n_vpls} VPLs a frame")
+        if write_back:
+            bl_scene.frame_set(original)  # the copy opens at the user's frame
+            blend = out_dir / "scene.blend"
+            run_operator(
+                "wm.save_as_mainfile",
+                f"cannot save a copy of the file to {blend}",
+                WriteBackError,
+                filepath=str(blend),
+                copy=True,
+            )
+        summary = AnimationSummary(
+            scene=Path(bpy.data.filepath).stem or bl_scene.name,
+            frames=frames,
+            scored_frames=scored,
+            resolution=[first.reference.gi.shape[1], first.reference.gi.shape[0]],
+            n_vpls=job.n_vpls,
+            slots=int(tracked.position.shape[1]),
+            truth=first.reference.label,
+            costs=costs,
+        )
+        images: dict[str, list[np.ndarray]] = {}
+        truths: list[np.ndarray] = []
+        seconds: dict[str, list[float]] = {}
+
+        def add(frame: int, kind: str, image: np.ndarray, truth: np.ndarray, s: float) -> None:
+            images.setdefault(kind, []).append(image)
+            seconds.setdefault(kind, []).append(s)
+            row: dict[str, float | int | str | bool] = {
+                "frame": frame,
+                "captured": frame in runs,
+                "image": kind,
+                **vplace.job.score(image, truth),
+                "seconds": s,
+            }
+            summary.rows.append(row)
+
+        scored_runs: dict[int, _Frame] = {}
+        for f in scored:
+            bl_scene.frame_set(f)  # the renders below are of this frame
+            run = runs.get(f)
+            if run is None:
+                log(f"[vplace] frame {f} (between captured frames: scored only)")
+                run, _ = _run_frame(bl_scene, f, job, truth_samples, timer)
+            scored_runs[f] = run
+            ref = run.reference
+            truths.append(ref.gi)
+            start = time.perf_counter()
+            lights = vplace.temporal.at_frame(tracked, frames, f)
+            indirect, _ = vplace.evaluate(run.prepared.scene, ref.view, lights)
+            add(f, KEYED, ref.direct + indirect, ref.gi, time.perf_counter() - start)
+            add(f, STILL, ref.direct + run.computed.indirect, ref.gi, run.computed.stats.seconds)
+            add(f, DIRECT, ref.direct, ref.gi, 0.0)
+            height, width = ref.gi.shape[:2]
+            for n in cycles_samples:
+                with timer.stage(f"Cycles + OIDN {n} spp, frame {f}"):
+                    img = eevee_render.render(
+                        bl_scene,
+                        resolution=(width, height),
+                        samples=n,
+                        setup=eevee_render.SETUPS["cycles+oidn"],
+                        seed=f,
+                        cache_dir=job.cache_dir,
+                    )
+                add(f, cycles_kind(n), img.image, ref.gi, img.seconds)
+            if eevee and write_back:
+                with timer.stage(f"EEVEE, frame {f}"):
+                    with eevee_setup.world_volume_for_render(bl_scene):
+                        img = eevee_render.render(
+                            bl_scene,
+                            resolution=(width, height),
+                            samples=eevee_render.EEVEE_SAMPLES,
+                            setup=eevee_render.SETUPS["vpl"],
+                            cache_dir=job.cache_dir,
+                        )
+                add(f, EEVEE, img.image, ref.gi, img.seconds)
+        if eevee_still and eevee and write_back:
+            for f in scored:
+                _score_eevee_still(bl_scene, scored_runs[f], job, add, timer)
+            key_lights(  # the keyed lights back (the same keys: the same frames and sets)
+                bl_scene,
+                frames,
+                [runs[f].prepared for f in frames],
+                [runs[f].computed.vpls for f in frames],
+                timer,
+            )
+        if volume_once:
+            _score_volume_once(bl_scene, scored, truths, job, add, timer)
+    finally:
+        bl_scene.frame_set(original)
+    if len(truths) >= 2:
+        for kind, imgs in images.items():
+            steps = vplace.temporal.temporal_steps(imgs, truths)
+            summary.temporal_steps[kind] = [float(x) for x in steps]
+            summary.temporal_error[kind] = float(steps.mean())
+    summary.seconds_per_frame = {k: float(np.mean(v)) for k, v in seconds.items()}
+    write_files(out_dir, summary)
+    return summary
+
+
+def _score_eevee_still(
+    bl_scene: bpy.types.Scene,
+    run: _Frame,
+    job: Job,
+    add: Callable[[int, str, np.ndarray, np.ndarray, float], None],
+    timer: StageTimer,
+) -> None:
+    """EEVEE with the still layout of ``run``'s frame written as the still write-back writes it
+    (``apply.write_vpls``, with that frame's stand-ins), rendered at that frame: what the keyed
+    lights are compared with. Replaces the VPL collection (the caller writes the keyed lights
+    back)."""
+    bl_scene.frame_set(run.frame)
+    p = run.prepared
+    apply.write_vpls(
+        bl_scene,
+        run.computed.vpls,
+        scene_diagonal=p.scene.diagonal,
+        specular=p.vpl_specular,
+        emitters=p.stand_ins.emitters,
+        sun=p.stand_ins.sun,
+    )
+    height, width = run.reference.gi.shape[:2]
+    with timer.stage(f"EEVEE + still VPLs, frame {run.frame}"):
+        with eevee_setup.world_volume_for_render(bl_scene):
+            img = eevee_render.render(
+                bl_scene,
+                resolution=(width, height),
+                samples=eevee_render.EEVEE_SAMPLES,
+                setup=eevee_render.SETUPS["vpl"],
+                cache_dir=job.cache_dir,
+            )
+    add(run.frame, EEVEE_STILL, img.image, run.reference.gi, img.seconds)
+
+
+def _score_volume_once(
+    bl_scene: bpy.types.Scene,
+    scored: Sequence[int],
+    truths: Sequence[np.ndarray],
+    job: Job,
+    add: Callable[[int, str, np.ndarray, np.ndarray, float], None],
+    timer: StageTimer,
+) -> None:
+    """EEVEE ray tracing with a light probe volume baked once, at the first scored frame (with
+    vplace's lights hidden), rendered at every scored frame: what a user gets from one bake.
+    Not cached: a render's key does not say at which frame its volume was baked."""
+    height, width = truths[0].shape[:2]
+    bl_scene.frame_set(scored[0])
+    with override() as g:
+        hide_vpls(g)
+        with eevee_setup.temporary_volume(bl_scene) as bake_seconds:
+            timer.log(f"[vplace] light probe volume baked once in {bake_seconds:.1f} s")
+            for f, truth in zip(scored, truths, strict=True):
+                bl_scene.frame_set(f)
+                with timer.stage(f"EEVEE RT + volume baked once, frame {f}"):
+                    img = eevee_render.render(
+                        bl_scene,
+                        resolution=(width, height),
+                        samples=eevee_render.EEVEE_SAMPLES,
+                        setup=eevee_render.SETUPS["rt+volume"],
+                    )
+                add(f, VOLUME_ONCE, img.image, truth, img.seconds)
+
+
+def write_files(out_dir: Path, summary: AnimationSummary) -> None:
+    """``results.csv`` (one row per frame and image), ``animation.json`` and ``animation.md``."""
+    columns = ["frame", "captured", "image", "ssim", "rmse", "relative_mse", "brightness"]
+    columns.append("seconds")
+    with (out_dir / "results.csv").open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=columns, extrasaction="ignore")
+        w.writeheader()
+        for row in summary.rows:
+            w.writerow(row)
+    (out_dir / "animation.json").write_text(json.dumps(summary.to_dict(), indent=1))
+    (out_dir / "animation.md").write_text(animation_report(summary))
+
+
+def animation_report(summary: AnimationSummary) -> str:
+    """The per-frame and temporal tables in Markdown."""
+    kinds = list(dict.fromkeys(str(r["image"]) for r in summary.rows))
+    lines = [
+        f"# {summary.scene}: animated layout",
+        "",
+        f"Captured frames {summary.frames}, scored frames {summary.scored_frames}; "
+        f"{summary.resolution[0]}x{summary.resolution[1]}, {summary.n_vpls} VPLs a frame, "
+        f"{summary.slots} keyed lights (linear keys); truth: {summary.truth}.",
+        "",
+        "## SSIM per frame (brightness)",
+        "",
+    ]
+    rows: list[list[str]] = []
+    for f in summary.scored_frames:
+        cells = [f"{f}" + ("" if f in summary.frames else " (between)")]
+        for k in kinds:
+            r = next((r for r in summary.rows if r["frame"] == f and r["image"] == k), None)
+            cells.append("" if r is None else f"{r['ssim']:.3f} ({r['brightness']:.3f})")
+        rows.append(cells)
+    lines += vplace.markdown.table(["frame", *kinds], rows)
+    lines += ["", "## Over the frames", ""]
+    rows = []
+    for k in kinds:
+        te = summary.temporal_error.get(k, float("nan"))
+        rows.append(
+            [
+                k,
+                f"{summary.mean(k, 'ssim'):.3f}",
+                f"{summary.mean(k, 'rmse'):.4f}",
+                f"{te:.4f}",
+                f"{summary.seconds_per_frame.get(k, float('nan')):.2f}",
+            ]
+        )
+    lines += vplace.markdown.table(
+        ["image", "mean SSIM", "mean RMSE", "temporal error", "s per frame"], rows
+    )
+    lines += ["", "## One-time cost per captured frame (s)", ""]
+    rows = []
+    for c in summary.costs:
+        rows.append(
+            [
+                str(c.frame),
+                f"{c.prepare_seconds:.2f}",
+                f"{c.capture_render_seconds:.2f}",
+                f"{c.layout_seconds:.2f}",
+            ]
+        )
+    lines += vplace.markdown.table(
+        ["frame", "export + capture (wall)", "captures' Cycles render", "fit + layout + refit"],
+        rows,
+    )
+    return "\n".join(lines) + "\n"
+
+
+def plot_animation(summary: AnimationSummary, path: Path) -> Path:
+    """Two panels across the scored frames, one line per image: SSIM against the truth, and
+    the temporal error's term at each step (:attr:`AnimationSummary.temporal_steps`). PNG;
+    matplotlib is imported only here (the report's plots do the same)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    kinds = list(dict.fromkeys(str(r["image"]) for r in summary.rows))
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
+    for kind in kinds:
+        rows = [r for r in summary.rows if r["image"] == kind]
+        top.plot([r["frame"] for r in rows], [r["ssim"] for r in rows], marker=".", label=kind)
+        steps = summary.temporal_steps.get(kind)
+        if steps:
+            bottom.plot(summary.scored_frames[1:], steps, marker=".", label=kind)
+    for f in summary.frames:
+        for ax in (top, bottom):
+            ax.axvline(f, color="0.85", lw=0.8, zorder=0)
+    top.set_ylabel("SSIM against the truth")
+    bottom.set_ylabel("temporal error at the step to this frame")
+    bottom.set_xlabel("frame (grey: captured frames)")
+    top.set_title(f"{summary.scene}: {summary.n_vpls} VPLs, {summary.slots} keyed lights")
+    top.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,188 @@
+"""The animated write-back (issue 23): one set of lights keyed over the captured frames.
+
+``vplace.temporal.track`` matches each frame's VPLs into slots; each slot becomes one light of
+the ``vplace VPLs`` collection, made as the still write-back makes a VPL's light
+(``apply._new_vpl_object``: disk, cutoff, shadow settings) and keyed on every captured frame:
+``location``, ``rotation_quaternion`` (facing along the VPL's normal), the light's ``energy``
+and ``color``; a slot that is dark on a frame is keyed to 0 W there, where it stands. Every key
+is linear, so the frames between the captured ones interpolate (``vplace.temporal.at_frame``
+computes the same lights for the evaluator). Quaternions keep the sign of the previous frame's,
+so their component-wise interpolation turns the short way.
+
+The world's sun (``stand_ins.world_sun``) is one SUN light keyed the same way (rotation,
+energy, colour; 0 W on a frame where the sun lights nothing the views see). Lights for emissive
+meshes are written as on the first frame, unkeyed.
+
+As the still write-back does, the new collection is built unlinked and replaces the old one
+only when complete, so nothing else in the file changes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import bpy
+import numpy as np
+from mathutils import Quaternion, Vector
+
+from ..compat import make_keys_linear
+from ..errors import WriteBackError
+from ..native import vplace
+from . import apply
+from .stand_ins import EmitterLight, SunLight
+
+#: The custom property on a keyed light: the slot it stands for.
+SLOT_PROPERTY = "vplace_slot"
+
+
+def _quaternions(normals: np.ndarray) -> list[Quaternion]:
+    """A light's rotation on each frame (facing along the normal), each of the sign nearest the
+    previous frame's."""
+    down = Vector((0.0, 0.0, -1.0))
+    out: list[Quaternion] = []
+    for n in normals:
+        q = down.rotation_difference(Vector(n.tolist()))
+        if out and out[-1].dot(q) < 0.0:
+            q.negate()
+        out.append(q)
+    return out
+
+
+def _key_light(
+    obj: bpy.types.Object,
+    frames: Sequence[int],
+    positions: np.ndarray | None,
+    quaternions: Sequence[Quaternion],
+    energy: np.ndarray,
+    color: np.ndarray,
+) -> None:
+    """Keys ``obj`` (and its light) on ``frames``; every key linear."""
+    obj.rotation_mode = "QUATERNION"
+    light = obj.data
+    for k, frame in enumerate(frames):
+        if positions is not None:
+            obj.location = tuple(float(c) for c in positions[k])
+            obj.keyframe_insert("location", frame=frame)
+        obj.rotation_quaternion = quaternions[k]
+        obj.keyframe_insert("rotation_quaternion", frame=frame)
+        light.energy = float(energy[k])
+        light.color = tuple(float(c) for c in color[k])
+        light.keyframe_insert("energy", frame=frame)
+        light.keyframe_insert("color", frame=frame)
+    for owner in (obj, light):
+        make_keys_linear(owner)
+        owner.animation_data.action[apply.VPL_MARKER] = True
+
+
+def write_keyed(
+    scene: bpy.types.Scene,
+    frames: Sequence[int],
+    keyed: vplace.temporal.Keyed,
+    *,
+    shadows: bool = True,
+    scene_diagonal: float = 10.0,
+    specular: float = 0.0,
+    emitters: Sequence[EmitterLight] = (),
+    suns: Sequence[SunLight | None] = (),
+    name: str = apply.COLLECTION_NAME,
+) -> bpy.types.Collection:
+    """Writes the slots of ``keyed`` (one per light, keyed on ``frames``), the world's sun of
+    each frame (``suns``, one per frame, or none) and ``emitters`` into a fresh VPL collection
+    linked to ``scene`` (see the module docs); the :data:`apply.MAX_SHADOWED_VPLS` slots
+    brightest on some frame cast shadows. The scene's current frame is kept."""
+    slots = keyed.position.shape[1]
+    if len(frames) != keyed.position.shape[0]:
+        raise WriteBackError(f"{len(frames)} frames for {keyed.position.shape[0]} keyed frames")
+    if slots > apply.MAX_VPLS:
+        raise WriteBackError(
+            f"{slots} keyed lights is more than EEVEE can render ({apply.MAX_VPLS}); lower the "
+            "VPL budget or animate fewer frames"
+        )
+    apply.find_collection(name)  # refuses a foreign collection of that name before any change
+    radius = keyed.radius if keyed.radius > 0 else 0.5 * apply.POINT_DISK_DIAGONALS * scene_diagonal
+    lum = keyed.power @ np.asarray(vplace.LUMINANCE, dtype=np.float64)  # (F, S)
+    brightest = lum.max(axis=0, initial=0.0)
+    shadowed = set(np.argsort(-brightest, kind="stable")[: apply.MAX_SHADOWED_VPLS].tolist())
+    energy, color = keyed.energy, keyed.color
+    current = scene.frame_current
+    coll = bpy.data.collections.new(name + " (writing)")
+    coll[apply.VPL_MARKER] = True
+    try:
+        for s in range(slots):
+            if brightest[s] <= 0.0:
+                continue
+            first = int(np.argmax(keyed.lit[:, s]))
+            obj = apply._new_vpl_object(
+                coll,
+                s,
+                keyed.position[first, s],
+                keyed.normal[first, s],
+                keyed.flux[first, s],
+                np.maximum(keyed.power[first, s], 1e-30),
+                keyed.profile,
+                radius,
+                apply.CUTOFF_DIAGONALS * scene_diagonal,
+                shadows and s in shadowed,
+                apply.SHADOW_TEXEL_DIAGONALS * scene_diagonal,
+                specular,
+            )
+            obj[SLOT_PROPERTY] = s
+            obj.name = obj.data.name = slot_name(s)
+            _key_light(
+                obj,
+                frames,
+                keyed.position[:, s],
+                _quaternions(keyed.normal[:, s]),
+                energy[:, s],
+                color[:, s],
+            )
+        for j, e in enumerate(emitters):
+            apply._new_emitter_object(coll, j, e, apply.CUTOFF_DIAGONALS * scene_diagonal, shadows)
+        lit_suns = [s for s in suns if s is not None]
+        if lit_suns:
+            _write_keyed_sun(coll, frames, suns, lit_suns[0])
+    except BaseException:
+        apply._remove_collection(coll)
+        raise
+    finally:
+        if scene.frame_current != current:
+            scene.frame_set(current)
+    apply.clear_vpls(name)
+    coll.name = name
+    for obj in coll.objects:  # the old lights are gone: their names are free again
+        if obj.get(SLOT_PROPERTY) is not None:
+            obj.name = obj.data.name = slot_name(obj[SLOT_PROPERTY])
+    scene.collection.children.link(coll)
+    return coll
+
+
+def slot_name(slot: int) -> str:
+    """The name of a keyed light (object and light data)."""
+    return f"vplace VPL slot {slot:04d}"
+
+
+def _write_keyed_sun(
+    coll: bpy.types.Collection,
+    frames: Sequence[int],
+    suns: Sequence[SunLight | None],
+    first: SunLight,
+) -> None:
+    """The world's sun as one SUN light keyed over ``frames`` (0 W where ``suns`` has none)."""
+    obj = apply._new_sun_object(coll, first)
+    up = Vector((0.0, 0.0, 1.0))
+    quats: list[Quaternion] = []
+    energy = np.zeros(len(frames))
+    color = np.ones((len(frames), 3))
+    last = first
+    for k, sun in enumerate(suns):
+        held = sun if sun is not None else last
+        q = up.rotation_difference(Vector(held.direction))
+        if quats and quats[-1].dot(q) < 0.0:
+            q.negate()
+        quats.append(q)
+        irradiance = np.asarray(held.irradiance, dtype=np.float64)
+        color[k] = irradiance / max(float(irradiance.max()), 1e-30)
+        if sun is not None:
+            energy[k] = float(irradiance.max())
+            last = sun
+    _key_light(obj, frames, None, quats, energy, color)

@@ -1,0 +1,210 @@
+"""Lights over frames, without Blender (issue 23): the temporal error of an image sequence,
+VPLs matched from frame to frame into *slots* (one Blender light each, keyed over the frames),
+and the keyed lights at any frame between the captured ones, as Blender interpolates them.
+
+- :func:`temporal_error`: the mean over frames ``t`` of the mean over pixels of
+  ``|(E_t - E_{t-1}) - (T_t - T_{t-1})|`` (luminance of linear RGB), over the truth's mean
+  luminance (all frames). A sequence that changes exactly as the truth does scores 0 whatever
+  its per-frame error; a flicker the truth lacks scores its amplitude.
+- :func:`track`: frame ``t``'s lit VPLs are matched to the slots greedily by cost (position
+  distance in scene diagonals plus :data:`NORMAL_WEIGHT` times ``1 - cos`` of the normals'
+  angle), cheapest pair first, each slot's last lit position standing for it; a pair dearer
+  than :data:`MAX_MATCH_COST` is not matched: that VPL opens a new slot (0 W before) and the
+  slot goes dark (0 W) on that frame. A dark slot keeps the position, normal and colour of its
+  nearest lit frame, so it fades in or out where it stands.
+- :func:`at_frame`: the keyed lights at a frame, linear between the captured frames, as
+  Blender evaluates linear keys: position, energy and colour each interpolated, the rotation's
+  quaternion component by component (here its normal, interpolated and normalized).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+import vplace
+
+#: The weight of ``1 - cos(angle between normals)`` in the matching cost, against the distance
+#: in scene diagonals: a VPL turned by 90 degrees costs what one moved by half a diagonal does.
+NORMAL_WEIGHT = 0.5
+#: The dearest pair that is still matched (distance in diagonals + normal term): farther, a
+#: light would sweep through the room between two frames; it fades out and another fades in.
+MAX_MATCH_COST = 0.15
+
+
+def _luminance(image: np.ndarray) -> np.ndarray:
+    return np.asarray(image, dtype=np.float64)[..., :3] @ np.asarray(vplace.LUMINANCE)
+
+
+def temporal_error(images: Sequence[np.ndarray], truths: Sequence[np.ndarray]) -> float:
+    """The temporal error of ``images`` against ``truths`` (see the module docs): two sequences
+    of (H, W, 3) linear images of at least two frames, of one shape."""
+    return float(temporal_steps(images, truths).mean())
+
+
+def temporal_steps(images: Sequence[np.ndarray], truths: Sequence[np.ndarray]) -> np.ndarray:
+    """Each step's term of :func:`temporal_error` (F - 1 values: frame t against t - 1), each
+    over the truth's mean luminance of all frames; their mean is the temporal error."""
+    if len(images) != len(truths):
+        raise ValueError(f"{len(images)} images against {len(truths)} truth frames")
+    if len(images) < 2:
+        raise ValueError("the temporal error needs at least two frames")
+    e = np.stack([_luminance(i) for i in images])
+    t = np.stack([_luminance(i) for i in truths])
+    if e.shape != t.shape:
+        raise ValueError(f"images of shape {e.shape[1:]} against truths of shape {t.shape[1:]}")
+    mean_truth = max(float(t.mean()), 1e-12)
+    change = np.abs(np.diff(e, axis=0) - np.diff(t, axis=0))
+    return change.mean(axis=(1, 2)) / mean_truth
+
+
+@dataclass
+class Keyed:
+    """Slots over frames: arrays (F, S, ...) for F frames and S slots. ``power`` is the
+    Blender power (W, RGB) a slot's light has on each frame (0 when dark), ``flux`` its VPL's
+    flux; ``index`` the VPL of that frame's set in the slot (-1 when dark)."""
+
+    position: np.ndarray
+    normal: np.ndarray
+    power: np.ndarray
+    flux: np.ndarray
+    index: np.ndarray
+    #: (F, S, 3) the colour a slot keeps where it is dark: its nearest lit frame's.
+    held_color: np.ndarray
+    profile: str
+    radius: float
+
+    @property
+    def lit(self) -> np.ndarray:
+        """(F, S) whether a slot's light gives anything on a frame."""
+        return self.index >= 0
+
+    @property
+    def energy(self) -> np.ndarray:
+        """(F, S) the light's keyed energy: the largest channel of its power."""
+        return self.power.max(axis=2)
+
+    @property
+    def color(self) -> np.ndarray:
+        """(F, S, 3) the light's keyed colour, ``power / energy``; a dark frame keeps the
+        colour of its nearest lit frame."""
+        e = self.energy[..., None]
+        return np.where(e > 0, self.power / np.maximum(e, 1e-30), self.held_color)
+
+
+def _cost(
+    pos_a: np.ndarray, nrm_a: np.ndarray, pos_b: np.ndarray, nrm_b: np.ndarray, diagonal: float
+) -> np.ndarray:
+    """(A, B) matching costs (see the module docs)."""
+    d = np.linalg.norm(pos_a[:, None, :] - pos_b[None, :, :], axis=2) / max(diagonal, 1e-12)
+    return d + NORMAL_WEIGHT * (1.0 - nrm_a @ nrm_b.T)
+
+
+def greedy_match(cost: np.ndarray, max_cost: float = MAX_MATCH_COST) -> np.ndarray:
+    """For each column of ``cost`` (A, B), the row it is matched to or -1: pairs taken
+    cheapest first (ties by row then column), each row and column once, none dearer than
+    ``max_cost``."""
+    rows, cols = cost.shape
+    out = np.full(cols, -1, dtype=np.int64)
+    if rows == 0 or cols == 0:
+        return out
+    flat = cost.ravel()
+    order = np.argsort(flat, kind="stable")
+    taken = np.zeros(rows, dtype=bool)
+    left = min(rows, cols)
+    for k in order:
+        if flat[k] > max_cost or left == 0:
+            break
+        r, c = divmod(int(k), cols)
+        if taken[r] or out[c] >= 0:
+            continue
+        taken[r] = True
+        out[c] = r
+        left -= 1
+    return out
+
+
+def track(sets: Sequence[vplace.VplSet], diagonal: float) -> Keyed:
+    """The VPLs of ``sets`` (one set per frame, in frame order, one profile and radius) matched
+    into slots (see the module docs). Deterministic: the same sets give the same slots."""
+    if not sets:
+        raise ValueError("no frames to track")
+    profile, radius = sets[0].profile, sets[0].radius
+    # Per slot: list of (frame, vpl index).
+    slot_pos: list[np.ndarray] = []
+    slot_nrm: list[np.ndarray] = []
+    members: list[dict[int, int]] = []
+    for f, vpls in enumerate(sets):
+        if vpls.profile != profile:
+            raise ValueError(f"frame {f}'s VPLs are {vpls.profile}, the first frame's {profile}")
+        lit = np.flatnonzero(np.asarray(vpls.blender_power).max(axis=1) > 0)
+        pos = np.asarray(vpls.position, dtype=np.float64)[lit]
+        nrm = np.asarray(vpls.normal, dtype=np.float64)[lit]
+        if slot_pos:
+            match = greedy_match(_cost(np.array(slot_pos), np.array(slot_nrm), pos, nrm, diagonal))
+        else:
+            match = np.full(len(lit), -1, dtype=np.int64)
+        for j, i in enumerate(lit):
+            s = int(match[j])
+            if s < 0:
+                s = len(members)
+                members.append({})
+                slot_pos.append(pos[j])
+                slot_nrm.append(nrm[j])
+            members[s][f] = int(i)
+            slot_pos[s], slot_nrm[s] = pos[j], nrm[j]
+    frames, slots = len(sets), len(members)
+    position = np.zeros((frames, slots, 3))
+    normal = np.zeros((frames, slots, 3))
+    normal[..., 2] = 1.0
+    power = np.zeros((frames, slots, 3))
+    flux = np.zeros((frames, slots, 3))
+    index = np.full((frames, slots), -1, dtype=np.int64)
+    held = np.ones((frames, slots, 3))
+    for s, got in enumerate(members):
+        lit_frames = sorted(got)
+        for f in range(frames):
+            # The frame's own VPL, else the nearest lit frame's (the earlier on a tie).
+            g = min(lit_frames, key=lambda k, f=f: (abs(k - f), k))
+            vpls, i = sets[g], got[g]
+            position[f, s] = vpls.position[i]
+            normal[f, s] = vpls.normal[i]
+            p = np.asarray(vpls.blender_power[i], dtype=np.float64)
+            held[f, s] = p / max(float(p.max()), 1e-30)
+            if g == f:
+                power[f, s] = p
+                flux[f, s] = vpls.flux[i]
+                index[f, s] = i
+    return Keyed(position, normal, power, flux, index, held, profile, radius)
+
+
+def at_frame(keyed: Keyed, frames: Sequence[float], frame: float) -> vplace.VplSet:
+    """The keyed lights at ``frame`` (linear between the captured ``frames``, held before the
+    first and after the last) as a ``VplSet`` for the evaluator; dark slots are left out."""
+    f = np.asarray(frames, dtype=np.float64)
+    if len(f) != keyed.position.shape[0]:
+        raise ValueError(f"{len(f)} frames for {keyed.position.shape[0]} keyed frames")
+    k = int(np.clip(np.searchsorted(f, frame, side="right") - 1, 0, len(f) - 1))
+    k1 = min(k + 1, len(f) - 1)
+    w = 0.0 if k1 == k else float(np.clip((frame - f[k]) / (f[k1] - f[k]), 0.0, 1.0))
+
+    def lerp(a: np.ndarray) -> np.ndarray:
+        return (1.0 - w) * a[k] + w * a[k1]
+
+    energy = lerp(keyed.energy)
+    color = lerp(keyed.color)
+    power = energy[:, None] * color
+    # blender_power = flux * (1 for cosine, 2 for omni): see ARCHITECTURE, Profiles.
+    flux = power / (2.0 if keyed.profile == "omni" else 1.0)
+    normal = lerp(keyed.normal)
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+    keep = energy > 0
+    return vplace.VplSet(
+        np.ascontiguousarray(lerp(keyed.position)[keep], dtype=np.float32),
+        np.ascontiguousarray(normal[keep], dtype=np.float32),
+        np.ascontiguousarray(flux[keep], dtype=np.float32),
+        profile=keyed.profile,
+        radius=keyed.radius,
+    )

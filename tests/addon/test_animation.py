@@ -1,0 +1,291 @@
+"""Issue 23: the animated scenes, the frames of ``--animate``, and the keyed write-back of
+``addon.animation.run_animated_job`` (tiny captures: 24 px, 2 spp)."""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+import pytest
+from blender_util import data_snapshot, diff, empty_file
+
+from addon import animation
+from addon.capture.passes import capture
+from addon.compat import action_fcurves
+from addon.errors import AddonError
+from addon.job import Job
+from addon.scene.export import VPL_MARKER
+from addon.scenes import animated
+from addon.scenes.registry import build_cornell_moving
+from addon.writeback import apply, keyed
+
+
+def test_frames_of_an_animation():
+    assert animation.animated_frames(1, 24, 8) == [1, 9, 17, 24]
+    assert animation.animated_frames(3, 3, 1) == [3]
+    assert animation.animated_frames(1, 9, 4) == [1, 5, 9]
+
+
+@pytest.mark.parametrize(
+    "args, says",
+    [
+        ((5, 1, 1), "the frame range 5..1 is empty"),
+        ((1, 5, 0), "the animation step must be at least 1 frame, got 0"),
+        ((1, 5, -2), "the animation step must be at least 1 frame, got -2"),
+        ((1, 1000, 1), "are 1000 frames, more than the 120"),
+    ],
+)
+def test_bad_frames_are_one_error_naming_them(args, says):
+    with pytest.raises(AddonError, match=says):
+        animation.animated_frames(*args)
+
+
+def _keys(owner: bpy.types.ID) -> dict[tuple[str, int], list[tuple[float, float]]]:
+    action = owner.animation_data.action
+    return {
+        (fc.data_path, fc.array_index): [tuple(k.co) for k in fc.keyframe_points]
+        for fc in action_fcurves(action)
+    }
+
+
+def _mean_luminance(scene: bpy.types.Scene, frame: int) -> tuple[float, float]:
+    """(left half, right half) mean luminance of a tiny Cycles capture's direct light."""
+    cap = capture(scene, resolution=(24, 24), samples=4, seed=0, frame=frame)
+    lum = cap.diffuse_direct @ np.array([0.2126, 0.7152, 0.0722])
+    return float(lum[:, :12].mean()), float(lum[:, 12:].mean())
+
+
+def test_cornell_moving_keys_its_lamp_and_the_light_follows():
+    empty_file()
+    scene = build_cornell_moving(bpy.context.scene)
+    lamp = scene.objects[animated.CORNELL_LAMP]
+    keys = _keys(lamp)
+    assert [k[0] for k in keys[("location", 0)]] == list(animated.FRAMES)
+    energy = _keys(lamp.data)[("energy", 0)]
+    assert energy[1][1] == pytest.approx(animated.CORNELL_LAMP_DIM * energy[0][1])
+    assert (scene.frame_start, scene.frame_end) == animated.FRAMES
+    first, last = _mean_luminance(scene, 1), _mean_luminance(scene, 24)
+    # The lamp moves from the left to the right and dims: the left half darkens much more.
+    assert last[0] / first[0] < 0.6
+    assert last[0] / first[0] < 0.8 * (last[1] / first[1])
+    assert scene.frame_current == 1  # the capture put the frame back
+
+
+def test_skyroom_afternoon_sweeps_its_sun():
+    empty_file()
+    scene = animated.build_skyroom_afternoon(bpy.context.scene)
+    sky = scene.world.node_tree.nodes[animated.SKY_NODE]
+    keys = _keys(scene.world.node_tree)
+    path = f'nodes["{animated.SKY_NODE}"].sun_rotation'
+    assert [k[0] for k in keys[(path, 0)]] == list(animated.FRAMES)
+    scene.frame_set(12)
+    assert animated.SKY_SUN_ROTATIONS[0] < sky.sun_rotation < animated.SKY_SUN_ROTATIONS[1]
+    scene.frame_set(1)
+    cap = [
+        capture(scene, resolution=(32, 18), samples=4, seed=0, frame=f).diffuse_direct
+        for f in animated.FRAMES
+    ]
+    lum = [c @ np.array([0.2126, 0.7152, 0.0722]) for c in cap]
+    # The sun patches move: pixels lit at one end of the afternoon are dark at the other.
+    moved = np.abs(lum[0] - lum[1]) > 0.5 * max(lum[0].max(), lum[1].max())
+    assert moved.sum() >= 3
+
+
+def _animate(tmp_path, name: str) -> animation.AnimationSummary:
+    job = Job(n_vpls=16, size=24, samples=2, iterations=1, cache_dir=tmp_path / "cache")
+    return animation.run_animated_job(
+        bpy.context.scene,
+        tmp_path / name,
+        (1, 24, 23),
+        job=job,
+        score_between=False,
+        log=lambda _line: None,
+    )
+
+
+def _written_keys() -> dict[str, dict]:
+    coll = bpy.data.collections[apply.COLLECTION_NAME]
+    return {
+        o.name: {**_keys(o), **_keys(o.data)}
+        for o in coll.objects
+        if o.get("vplace_slot") is not None
+    }
+
+
+def test_the_animated_job_keys_one_set_of_lights_the_same_on_a_rerun(tmp_path):
+    empty_file()
+    scene = build_cornell_moving(bpy.context.scene)
+    bpy.context.view_layer.update()
+    scene.frame_set(7)
+    scene.render.image_settings.file_format = "PNG"  # as test_operators: a saved file has it set
+    before = data_snapshot()
+    actions = len(bpy.data.actions)
+    done = _animate(tmp_path, "a")
+    assert scene.frame_current == 7
+    assert diff(before, data_snapshot()) == []  # only the VPL collection is new
+    first = _written_keys()
+    assert 16 <= len(first) == done.slots
+    for keys in first.values():
+        # Location, rotation, energy and colour keyed on both captured frames, linearly.
+        assert {p for p, _ in keys} == {"location", "rotation_quaternion", "energy", "color"}
+        assert all([k[0] for k in v] == [1.0, 24.0] for v in keys.values())
+    coll = bpy.data.collections[apply.COLLECTION_NAME]
+    for o in coll.objects:
+        for fc in action_fcurves(o.animation_data.action):
+            assert {k.interpolation for k in fc.keyframe_points} == {"LINEAR"}
+    # A light lit on one frame only is keyed to 0 W on the other.
+    energies = np.array([[v for _, v in keys[("energy", 0)]] for keys in first.values()])
+    assert (energies >= 0).all() and (energies.max(axis=1) > 0).all()
+    lit = (energies > 0).sum(axis=0)
+    assert (0 < lit).all() and (lit <= 16).all()  # each frame's VPLs the refit kept, no more
+    # The keyed lights at a captured frame are that frame's lights: Blender's evaluated power.
+    scene.frame_set(24)
+    total = sum(o.data.energy * np.array(o.data.color) for o in coll.objects)
+    refit = [r for r in done.rows if r["frame"] == 24 and r["image"] == animation.KEYED]
+    assert len(refit) == 1 and total.max() > 0
+    scene.frame_set(7)
+
+    again = _animate(tmp_path, "b")
+    assert again.slots == done.slots
+    assert _written_keys() == first
+    assert len([c for c in bpy.data.collections if c.get(VPL_MARKER)]) == 1
+    assert apply.clear_vpls() == done.slots
+    assert len(bpy.data.actions) == actions  # the keyed lights' actions went with them
+    assert diff(before, data_snapshot()) == []
+    # The copy of the file opens at the user's frame, with the keyed lights.
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "a" / "scene.blend"))
+    assert bpy.context.scene.frame_current == 7
+    assert len(bpy.data.collections[apply.COLLECTION_NAME].objects) == done.slots
+    # The files: a frame column, both frames, every image kind.
+    csv = (tmp_path / "a" / "results.csv").read_text().splitlines()
+    assert csv[0].startswith("frame,captured,image,ssim")
+    assert {line.split(",")[0] for line in csv[1:]} == {"1", "24"}
+    assert set(done.temporal_error) == {animation.KEYED, animation.STILL, animation.DIRECT}
+    # At the captured frames the keyed lights are the still layouts' lights.
+    for f in (1, 24):
+        k, s = (
+            next(r for r in done.rows if r["frame"] == f and r["image"] == kind)
+            for kind in (animation.KEYED, animation.STILL)
+        )
+        assert k["rmse"] == pytest.approx(s["rmse"], rel=1e-4, abs=1e-7)
+
+
+def test_a_keyed_sun_is_dark_where_the_frame_has_none():
+    from addon.writeback.stand_ins import SunLight
+
+    empty_file()
+    scene = bpy.context.scene
+    import vplace
+
+    one = vplace.VplSet(
+        np.zeros((1, 3), np.float32),
+        np.array([[0, 0, 1]], np.float32),
+        np.ones((1, 3), np.float32),
+        radius=0.01,
+    )
+    tracked = vplace.temporal.track([one, one], diagonal=10.0)
+    sun = SunLight((0.0, 0.0, 1.0), (2.0, 2.0, 1.0), 0.01)
+    keyed.write_keyed(scene, [1, 5], tracked, suns=[sun, None])
+    obj = apply.world_sun_light(scene)
+    assert obj is not None
+    energy = _keys(obj.data)[("energy", 0)]
+    assert energy == [(1.0, 2.0), (5.0, 0.0)]
+
+
+@pytest.mark.slow
+def test_eevee_renders_the_keyed_lights_at_each_frame(tmp_path):
+    """EEVEE with the keyed lights at both ends of cornell_moving: at the truth's brightness on
+    each frame. Lights stuck at frame 1's power would make frame 24 (lamp at 0.4) about 1.7x
+    too bright; lights missing would make it about 0.5x."""
+    empty_file()
+    build_cornell_moving(bpy.context.scene)
+    bpy.context.view_layer.update()
+    job = Job(n_vpls=32, size=32, samples=4, cache_dir=tmp_path / "cache")
+    done = animation.run_animated_job(
+        bpy.context.scene,
+        tmp_path / "out",
+        (1, 24, 23),
+        job=job,
+        truth_samples=64,
+        eevee=True,
+        eevee_still=True,
+        volume_once=True,
+        log=lambda _line: None,
+    )
+    keys_after = _written_keys()
+    rows = {r["frame"]: r for r in done.rows if r["image"] == animation.EEVEE}
+    assert sorted(rows) == [1, 24]
+    for r in rows.values():
+        assert 0.8 < r["brightness"] < 1.2, r
+    assert animation.EEVEE in done.temporal_error
+    # Each frame's still layout rendered too, then the keyed lights written back, the same.
+    still = {r["frame"]: r for r in done.rows if r["image"] == animation.EEVEE_STILL}
+    assert sorted(still) == [1, 24]
+    for f in (1, 24):  # at a captured frame the keyed lights are that frame's still lights
+        assert still[f]["ssim"] == pytest.approx(rows[f]["ssim"], abs=0.01)
+    assert len(keys_after) == done.slots and all(keys_after.values())
+    # The volume baked once, at frame 1: rendered at both frames, and removed after.
+    once = [r["frame"] for r in done.rows if r["image"] == animation.VOLUME_ONCE]
+    assert once == [1, 24] and animation.VOLUME_ONCE in done.temporal_error
+    assert not any(o.type == "LIGHT_PROBE" for o in bpy.data.objects)
+
+
+def test_the_panel_animates_the_lights_undoably(tmp_path, monkeypatch):
+    """ "Frames: animate" in the panel: "Lay out and apply" keys the lights over the frames."""
+    import addon
+    from addon.ui import operators
+
+    monkeypatch.setattr(operators, "cache_dir", lambda: tmp_path / "cache")
+    addon.register()
+    try:
+        empty_file()
+        scene = build_cornell_moving(bpy.context.scene)
+        bpy.context.view_layer.update()
+        s = scene.vplace
+        s.capture_size, s.samples, s.vpl_budget, s.iterations = 24, 2, 16, 1
+        s.view_mode = "animate"
+        s.frame_start, s.frame_end, s.frame_step = 1, 24, 23
+        assert s.view_set().mode == "active" and s.animate_frames() == (1, 24, 23)
+        assert "UNDO" in operators.VPLACE_OT_apply.bl_options
+        assert bpy.ops.vplace.apply() == {"FINISHED"}
+        lights = [
+            o for o in apply.find_collection().objects if o.get(keyed.SLOT_PROPERTY) is not None
+        ]
+        assert len(lights) >= 16
+        for o in lights:
+            assert [k[0] for k in _keys(o.data)[("energy", 0)]] == [1.0, 24.0]
+        assert scene.frame_current == 1
+        s.frame_step = 1
+        s.frame_end = 500
+        with pytest.raises(RuntimeError, match="more than the 120"):
+            bpy.ops.vplace.apply()
+    finally:
+        addon.unregister()
+
+
+def test_report_animate_scores_every_frame_and_plots_them(tmp_path):
+    """``report --blend F --animate``: every frame from START to END scored (the middle one
+    between the captured ones), the temporal error's steps, a plot."""
+    import json
+
+    from addon import cli
+
+    empty_file()
+    build_cornell_moving(bpy.context.scene)
+    blend = tmp_path / "moving.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    out = tmp_path / "report"
+    argv = ["report", "--blend", str(blend), "--animate", "1", "3", "2", "--budgets", "16"]
+    argv += ["--resolution", "24", "24", "--capture-samples", "2", "--truth-samples", "8"]
+    argv += ["--cycles-samples", "1", "--no-eevee", "--out", str(out)]
+    assert cli.main(argv) == 0
+    summary = json.loads((out / "animation.json").read_text())
+    assert summary["frames"] == [1, 3] and summary["scored_frames"] == [1, 2, 3]
+    assert summary["n_vpls"] == 16
+    images = {animation.KEYED, animation.STILL, animation.DIRECT, animation.cycles_kind(1)}
+    assert set(summary["temporal_steps"]) == images
+    for kind, steps in summary["temporal_steps"].items():
+        assert len(steps) == 2
+        assert np.mean(steps) == pytest.approx(summary["temporal_error"][kind])
+    rows = (out / "results.csv").read_text().splitlines()[1:]
+    assert sorted({int(r.split(",")[0]) for r in rows}) == [1, 2, 3]
+    assert (out / "animation.png").read_bytes()[:4] == b"\x89PNG"

@@ -1,0 +1,134 @@
+"""vplace.temporal: the temporal error, the matching of VPLs over frames, the keyed lights
+between frames."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import vplace
+from vplace import temporal
+
+
+def _grey(value: float, shape: tuple[int, int] = (12, 16)) -> np.ndarray:
+    return np.full((*shape, 3), value, dtype=np.float32)
+
+
+def test_a_static_pair_has_no_temporal_error_whatever_its_error():
+    rng = np.random.default_rng(0)
+    truth = rng.random((12, 16, 3)).astype(np.float32)
+    image = truth * 0.5 + 0.1  # wrong on every frame, but the same wrong
+    assert temporal.temporal_error([image, image, image], [truth, truth, truth]) == 0.0
+
+
+def test_following_the_truth_exactly_has_no_temporal_error():
+    truths = [_grey(v) for v in (0.2, 0.4, 0.3)]
+    images = [t + 0.05 for t in truths]  # a constant offset: changes exactly as the truth
+    assert temporal.temporal_error(images, truths) == pytest.approx(0.0, abs=1e-7)
+
+
+def test_a_known_flicker_gives_its_amplitude_over_the_mean():
+    c, d = 0.5, 0.1
+    truths = [_grey(c)] * 4
+    images = [_grey(c), _grey(c + d), _grey(c), _grey(c + d)]
+    # Every frame-to-frame change is +-d against the truth's 0: d per pixel, over c.
+    assert temporal.temporal_error(images, truths) == pytest.approx(d / c, rel=1e-5)
+    # Half the pixels flickering: half of it.
+    half = [_grey(c) for _ in range(4)]
+    for k in (1, 3):
+        half[k][:6] += d
+    assert temporal.temporal_error(half, truths) == pytest.approx(0.5 * d / c, rel=1e-5)
+    # Step by step: one flicker, at the second step only.
+    once = [_grey(c), _grey(c), _grey(c + d), _grey(c + d)]
+    steps = temporal.temporal_steps(once, truths)
+    assert steps == pytest.approx([0.0, d / c, 0.0], abs=1e-6)
+    assert temporal.temporal_error(once, truths) == pytest.approx(d / c / 3, rel=1e-5)
+
+
+def test_the_temporal_error_refuses_what_it_cannot_score():
+    with pytest.raises(ValueError, match="at least two frames"):
+        temporal.temporal_error([_grey(1)], [_grey(1)])
+    with pytest.raises(ValueError, match="2 images against 3"):
+        temporal.temporal_error([_grey(1)] * 2, [_grey(1)] * 3)
+    with pytest.raises(ValueError, match="shape"):
+        temporal.temporal_error([_grey(1)] * 2, [_grey(1, (4, 4))] * 2)
+
+
+def test_greedy_match_takes_the_cheapest_pairs_and_leaves_the_dear_ones():
+    cost = np.array([[0.0, 0.09, 1.0], [0.05, 0.01, 1.0]])
+    assert temporal.greedy_match(cost, 0.15).tolist() == [0, 1, -1]
+    assert temporal.greedy_match(np.zeros((0, 2))).tolist() == [-1, -1]
+
+
+def _set(pos, nrm=None, flux=None) -> vplace.VplSet:
+    pos = np.asarray(pos, dtype=np.float32)
+    n = len(pos)
+    nrm = np.tile([0.0, 0.0, 1.0], (n, 1)) if nrm is None else nrm
+    flux = np.ones((n, 3)) if flux is None else flux
+    return vplace.VplSet(
+        pos,
+        np.ascontiguousarray(nrm, dtype=np.float32),
+        np.ascontiguousarray(flux, dtype=np.float32),
+        radius=0.01,
+    )
+
+
+def test_track_keeps_a_vpl_that_moves_a_little_in_its_slot_and_is_deterministic():
+    a = _set([[0, 0, 0], [1, 0, 0], [2, 0, 0]])
+    # The same lights listed in another order and moved by 2 cm: matched by position.
+    b = _set([[2.02, 0, 0], [0.02, 0, 0], [1.02, 0, 0]], flux=[[3, 3, 3], [1, 1, 1], [2, 2, 2]])
+    k = temporal.track([a, b], diagonal=10.0)
+    assert k.position.shape == (2, 3, 3)
+    assert k.index.tolist() == [[0, 1, 2], [1, 2, 0]]
+    assert k.energy[1].tolist() == [1.0, 2.0, 3.0]
+    k2 = temporal.track([a, b], diagonal=10.0)
+    for name in ("position", "normal", "power", "index"):
+        assert np.array_equal(getattr(k, name), getattr(k2, name))
+
+
+def test_a_vpl_that_jumps_gets_a_new_slot_and_the_old_one_goes_dark_where_it_stands():
+    a = _set([[0, 0, 0]])
+    b = _set([[5, 0, 0]])  # half a diagonal away: dearer than MAX_MATCH_COST
+    k = temporal.track([a, b], diagonal=10.0)
+    assert k.position.shape[1] == 2
+    assert k.energy.tolist() == [[1.0, 0.0], [0.0, 1.0]]
+    # Dark slots hold the position and colour of their nearest lit frame.
+    assert k.position[1, 0].tolist() == [0, 0, 0]
+    assert k.position[0, 1].tolist() == [5, 0, 0]
+    assert k.color[0, 1].tolist() == [1.0, 1.0, 1.0]
+
+
+def test_a_turned_vpl_costs_its_normal_term():
+    a = _set([[0, 0, 0]])
+    b = _set([[0, 0, 0]], nrm=[[0.0, 0.0, -1.0]])  # flipped: 1 - cos = 2, cost 1.0
+    assert temporal.track([a, b], diagonal=10.0).position.shape[1] == 2
+
+
+def test_unlit_vpls_get_no_slot():
+    a = _set([[0, 0, 0], [1, 0, 0]], flux=[[1, 1, 1], [0, 0, 0]])
+    assert temporal.track([a], diagonal=10.0).position.shape[1] == 1
+
+
+def test_at_frame_gives_the_captured_sets_back_and_blends_between_them():
+    a = _set([[0, 0, 0], [1, 0, 0]], flux=[[1, 0.5, 0.5], [2, 2, 2]])
+    b = _set([[0.2, 0, 0], [1, 0, 0.2]], flux=[[3, 1.5, 1.5], [2, 2, 2]])
+    k = temporal.track([a, b], diagonal=10.0)
+    at_a = temporal.at_frame(k, [1, 5], 1)
+    assert np.allclose(at_a.position, a.position) and np.allclose(at_a.flux, a.flux)
+    assert np.allclose(temporal.at_frame(k, [1, 5], 5).flux, b.flux)
+    mid = temporal.at_frame(k, [1, 5], 3)
+    assert np.allclose(mid.position, [[0.1, 0, 0], [1, 0, 0.1]])
+    # Energy and colour are keyed apart (as Blender's keys): energy 2 of colour (1, .5, .5).
+    assert np.allclose(mid.flux[0], [2.0, 1.0, 1.0])
+    # Held before the first and after the last frame.
+    assert np.allclose(temporal.at_frame(k, [1, 5], -3).flux, a.flux)
+    assert np.allclose(temporal.at_frame(k, [1, 5], 9).flux, b.flux)
+
+
+def test_a_light_fading_out_is_half_as_bright_half_way():
+    a = _set([[0, 0, 0]])
+    b = _set([[9, 0, 0]])
+    k = temporal.track([a, b], diagonal=10.0)
+    mid = temporal.at_frame(k, [0, 2], 1)
+    assert len(mid) == 2
+    assert np.allclose(sorted(mid.flux[:, 0]), [0.5, 0.5])
+    assert np.allclose(sorted(mid.position[:, 0]), [0.0, 9.0])  # each where it stands
