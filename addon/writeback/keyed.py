@@ -55,8 +55,10 @@ def _key_light(
     quaternions: Sequence[Quaternion],
     energy: np.ndarray,
     color: np.ndarray,
+    sizes: np.ndarray | None = None,
 ) -> None:
-    """Keys ``obj`` (and its light) on ``frames``; every key linear."""
+    """Keys ``obj`` (and its light) on ``frames``, with ``sizes`` the AREA disk's diameter
+    too; every key linear."""
     obj.rotation_mode = "QUATERNION"
     light = obj.data
     for k, frame in enumerate(frames):
@@ -69,6 +71,9 @@ def _key_light(
         light.color = tuple(float(c) for c in color[k])
         light.keyframe_insert("energy", frame=frame)
         light.keyframe_insert("color", frame=frame)
+        if sizes is not None:
+            light.size = float(sizes[k])
+            light.keyframe_insert("size", frame=frame)
     for owner in (obj, light):
         make_keys_linear(owner)
         owner.animation_data.action[apply.VPL_MARKER] = True
@@ -99,7 +104,9 @@ def write_keyed(
             "VPL budget or animate fewer frames"
         )
     apply.find_collection(name)  # refuses a foreign collection of that name before any change
-    radius = keyed.radius if keyed.radius > 0 else 0.5 * apply.POINT_DISK_DIAGONALS * scene_diagonal
+    point = 0.5 * apply.POINT_DISK_DIAGONALS * scene_diagonal
+    radii = keyed.radii if keyed.radius > 0 else np.full(keyed.radii.shape, point)
+    cosine = keyed.profile == "cosine"
     lum = keyed.power @ np.asarray(vplace.LUMINANCE, dtype=np.float64)  # (F, S)
     brightest = lum.max(axis=0, initial=0.0)
     shadowed = set(np.argsort(-brightest, kind="stable")[: apply.MAX_SHADOWED_VPLS].tolist())
@@ -120,7 +127,7 @@ def write_keyed(
                 keyed.flux[first, s],
                 np.maximum(keyed.power[first, s], 1e-30),
                 keyed.profile,
-                radius,
+                float(radii[first, s]),
                 apply.CUTOFF_DIAGONALS * scene_diagonal,
                 shadows and s in shadowed,
                 apply.SHADOW_TEXEL_DIAGONALS * scene_diagonal,
@@ -135,6 +142,7 @@ def write_keyed(
                 _quaternions(keyed.normal[:, s]),
                 energy[:, s],
                 color[:, s],
+                2.0 * radii[:, s] if cosine else None,
             )
         for j, e in enumerate(emitters):
             apply._new_emitter_object(coll, j, e, apply.CUTOFF_DIAGONALS * scene_diagonal, shadows)

@@ -125,8 +125,15 @@ def test_the_animated_job_keys_one_set_of_lights_the_same_on_a_rerun(tmp_path):
     first = _written_keys()
     assert 16 <= len(first) == done.slots
     for keys in first.values():
-        # Location, rotation, energy and colour keyed on both captured frames, linearly.
-        assert {p for p, _ in keys} == {"location", "rotation_quaternion", "energy", "color"}
+        # Location, rotation, energy, colour and the disk's size (the patch the VPL stands
+        # for) keyed on both captured frames, linearly.
+        assert {p for p, _ in keys} == {
+            "location",
+            "rotation_quaternion",
+            "energy",
+            "color",
+            "size",
+        }
         assert all([k[0] for k in v] == [1.0, 24.0] for v in keys.values())
     coll = bpy.data.collections[apply.COLLECTION_NAME]
     for o in coll.objects:

@@ -75,6 +75,11 @@ class Keyed:
     held_color: np.ndarray
     profile: str
     radius: float
+    #: (F, S) each slot's near-field radius on each frame: its VPL's in that frame's set
+    #: (``VplSet.radii``; a dark frame keeps its nearest lit frame's), keyed as the disk's size.
+    radii: np.ndarray
+    #: The frames' own sets: :func:`at_frame` at a captured frame is that frame's lights.
+    sets: list[vplace.VplSet]
 
     @property
     def lit(self) -> np.ndarray:
@@ -163,6 +168,8 @@ def track(sets: Sequence[vplace.VplSet], diagonal: float) -> Keyed:
     flux = np.zeros((frames, slots, 3))
     index = np.full((frames, slots), -1, dtype=np.int64)
     held = np.ones((frames, slots, 3))
+    radii = np.zeros((frames, slots))
+    own = [np.asarray(v.radii, dtype=np.float64) for v in sets]
     for s, got in enumerate(members):
         lit_frames = sorted(got)
         for f in range(frames):
@@ -171,18 +178,22 @@ def track(sets: Sequence[vplace.VplSet], diagonal: float) -> Keyed:
             vpls, i = sets[g], got[g]
             position[f, s] = vpls.position[i]
             normal[f, s] = vpls.normal[i]
+            radii[f, s] = own[g][i]
             p = np.asarray(vpls.blender_power[i], dtype=np.float64)
             held[f, s] = p / max(float(p.max()), 1e-30)
             if g == f:
                 power[f, s] = p
                 flux[f, s] = vpls.flux[i]
                 index[f, s] = i
-    return Keyed(position, normal, power, flux, index, held, profile, radius)
+    return Keyed(position, normal, power, flux, index, held, profile, radius, radii, list(sets))
 
 
 def at_frame(keyed: Keyed, frames: Sequence[float], frame: float) -> vplace.VplSet:
     """The keyed lights at ``frame`` (linear between the captured ``frames``, held before the
-    first and after the last) as a ``VplSet`` for the evaluator; dark slots are left out."""
+    first and after the last) as a ``VplSet`` for the evaluator; dark slots are left out. At a
+    captured frame it is that frame's own set. Between captured frames the evaluator takes each
+    light's near-field radius from the interpolated set's spacing (``VplSet.radii``), where
+    Blender interpolates the keyed disk sizes: the one approximation of the keyed lights."""
     f = np.asarray(frames, dtype=np.float64)
     if len(f) != keyed.position.shape[0]:
         raise ValueError(f"{len(f)} frames for {keyed.position.shape[0]} keyed frames")
@@ -200,6 +211,8 @@ def at_frame(keyed: Keyed, frames: Sequence[float], frame: float) -> vplace.VplS
     flux = power / (2.0 if keyed.profile == "omni" else 1.0)
     normal = lerp(keyed.normal)
     normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+    if w == 0.0 and frame == f[k]:
+        return keyed.sets[k]
     keep = energy > 0
     return vplace.VplSet(
         np.ascontiguousarray(lerp(keyed.position)[keep], dtype=np.float32),
