@@ -209,20 +209,11 @@ def prepare(
             cache_dir=job.cache_dir,
             stage=timer.stage,
             log=timer.log,
+            region=job.views.region(),
+            profile=job.profile,
+            radius=job.radius,
         )
-    cover = None
-    if job.views.coverage > 0:
-        with timer.stage("coverage views (ray traced)"):
-            cover = vplace.coverage.cover(
-                scene,
-                exported.vertices[exported.triangles],
-                captured.views,
-                job.views.region(),
-                seed=job.seed,
-                profile=job.profile,
-                radius=job.radius_in(scene),
-            )
-        timer.log(f"[vplace] {cover.describe()}")
+    cover = captured.coverage
     ref = None
     if reference is not None:
         ref = render_reference(

@@ -34,6 +34,8 @@ class Captured:
     gloss: list[np.ndarray | None]
     #: Views left out, with the reason (a camera that sees nothing, a duplicate view).
     skipped: dict[str, str] = field(default_factory=dict)
+    #: The coverage views of the region around the captures (``vplace.coverage``), if asked.
+    coverage: vplace.coverage.Coverage | None = None
 
 
 @dataclass(frozen=True)
@@ -60,10 +62,15 @@ def capture_views(
     cache_dir: Path | None,
     stage: Callable[[str], AbstractContextManager[None]],
     log: Callable[[str], None],
+    region: vplace.coverage.Region | None = None,
+    profile: str = "cosine",
+    radius: float | None = None,
 ) -> Captured:
-    """Captures each view of ``specs``. A view that sees no geometry, or that renders exactly
-    what an earlier view renders (the same capture key), is left out and said so; only when no
-    view is left is it an error. ``stage`` is the job timer's ``stage``."""
+    """Captures each view of ``specs``, then, with a ``region`` of one or more views, adds the
+    coverage views of that region around them (``vplace.coverage``: ray traced, no render;
+    ``profile`` and ``radius`` those of the job's VPLs). A view that sees no geometry, or that
+    renders exactly what an earlier view renders (the same capture key), is left out and said
+    so; only when no view is left is it an error. ``stage`` is the job timer's ``stage``."""
     last = [0.0]
 
     def on_progress(line: str) -> None:
@@ -105,7 +112,20 @@ def capture_views(
         )
     gloss = [gloss_mask(scene, exported, c) for c in captures]
     views = [view_of(c, gloss=g) for c, g in zip(captures, gloss, strict=True)]
-    return Captured(captures, views, gloss, skipped)
+    cover = None
+    if region is not None and region.count > 0:
+        with stage("coverage views (ray traced)"):
+            cover = vplace.coverage.cover(
+                scene,
+                exported.vertices[exported.triangles],
+                views,
+                region,
+                seed=seed,
+                profile=profile,
+                radius=radius,
+            )
+        log(f"[vplace] {cover.describe()}")
+    return Captured(captures, views, gloss, skipped, cover)
 
 
 def reference_of(

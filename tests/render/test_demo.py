@@ -50,7 +50,10 @@ def test_main_job_writes_everything_and_eevee_shows_what_the_evaluator_computed(
         assert (tmp_path / name).exists(), name
     assert json.loads((tmp_path / "report.json").read_text())["n_vpls"] == 64
     table = np.loadtxt(tmp_path / "vpls.csv", delimiter=",", skiprows=1)
-    assert table.shape == (64, 9)
+    assert table.shape == (64, 10)  # position, normal, flux, the disk's radius
+    radii = table[:, 9]
+    assert (radii >= report.radius * (1 - 1e-6)).all()
+    assert (radii <= vplace.MAX_RADIUS_FACTOR * report.radius * (1 + 1e-6)).all()
     # Scored against a 256 spp truth of the scene camera, not against the 64 spp capture.
     assert "ground truth" in report.reference.label and report.reference.samples == 256
     m = report.metrics
