@@ -344,14 +344,7 @@ def run_animated_job(
                 add(f, cycles_kind(n), img.image, ref.gi, img.seconds)
             if eevee and write_back:
                 with timer.stage(f"EEVEE, frame {f}"):
-                    with eevee_setup.world_volume_for_render(bl_scene):
-                        img = eevee_render.render(
-                            bl_scene,
-                            resolution=(width, height),
-                            samples=eevee_render.EEVEE_SAMPLES,
-                            setup=eevee_render.SETUPS["vpl"],
-                            cache_dir=job.cache_dir,
-                        )
+                    img = _render_vpl_eevee(bl_scene, (width, height), job.cache_dir)
                 add(f, EEVEE, img.image, ref.gi, img.seconds)
         if eevee_still and eevee and write_back:
             for f in scored:
@@ -377,6 +370,21 @@ def run_animated_job(
     return summary
 
 
+def _render_vpl_eevee(
+    bl_scene: bpy.types.Scene, resolution: tuple[int, int], cache_dir: Path | None
+) -> eevee_render.EeveeImage:
+    """EEVEE's render of the scene with the written VPLs at the current frame (the scored
+    setup, with the world's volume when the world emits)."""
+    with eevee_setup.world_volume_for_render(bl_scene):
+        return eevee_render.render(
+            bl_scene,
+            resolution=resolution,
+            samples=eevee_render.EEVEE_SAMPLES,
+            setup=eevee_render.SETUPS["vpl"],
+            cache_dir=cache_dir,
+        )
+
+
 def _score_eevee_still(
     bl_scene: bpy.types.Scene,
     run: _Frame,
@@ -400,14 +408,7 @@ def _score_eevee_still(
     )
     height, width = run.reference.gi.shape[:2]
     with timer.stage(f"EEVEE + still VPLs, frame {run.frame}"):
-        with eevee_setup.world_volume_for_render(bl_scene):
-            img = eevee_render.render(
-                bl_scene,
-                resolution=(width, height),
-                samples=eevee_render.EEVEE_SAMPLES,
-                setup=eevee_render.SETUPS["vpl"],
-                cache_dir=job.cache_dir,
-            )
+        img = _render_vpl_eevee(bl_scene, (width, height), job.cache_dir)
     add(run.frame, EEVEE_STILL, img.image, run.reference.gi, img.seconds)
 
 
