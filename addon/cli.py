@@ -218,8 +218,8 @@ def _report_options(sub: argparse._SubParsersAction) -> None:
         help="methods whose lights EEVEE renders on every view",
     )  # fmt: skip
     rep.add_argument(
-        "--alternatives", nargs="+", default=["plain", "rt", "rt+volume", "vpl+rt", "cycles+oidn"],
-        help="what a Blender user would pick instead, rendered on every view",
+        "--alternatives", nargs="*", default=["plain", "rt", "rt+volume", "vpl+rt", "cycles+oidn"],
+        help="what a Blender user would pick instead, rendered on every view (none: only vplace)",
     )  # fmt: skip
     rep.add_argument("--eevee-samples", type=int, default=None, help="EEVEE's render samples")
     rep.add_argument("--feature-mode", choices=FEATURE_MODES, default="auto")

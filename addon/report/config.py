@@ -265,6 +265,8 @@ class RowDetails:
     #: The refit's ridge (chosen by cross-validation over blocks of the captured pixels).
     refit_ridge: float | None = None
     switched_off: int | None = None
+    #: EEVEE rows of written VPLs: where EEVEE's error comes from (``vplace.job.Attribution``).
+    attribution: dict[str, Any] | None = None
     #: Rows averaged over seeds (``summary.aggregate``): how many, each seed's scores, spreads.
     seeds: int | None = None
     by_seed: dict[str, dict[str, float]] | None = None

@@ -178,6 +178,34 @@ def image_grid(
     return path
 
 
+def difference_grid(
+    path: Path, differences: dict[str, np.ndarray], *, scale: float, title: str
+) -> Path:
+    """Per method, a signed luminance difference (red: EEVEE brighter, blue: darker) on one
+    symmetric colour scale of +-``scale`` (the report passes the truth's 99th percentile, so the
+    colours read as a share of the scene's bright light)."""
+    names = list(differences)
+    lum = [np.asarray(d, dtype=np.float64)[..., :3] @ _LUMINANCE for d in differences.values()]
+    h, w = lum[0].shape
+    fig, axes = plt.subplots(
+        1, len(names), figsize=(2.6 * len(names) + 1.0, 2.6 * h / w + 0.8), squeeze=False,
+        layout="constrained",
+    )  # fmt: skip
+    vmax = max(scale, 1e-6)
+    im = None
+    for ax, name, d in zip(axes[0], names, lum, strict=True):
+        im = ax.imshow(d, cmap="RdBu_r", vmin=-vmax, vmax=vmax)
+        ax.set_title(f"{name}: mean {d.mean():+.4f}, |mean| {np.abs(d).mean():.4f}", fontsize=7)
+        ax.set_xticks([])
+        ax.set_yticks([])
+    if im is not None:
+        fig.colorbar(im, ax=axes[0, :].tolist(), shrink=0.8, label="luminance (linear)")
+    fig.suptitle(title, fontsize=9)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def par2d_plot(path: Path, rows: Sequence[vplace.par2d_measure.Par2dRow]) -> Path:
     """PAR 2D: RMSE against exact over time for Monte Carlo at rising ray counts, and PAR."""
     fig, ax = plt.subplots(figsize=(5.5, 4))

@@ -450,6 +450,11 @@ class _EeveeRun:
     grid_n: int
     rows: list[Row] = field(default_factory=list)
     images: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+    #: Per view, EEVEE's direct light: the ``vpl`` set-up with the VPLs hidden (the scene's
+    #: lights, vplace's stand-ins and the world's volume on), rendered once for every method.
+    direct: dict[str, np.ndarray] = field(default_factory=dict)
+    #: Per view and method, EEVEE's VPL light minus the evaluator's (attribution part ``vpl``).
+    vpl_differences: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
 
     def add(
         self,
@@ -461,6 +466,7 @@ class _EeveeRun:
         samples: int | None,
         bake_seconds: float | None = None,
         seed: int | None = None,
+        attribution: vplace.job.Attribution | None = None,
     ) -> None:
         """Scores ``img`` against the view's truth as a row."""
         renderer = "cycles" if setup == "cycles+oidn" else "eevee"
@@ -475,7 +481,11 @@ class _EeveeRun:
             one_time_seconds=one_time,
             frame_seconds=img.seconds,
             seed=seed,
-            details=RowDetails(setup=setup, bake_seconds=bake_seconds),
+            details=RowDetails(
+                setup=setup,
+                bake_seconds=bake_seconds,
+                attribution=attribution.to_dict() if attribution is not None else None,
+            ),
             **pipeline.score(img.image, view.truth.gi),
         )
         self.rows.append(row)
@@ -502,9 +512,29 @@ class _EeveeRun:
                 ),
             )
 
+    def render_direct(self) -> None:
+        """EEVEE's direct light on every view (:attr:`direct`), with the lights just written:
+        their VPLs hidden for the render, vplace's stand-ins kept."""
+        vpls = [o for o in self.bl_scene.objects if o.get("vplace_index") is not None]
+        with override() as g:
+            for obj in vpls:
+                g.set(obj, "hide_render", True)
+            for view, img in self.each_view(eevee.SETUPS["vpl"], self.config.eevee_samples):
+                self.direct[view.name] = img.image
+                self.log(f"[vplace]   eevee {view.name} direct light only {img.seconds:6.1f} s")
+
+    def attribute(
+        self, view: ViewData, method: str, s: LaidSet, img: eevee.EeveeImage
+    ) -> vplace.job.Attribution:
+        """``img`` (EEVEE with the lights of ``s``) split by ``vplace.job.attribute``."""
+        vpl_light, _ = vplace.evaluate(self.data.prepared.scene, view.view, s.vpls)
+        direct = self.direct[view.name]
+        self.vpl_differences.setdefault(view.name, {})[method] = img.image - direct - vpl_light
+        return vplace.job.attribute(img.image, direct, view.truth.direct, vpl_light, view.truth.gi)
+
     def vpl_rows(self, method: str, s: LaidSet, world_bake: float) -> None:
         """The lights of ``s`` written, rendered on every view (and with ray tracing for
-        ``vplace+refit``), and removed again."""
+        ``vplace+refit``), and removed again; the ``vpl`` renders are attributed."""
         config, prepared = self.config, self.data.prepared
         apply.write_vpls(
             self.bl_scene,
@@ -515,6 +545,8 @@ class _EeveeRun:
             sun=prepared.stand_ins.sun,
         )
         try:
+            if not self.direct:
+                self.render_direct()
             names = ["vpl"] + (
                 ["vpl+rt"] if method == "vplace+refit" and "vpl+rt" in config.alternatives else []
             )
@@ -529,6 +561,7 @@ class _EeveeRun:
                         s.one_time_seconds + world_bake,
                         config.eevee_samples,
                         seed=s.seed,
+                        attribution=self.attribute(view, method, s, img) if name == "vpl" else None,
                     )
                     if name == "vpl":
                         self.images[view.name][method] = img.image
@@ -592,9 +625,10 @@ def eevee_rows(
     scene_name: str,
     cache_dir: Path,
     log: Callable[[str], None],
-) -> tuple[list[Row], dict[str, dict[str, np.ndarray]]]:
+) -> _EeveeRun:
     """The grid budget's lights of each of ``config.eevee_methods`` rendered by EEVEE on every
-    view, and the alternatives; returns the rows and the images per view."""
+    view, and the alternatives; returns the run: its rows, the images per view and the
+    attribution's VPL differences."""
     if apply.find_collection() is not None:
         raise ReportError(
             f"the scene already has a {apply.COLLECTION_NAME!r} collection; the report does "
@@ -612,7 +646,7 @@ def eevee_rows(
     }
     run.methods(chosen)
     run.alternatives()
-    return run.rows, run.images
+    return run
 
 
 def run_scene(
@@ -657,11 +691,12 @@ def _run_scene(
         rows += reference_rows(view, preset.name)
     if config.capture_curve:
         rows += capture_curve_rows(bl_scene, data, config, preset.name, log)
+    shown: dict[str, dict[str, np.ndarray]] = {v.name: {} for v in data.views}
+    differences: dict[str, dict[str, np.ndarray]] = {}
     if config.with_eevee:
-        more, shown = eevee_rows(bl_scene, data, sets, config, preset.name, cache_dir, log)
-        rows += more
-    else:
-        shown = {v.name: {} for v in data.views}
+        run = eevee_rows(bl_scene, data, sets, config, preset.name, cache_dir, log)
+        rows += run.rows
+        shown, differences = run.images, run.vpl_differences
     info: dict[str, Any] = {
         "fit": asdict(vplace.job.FitSummary.of(fitted)),
         "fit_seconds": fit_seconds,
@@ -692,6 +727,14 @@ def _run_scene(
                     title=f"{preset.name}, {view.name} ({view.role} view): {what}",
                 )
                 info["views"][view.name][key] = grid.name
+        if differences.get(view.name):
+            picture = report_plots.difference_grid(
+                out / f"vpl_difference_{stem}.png",
+                differences[view.name],
+                scale=float(np.percentile(view.truth.gi, 99)),
+                title=f"{preset.name}, {view.name}: EEVEE's VPL light minus the evaluator's",
+            )
+            info["views"][view.name]["vpl_difference"] = picture.name
     return rows, info
 
 

@@ -57,6 +57,7 @@ def aggregate(rows: Sequence[Row]) -> list[Row]:
             setup=d.setup,
             bake_seconds=d.bake_seconds,
             capture_seconds=d.capture_seconds,
+            attribution=d.attribution if len(members) == 1 else None,
             seeds=len(members),
             by_seed={
                 str(r.seed): {
@@ -451,6 +452,48 @@ def _shown_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
     ]
 
 
+def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
+    """Where each EEVEE image of written lights departs from the truth
+    (``vplace.job.Attribution``), beside the evaluator's error and outliers for the same
+    lights."""
+    body = []
+    for r in mine:
+        a = r.details.attribution
+        if r.renderer != "eevee" or not a:
+            continue
+        ev = _at(mine, name, view, r.method, "evaluator", r.n_vpls)
+        parts = [f"{a['rmse'][k]:.4f} ({a['share'][k]:+.0%})" for k in vplace.job.ATTRIBUTION_PARTS]
+        body.append(
+            [
+                f"{r.method}, N={r.n_vpls}",
+                f"{r.rmse:.4f} / {ev.rmse:.4f}" if ev else f"{r.rmse:.4f} / -",
+                *parts,
+                f"{a['direct_brightness']:.3f}",
+                f"{a['vpl_brightness']:.3f}",
+                f"{r.hot_pixels:.2%} / {ev.hot_pixels:.2%}" if ev else f"{r.hot_pixels:.2%} / -",
+                f"{r.worst_share:.2f} / {ev.worst_share:.2f}" if ev else f"{r.worst_share:.2f}",
+                f"{a['vpl_hot_pixels']:.2%}",
+            ]
+        )
+    if not body:
+        return []
+    header = ["lights", "RMSE: EEVEE / evaluator", "(a) direct", "(b) VPL light", "(c) rest"]
+    header += ["direct: EEVEE / Cycles", "VPL light: EEVEE / evaluator"]
+    header += ["hot pixels: EEVEE / evaluator", "worst 1 %: EEVEE / evaluator", "(b) hot"]
+    return [
+        "",
+        "Where EEVEE's error comes from, RMSE of each part (its share of EEVEE's squared error):"
+        " (a) EEVEE's direct light (the scene's lights and vplace's stand-ins, VPLs hidden) "
+        "against Cycles', (b) EEVEE's VPL light against the evaluator's for the same lights, "
+        "(c) the evaluator's own error. Brightness is mean luminance over mean luminance; hot "
+        "pixels are brighter than twice the truth plus 0.05, worst 1 % is the share of the "
+        "squared error in the worst 1 % of pixels, (b) hot counts EEVEE's VPL light against "
+        "the evaluator's.",
+        "",
+        *vplace.markdown.table(header, body),
+    ]
+
+
 def _scene_lines(name: str, info: dict[str, Any], rows: Sequence[Row]) -> list[str]:
     """One scene's section: the fit, then per view the evaluator's and the renderers' tables."""
     fit = info["fit"]
@@ -472,7 +515,7 @@ def _scene_lines(name: str, info: dict[str, Any], rows: Sequence[Row]) -> list[s
             "",
             f"{v['resolution'][0]}x{v['resolution'][1]} px, {v['triangles']} triangles; ground "
             f"truth {v['truth_samples']} spp in {v['truth_seconds']:.1f} s. Images: "
-            + ", ".join(f"`{v[k]}`" for k in ("grid", "eevee_grid") if k in v)
+            + ", ".join(f"`{v[k]}`" for k in ("grid", "eevee_grid", "vpl_difference") if k in v)
             + ".",
             "",
             "Evaluator, SSIM (sd) / RMSE by VPL budget:",
@@ -483,6 +526,7 @@ def _scene_lines(name: str, info: dict[str, Any], rows: Sequence[Row]) -> list[s
         if direct:
             lines += ["", f"Direct light only: SSIM {direct.ssim:.3f}, RMSE {direct.rmse:.4f}."]
         lines += _shown_table(mine, name, view)
+        lines += _attribution_table(mine, name, view)
         lines.append("")
     return lines + _capture_curve_lines([r for r in rows if r.scene == name])
 

@@ -130,6 +130,14 @@ def test_eevee_and_the_alternatives_are_scored_on_every_view(tiny_report):
         volume = shown[("eevee rt + volume", 4)]
         assert volume["one_time_seconds"] == volume["extra"]["bake_seconds"] > 0.0
         assert shown[("cycles+oidn", 1)]["one_time_seconds"] == 0.0
+        # Every EEVEE image of written lights is attributed, and only those.
+        for (method, _), r in shown.items():
+            a = r["extra"].get("attribution")
+            assert (a is not None) == (method in ("uniform", "vplace+refit")), method
+            if a is not None:
+                assert sum(a["share"].values()) == pytest.approx(1.0)
+                assert all(v >= 0.0 for v in a["rmse"].values())
+                assert 0.3 < a["direct_brightness"] < 3.0 and a["vpl_brightness"] > 0.0
     checks = {c["check"] for c in result["targets"]}
     assert any("EEVEE with the VPLs within 0.02 SSIM of the evaluator" in c for c in checks)
     assert any("held out" in c and "relative MSE below direct" in c for c in checks)
@@ -148,7 +156,8 @@ def test_tiny_report_writes_csv_json_plots_and_markdown(tiny_report):
     assert json.loads((out / "results.json").read_text())["rows"] == result["rows"]
     pngs = sorted(p.name for p in out.glob("*.png"))
     assert "error_vs_vpls.png" in pngs
-    for prefix in ("error_vs_time_cornell_", "grid_cornell_", "eevee_cornell_"):
+    prefixes = ("error_vs_time_cornell_", "grid_cornell_", "eevee_cornell_", "vpl_difference_")
+    for prefix in prefixes:
         assert sum(n.startswith(prefix) for n in pngs) == 3, prefix
     for name in pngs:
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -156,6 +165,7 @@ def test_tiny_report_writes_csv_json_plots_and_markdown(tiny_report):
     assert "Fit over 2 views" in md and "ground truth 32 spp" in md
     assert f"| {RELAYOUT} |" in md and "## Break-even" in md and "## Targets" in md
     assert "evaluator, same lights" in md and "Capture samples against layout quality" in md
+    assert "(b) VPL light" in md and "vpl_difference_cornell_" in md
 
 
 @pytest.mark.slow

@@ -93,6 +93,38 @@ def test_outliers_find_hot_spots_and_where_the_error_sits():
     assert vjob.outliers(truth * 1.1, truth)["worst_share"] == pytest.approx(0.01)
 
 
+def test_attribution_splits_eevees_error_into_parts_that_add_up():
+    rng = np.random.default_rng(3)
+    truth = rng.uniform(0.2, 1.0, (16, 24, 3))
+    cycles_direct = 0.6 * truth
+    evaluator_vpl = 0.35 * truth  # the evaluator misses 5 % of the truth
+    eevee_direct = 0.9 * cycles_direct  # EEVEE's direct light 10 % dark
+    eevee_vpl = evaluator_vpl.copy()
+    eevee_vpl[2, 3] += 4.0  # one hot spot in EEVEE's VPL light
+    eevee = eevee_direct + eevee_vpl
+    a = vjob.attribute(eevee, eevee_direct, cycles_direct, evaluator_vpl, truth)
+    assert set(a.rmse) == set(a.share) == set(vjob.ATTRIBUTION_PARTS)
+    assert sum(a.share.values()) == pytest.approx(1.0)
+    assert a.direct_brightness == pytest.approx(0.9)
+    assert a.rmse["direct"] == pytest.approx(np.sqrt(((0.1 * cycles_direct) ** 2).mean()))
+    assert a.rmse["rest"] == pytest.approx(np.sqrt(((0.05 * truth) ** 2).mean()))
+    assert a.rmse["vpl"] == pytest.approx(4.0 / np.sqrt(16 * 24))  # 4 in each channel
+    # The hot spot holds most of the error and is the VPL light's only hot pixel.
+    assert a.share["vpl"] > 0.5 and a.vpl_hot_pixels == pytest.approx(1 / (16 * 24))
+    assert a.vpl_worst_share == pytest.approx(1.0)
+    # EEVEE equal to the evaluator: no VPL part, the rest is all.
+    same = vjob.attribute(cycles_direct + evaluator_vpl, cycles_direct, cycles_direct,
+                          evaluator_vpl, truth)  # fmt: skip
+    assert same.rmse["vpl"] < 1e-12 and same.rmse["direct"] == 0.0
+    assert same.share["rest"] == pytest.approx(1.0)
+    with pytest.raises(ValueError, match="one shape"):
+        vjob.attribute(eevee, eevee_direct[:8], cycles_direct, evaluator_vpl, truth)
+    bad = truth.copy()
+    bad[0, 0, 0] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        vjob.attribute(eevee, eevee_direct, cycles_direct, evaluator_vpl, bad)
+
+
 def test_baselines_share_the_fit_and_leave_the_method_out(room):
     scene, v, ref = room
     computed, compared = vjob.compute_with_baselines(

@@ -212,6 +212,75 @@ def outliers(image: np.ndarray, truth: np.ndarray) -> dict[str, float]:
     }
 
 
+#: The parts of :func:`attribute`, in its order.
+ATTRIBUTION_PARTS = ("direct", "vpl", "rest")
+
+
+@dataclass(frozen=True)
+class Attribution:
+    """Where an EEVEE image of the written lights departs from the truth (:func:`attribute`).
+
+    ``rmse`` and ``share`` are keyed by :data:`ATTRIBUTION_PARTS`: ``direct``, EEVEE's direct
+    light (the scene's lights and vplace's stand-ins, VPLs hidden) against Cycles'; ``vpl``,
+    EEVEE's VPL light against the evaluator's for the same lights; ``rest``, the evaluator's
+    own error (its VPL light plus Cycles' direct light, against the truth). The three parts add
+    up to EEVEE's error exactly; a part's share is its projection on that error over the
+    error's square (the shares add up to 1; a negative share cancels part of another's)."""
+
+    rmse: dict[str, float]
+    share: dict[str, float]
+    #: Mean luminance of EEVEE's direct light over Cycles'.
+    direct_brightness: float
+    #: Mean luminance of EEVEE's VPL light over the evaluator's.
+    vpl_brightness: float
+    #: :func:`outliers` of EEVEE's VPL light against the evaluator's.
+    vpl_hot_pixels: float
+    vpl_worst_share: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready."""
+        return asdict(self)
+
+
+def attribute(
+    eevee: np.ndarray,
+    eevee_direct: np.ndarray,
+    cycles_direct: np.ndarray,
+    evaluator_vpl: np.ndarray,
+    truth: np.ndarray,
+) -> Attribution:
+    """Splits ``eevee - truth`` (RGB images of one view, the same shape) into the three parts of
+    :class:`Attribution`: ``eevee_direct - cycles_direct``, ``(eevee - eevee_direct) -
+    evaluator_vpl`` and ``cycles_direct + evaluator_vpl - truth``. EEVEE adds lights linearly,
+    so ``eevee - eevee_direct`` is its image of the VPLs alone (up to its sampling noise)."""
+    arrays = [eevee, eevee_direct, cycles_direct, evaluator_vpl, truth]
+    e, ed, cd, vx, t = (np.asarray(a, dtype=np.float64)[..., :3] for a in arrays)
+    if not e.shape == ed.shape == cd.shape == vx.shape == t.shape or e.ndim != 3:
+        shapes = ", ".join(str(np.shape(a)) for a in arrays)
+        raise ValueError(f"attribute needs five (H, W, 3) images of one shape, got {shapes}")
+    if not all(np.isfinite(a).all() for a in (e, ed, cd, vx, t)):
+        raise ValueError("attribute: an image holds NaN or infinity")
+    ve = e - ed
+    parts = {"direct": ed - cd, "vpl": ve - vx, "rest": cd + vx - t}
+    total = e - t
+    sq = float((total * total).sum())
+    lum = np.asarray(vplace.LUMINANCE, dtype=np.float64)
+
+    def ratio(a: np.ndarray, b: np.ndarray) -> float:
+        below = float((b @ lum).mean())
+        return float((a @ lum).mean()) / below if below > 1e-12 else float("nan")
+
+    vpl_out = outliers(ve, vx)
+    return Attribution(
+        rmse={k: float(np.sqrt((d * d).mean())) for k, d in parts.items()},
+        share={k: float((d * total).sum()) / sq if sq > 0 else 0.0 for k, d in parts.items()},
+        direct_brightness=ratio(ed, cd),
+        vpl_brightness=ratio(ve, vx),
+        vpl_hot_pixels=vpl_out["hot_pixels"],
+        vpl_worst_share=vpl_out["worst_share"],
+    )
+
+
 def score(image: np.ndarray, truth: np.ndarray) -> dict[str, float]:
     """RMSE, relative MSE (linear HDR), SSIM (display luminance) of ``image`` against ``truth``,
     its brightness (mean luminance over the truth's) and its :func:`outliers`; SSIM is NaN

@@ -1,0 +1,58 @@
+"""Hot spots on a glossy floor: the Cornell box with a sharp glossy floor (roughness 0.2, left to
+EEVEE's ray tracing) and a rough glossy block (0.6, which turns the written VPLs' specular on),
+lit by VPLs that stand on the walls and blocks next to the floor. EEVEE must add no hot spot the
+evaluator did not compute: a VPL's small bright disk mirrored in the floor is the failure this
+guards against. With the VPLs of the set's radius (``c97b93e``, before each became a disk the size
+of its patch) this test failed: 0.46 % of EEVEE's VPL-light pixels hot against the evaluator's,
+1.59 % of EEVEE's image hot against the truth where the evaluator's had 1.29 %."""
+
+import bpy
+import pytest
+import vplace.job as vjob
+from blender_util import cornell, principled
+
+from addon.capture import passes as capture
+from addon.capture.native_view import gloss_mask, view_of
+from addon.native import vplace
+from addon.scene import export
+from addon.scene.convert import build_scene
+from addon.writeback import apply, stage
+from addon.writeback import eevee_render as eevee
+
+RES = (64, 64)
+
+
+@pytest.mark.slow
+def test_a_glossy_floor_shows_no_hot_spot_the_evaluator_did_not_compute():
+    scene = cornell()
+    for name, roughness in (("floor", 0.2), ("shortBox", 0.6)):
+        mat, _ = principled(f"glossy {name}", **{"Base Color": (0.6, 0.6, 0.6, 1.0),
+                                                  "Roughness": roughness})  # fmt: skip
+        mesh = bpy.data.objects[name].data
+        mesh.materials.clear()
+        mesh.materials.append(mat)
+    exported = export.export_scene(scene)
+    assert exported.sharp_gloss.any() and exported.rough_gloss.any()
+    native = build_scene(exported)
+    specular = stage.vpl_specular(exported)
+    assert specular == 1.0  # the rough block asks for it, the sharp floor gets it too
+    gbuf = capture.capture(scene, resolution=RES, samples=8)
+    truth = capture.capture(scene, resolution=RES, samples=256, seed=11)
+    vpls = vplace.uniform_vpls(native, 64, seed=3, bounces=vplace.MAX_BOUNCES)
+    ours, _ = vplace.evaluate(native, view_of(gbuf, gloss=gloss_mask(native, exported, gbuf)), vpls)
+    apply.write_vpls(scene, vpls, scene_diagonal=native.diagonal, specular=specular)
+    shown = eevee.render(scene, resolution=RES, samples=4, setup=eevee.SETUPS["vpl"]).image
+    bpy.data.objects["light"].hide_render = True  # the VPLs' light alone (black world)
+    vpl_light = eevee.render(scene, resolution=RES, samples=4).image
+    vpl_hot = vjob.outliers(vpl_light, ours)
+    on_eevee = vjob.score(shown, truth.gi)
+    on_evaluator = vjob.score(truth.direct + ours, truth.gi)
+    print(
+        f"EEVEE's VPL light against the evaluator's: hot {vpl_hot['hot_pixels']:.2%}, worst 1 % "
+        f"{vpl_hot['worst_share']:.2f}; against the truth: EEVEE hot {on_eevee['hot_pixels']:.2%} "
+        f"RMSE {on_eevee['rmse']:.4f}, evaluator hot {on_evaluator['hot_pixels']:.2%} RMSE "
+        f"{on_evaluator['rmse']:.4f}"
+    )
+    assert vpl_hot["hot_pixels"] <= 0.001
+    assert on_eevee["hot_pixels"] <= on_evaluator["hot_pixels"] + 0.001
+    assert on_eevee["rmse"] <= 1.25 * on_evaluator["rmse"]
