@@ -445,7 +445,7 @@ def run_main_job(
     if eevee and written is not None:
         with timer.stage("EEVEE render"):
             shown = writeback_stage.score_eevee(
-                bl_scene, reference, out_dir / "eevee_vpl.png", job.cache_dir
+                bl_scene, reference, out_dir / "eevee_vpl.png", job.cache_dir, computed.indirect
             )
     report = summary(
         bl_scene, job, prepared, computed, timer, written.stand_ins if written else None

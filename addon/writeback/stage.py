@@ -14,6 +14,7 @@ import numpy as np
 
 from ..errors import WriteBackError, run_operator
 from ..native import vplace
+from ..settings import override
 from . import apply, eevee_setup
 from .stand_ins import StandIns, stand_ins
 
@@ -77,7 +78,11 @@ def vpl_specular(exported: ExportedScene) -> float:
 
 
 def score_eevee(
-    bl_scene: bpy.types.Scene, reference: vplace.job.Reference, path: Path, cache_dir: Path | None
+    bl_scene: bpy.types.Scene,
+    reference: vplace.job.Reference,
+    path: Path,
+    cache_dir: Path | None,
+    vpl_light: np.ndarray | None = None,
 ) -> dict[str, float]:
     """Renders the written lights with EEVEE from the scene camera (float, Standard view, the
     scored set-up), scores the image against the reference, and saves it as a PNG picture.
@@ -85,22 +90,47 @@ def score_eevee(
     As "Set up EEVEE for vplace" would: when the world emits and the scene has no vplace probe
     volume, one is baked for the render (without indirect light, removed after), or EEVEE
     would light closed rooms with the world through their walls; its bake seconds are
-    reported apart from the frame's."""
+    reported apart from the frame's.
+
+    A second render hides the VPLs (the scene's lights and vplace's stand-ins stay): EEVEE's
+    direct light, whose brightness against Cycles' (``direct_brightness``) is the part of the
+    difference that is EEVEE's, not vplace's. With ``vpl_light`` (the evaluator's image of the
+    written VPLs) the error is split as ``vplace.job.attribute`` does (``attribution_*``)."""
     from . import eevee_render as eevee
 
     height, width = reference.gi.shape[:2]
-    with eevee_setup.world_volume_for_render(bl_scene) as bake:
-        img = eevee.render(
+
+    def render() -> eevee.EeveeImage:
+        return eevee.render(
             bl_scene,
             resolution=(width, height),
             samples=eevee.EEVEE_SAMPLES,
             setup=eevee.SETUPS["vpl"],
             cache_dir=cache_dir,
         )
+
+    with eevee_setup.world_volume_for_render(bl_scene) as bake:
+        img = render()
+        with override() as g:
+            for obj in bl_scene.objects:
+                if obj.get("vplace_index") is not None:
+                    g.set(obj, "hide_render", True)
+            direct = render()
     vplace.images.save_png(path, img.image)
-    return {
+    lum = np.asarray(vplace.LUMINANCE)
+    cycles_direct = float((reference.direct[..., :3] @ lum).mean())
+    out = {
         **vplace.job.score(img.image, reference.gi),
         "seconds": img.seconds,
         "samples": eevee.EEVEE_SAMPLES,
         "world_volume_bake_seconds": bake,
+        "direct_brightness": float((direct.image @ lum).mean()) / max(cycles_direct, 1e-12),
     }
+    if vpl_light is not None:
+        a = vplace.job.attribute(img.image, direct.image, reference.direct, vpl_light, reference.gi)
+        for part in vplace.job.ATTRIBUTION_PARTS:
+            out[f"attribution_rmse_{part}"] = a.rmse[part]
+            out[f"attribution_share_{part}"] = a.share[part]
+        out["attribution_vpl_brightness"] = a.vpl_brightness
+        out["attribution_vpl_hot_pixels"] = a.vpl_hot_pixels
+    return out

@@ -47,3 +47,21 @@ def test_job_report_eevee_row():
     assert "| EEVEE with the written lights (16 samples, 2.0 s; the world's probe volume " in text
     plain = vjob.job_report(_report(eevee={**e, "samples": 16}))
     assert "| EEVEE with the written lights (16 samples, 2.0 s) | 0.10000 |" in plain
+
+
+def test_job_report_says_what_of_eevees_difference_is_blenders():
+    e = {"rmse": 0.1, "relative_mse": 0.2, "ssim": 0.9, "brightness": 1.0, "seconds": 2.0}
+    e["samples"] = 4
+    close = vjob.job_report(_report(eevee={**e, "direct_brightness": 0.98}))
+    assert "is 0.98x Cycles'." in close and "Blender's" not in close
+    dark = {**e, "direct_brightness": 0.91}
+    for part, (rmse, share) in {
+        "direct": (0.02, 0.3),
+        "vpl": (0.01, 0.1),
+        "rest": (0.03, 0.6),
+    }.items():
+        dark[f"attribution_rmse_{part}"], dark[f"attribution_share_{part}"] = rmse, share
+    text = vjob.job_report(_report(eevee=dark))
+    assert "is 0.91x Cycles': this part of EEVEE's difference is Blender's, not vplace's." in text
+    assert "EEVEE's VPL light against the evaluator's 0.0100 (+10%)" in text
+    assert "the evaluator's own error 0.0300 (+60%)" in text

@@ -81,6 +81,12 @@ def test_main_job_writes_everything_and_eevee_shows_what_the_evaluator_computed(
     assert abs(eevee_added / evaluator_added - 1) < 0.05
     assert e["ssim"] > m["ssim_direct_only"] + 0.05 and e["rmse"] < 0.8 * m["rmse_direct_only"]
     assert abs(m["brightness"] - 1) < 0.1
+    # EEVEE's own direct light is measured apart (the Cornell box's lamp is a plain AREA light,
+    # which EEVEE lights as Cycles does), and the error's parts add up.
+    assert abs(e["direct_brightness"] - 1) < 0.05
+    shares = [e[f"attribution_share_{k}"] for k in ("direct", "vpl", "rest")]
+    assert sum(shares) == pytest.approx(1.0)
+    assert "EEVEE's own direct light" in (tmp_path / "report.md").read_text()
     # The PNGs are pictures of the same vplace.images.
     shown = luminance(load_png_linear(tmp_path / "eevee_vpl.png")).mean()
     ours = luminance(load_png_linear(tmp_path / "direct_plus_vpl.png")).mean()

@@ -573,6 +573,36 @@ def _eevee_label(e: dict[str, float]) -> str:
     return f"EEVEE with the written lights ({e['samples']} samples, {e['seconds']:.1f} s{baked})"
 
 
+#: EEVEE's direct light is called out when its brightness is this far from Cycles'.
+DIRECT_NOTE = 0.05
+
+
+def eevee_notes(e: dict[str, float]) -> list[str]:
+    """What the main job says of EEVEE's image beyond its scores: how its direct light compares
+    with Cycles' (not vplace's doing), and where its error comes from."""
+    lines = []
+    d = e.get("direct_brightness")
+    if d is not None:
+        line = (
+            f"EEVEE's own direct light (the scene's lights and vplace's stand-ins, VPLs hidden) "
+            f"is {d:.2f}x Cycles'"
+        )
+        if abs(d - 1.0) > DIRECT_NOTE:
+            line += ": this part of EEVEE's difference is Blender's, not vplace's"
+        lines.append(line + ".")
+    if "attribution_share_vpl" in e:
+        parts = ", ".join(
+            f"{name} {e[f'attribution_rmse_{key}']:.4f} ({e[f'attribution_share_{key}']:+.0%})"
+            for key, name in (
+                ("direct", "EEVEE's direct light against Cycles'"),
+                ("vpl", "EEVEE's VPL light against the evaluator's"),
+                ("rest", "the evaluator's own error"),
+            )
+        )
+        lines.append(f"EEVEE's error, RMSE by part (share of its squared error): {parts}.")
+    return lines
+
+
 def job_report(report: JobSummary) -> str:
     """The main job's short human-readable report."""
     m, s = report.metrics, report.evaluator
@@ -603,6 +633,7 @@ def job_report(report: JobSummary) -> str:
         "",
         *markdown.table(["image", "RMSE", "relative MSE", "SSIM", "brightness"], rows),
         "",
+        *[line for note in eevee_notes(report.eevee or {}) for line in (note, "")],
         f"Evaluator: {s.shadow_rays} shadow rays in {s.seconds:.3f} s "
         f"= {s.rays_per_second / 1e6:.2f} M rays/s",
         "",
