@@ -493,6 +493,16 @@ class _EeveeRun:
             f"[vplace]   {renderer} {view.name} {method:<18} SSIM {row.ssim:.4f} "
             f"brightness {row.brightness:.3f} {img.seconds:6.1f} s"
         )
+        if attribution is not None:
+            a = attribution
+            self.log(
+                "[vplace]     RMSE by part: "
+                + ", ".join(f"{k} {a.rmse[k]:.4f} ({a.share[k]:+.0%})" for k in a.rmse)
+                + f"; direct {a.direct_brightness:.3f}x Cycles', VPL light "
+                f"{a.vpl_brightness:.3f}x the evaluator's; SSIM with Cycles' direct light "
+                f"{a.ssim_cycles_direct:.4f}, with the evaluator's VPL light "
+                f"{a.ssim_evaluator_vpl:.4f}"
+            )
 
     def each_view(
         self, setup: eevee.Setup, samples: int

@@ -473,6 +473,7 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
                 f"{r.hot_pixels:.2%} / {ev.hot_pixels:.2%}" if ev else f"{r.hot_pixels:.2%} / -",
                 f"{r.worst_share:.2f} / {ev.worst_share:.2f}" if ev else f"{r.worst_share:.2f}",
                 f"{a['vpl_hot_pixels']:.2%}",
+                f"{a['ssim_cycles_direct']:.3f} / {a['ssim_evaluator_vpl']:.3f}",
             ]
         )
     if not body:
@@ -480,6 +481,7 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
     header = ["lights", "RMSE: EEVEE / evaluator", "(a) direct", "(b) VPL light", "(c) rest"]
     header += ["direct: EEVEE / Cycles", "VPL light: EEVEE / evaluator"]
     header += ["hot pixels: EEVEE / evaluator", "worst 1 %: EEVEE / evaluator", "(b) hot"]
+    header += ["SSIM without (a) / without (b)"]
     return [
         "",
         "Where EEVEE's error comes from, RMSE of each part (its share of EEVEE's squared error):"
@@ -488,7 +490,8 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
         "(c) the evaluator's own error. Brightness is mean luminance over mean luminance; hot "
         "pixels are brighter than twice the truth plus 0.05, worst 1 % is the share of the "
         "squared error in the worst 1 % of pixels, (b) hot counts EEVEE's VPL light against "
-        "the evaluator's.",
+        "the evaluator's. SSIM without (a) puts Cycles' direct light under EEVEE's VPL light, "
+        "without (b) the evaluator's VPL light over EEVEE's direct light.",
         "",
         *vplace.markdown.table(header, body),
     ]

@@ -112,11 +112,14 @@ def test_attribution_splits_eevees_error_into_parts_that_add_up():
     # The hot spot holds most of the error and is the VPL light's only hot pixel.
     assert a.share["vpl"] > 0.5 and a.vpl_hot_pixels == pytest.approx(1 / (16 * 24))
     assert a.vpl_worst_share == pytest.approx(1.0)
+    # Each swap leaves the other part's error: neither image is the truth.
+    assert 0.9 < a.ssim_evaluator_vpl < 1.0 and 0.9 < a.ssim_cycles_direct < 1.0
     # EEVEE equal to the evaluator: no VPL part, the rest is all.
     same = vjob.attribute(cycles_direct + evaluator_vpl, cycles_direct, cycles_direct,
                           evaluator_vpl, truth)  # fmt: skip
     assert same.rmse["vpl"] < 1e-12 and same.rmse["direct"] == 0.0
     assert same.share["rest"] == pytest.approx(1.0)
+    assert same.ssim_cycles_direct == pytest.approx(same.ssim_evaluator_vpl)
     with pytest.raises(ValueError, match="one shape"):
         vjob.attribute(eevee, eevee_direct[:8], cycles_direct, evaluator_vpl, truth)
     bad = truth.copy()

@@ -236,6 +236,11 @@ class Attribution:
     #: :func:`outliers` of EEVEE's VPL light against the evaluator's.
     vpl_hot_pixels: float
     vpl_worst_share: float
+    #: SSIM against the truth with one part swapped back: EEVEE's VPL light over Cycles' direct
+    #: light (what EEVEE's direct light costs is gone), and EEVEE's direct light plus the
+    #: evaluator's VPL light (what EEVEE's VPL light costs is gone); NaN below 11 x 11 pixels.
+    ssim_cycles_direct: float
+    ssim_evaluator_vpl: float
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready."""
@@ -271,6 +276,14 @@ def attribute(
         return float((a @ lum).mean()) / below if below > 1e-12 else float("nan")
 
     vpl_out = outliers(ve, vx)
+
+    def ssim(image: np.ndarray) -> float:
+        if min(t.shape[:2]) < 11:
+            return float("nan")
+        return vplace.ssim(
+            np.ascontiguousarray(image, np.float32), np.ascontiguousarray(t, np.float32)
+        )
+
     return Attribution(
         rmse={k: float(np.sqrt((d * d).mean())) for k, d in parts.items()},
         share={k: float((d * total).sum()) / sq if sq > 0 else 0.0 for k, d in parts.items()},
@@ -278,6 +291,8 @@ def attribute(
         vpl_brightness=ratio(ve, vx),
         vpl_hot_pixels=vpl_out["hot_pixels"],
         vpl_worst_share=vpl_out["worst_share"],
+        ssim_cycles_direct=ssim(cd + ve),
+        ssim_evaluator_vpl=ssim(ed + vx),
     )
 
 
