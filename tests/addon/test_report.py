@@ -36,6 +36,7 @@ def tiny(**change):
         "seeds": [0, 1],
         "eevee_methods": ["uniform", "vplace+refit"],
         "volume_resolution": 2,
+        "eevee_samples": 4,
         "capture_curve": [4, 8],
         "par2d": False,
     }
