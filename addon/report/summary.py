@@ -118,6 +118,22 @@ def _at(
     )
 
 
+def _attribution_detail(a: dict[str, Any] | None) -> dict[str, str]:
+    """What a target's detail adds from an EEVEE row's attribution (``vplace.job.Attribution``):
+    whose part of the error it is, in words (empty without one)."""
+    if not a:
+        return {"rmse": "", "ssim": ""}
+    share = a["share"]
+    return {
+        "rmse": f"; of EEVEE's squared error {share['direct']:.0%} is EEVEE's direct light "
+        f"against Cycles' (not vplace's), {share['vpl']:.0%} its VPL light against the "
+        f"evaluator's, {share['rest']:.0%} the evaluator's own error",
+        "ssim": f"; with Cycles' direct light under EEVEE's VPL light {a['ssim_cycles_direct']:.4f}"
+        f", with the evaluator's VPL light over EEVEE's direct light "
+        f"{a['ssim_evaluator_vpl']:.4f}",
+    }
+
+
 def targets(rows: list[Row]) -> list[dict[str, Any]]:
     """The issues' targets on every scene of ``rows`` (means over seeds) at the grid budget."""
     checks: list[dict[str, Any]] = []
@@ -186,12 +202,13 @@ def targets(rows: list[Row]) -> list[dict[str, Any]]:
             if shown is not None:
                 lights = {"rmse": us.rmse, "hot_pixels": us.hot_pixels, **same_lights(us, shown)}
                 ratio = shown.rmse / max(lights["rmse"], 1e-12)
+                parts = _attribution_detail(shown.details.attribution)
                 check(
                     f"{scene} {v} ({role}): EEVEE's RMSE at most {EEVEE_RMSE_RATIO}x the "
                     "evaluator's (the same lights)",
                     ratio,
                     ratio <= EEVEE_RMSE_RATIO,
-                    f"EEVEE {shown.rmse:.4f}, evaluator {lights['rmse']:.4f}",
+                    f"EEVEE {shown.rmse:.4f}, evaluator {lights['rmse']:.4f}{parts['rmse']}",
                 )
                 check(
                     f"{scene} {v} ({role}): EEVEE's hot-spot pixels at most {HOT_SHARE:.1%}",
@@ -207,7 +224,7 @@ def targets(rows: list[Row]) -> list[dict[str, Any]]:
                     "of the evaluator (the same lights)",
                     gap,
                     abs(gap) <= EEVEE_SPREAD,
-                    f"EEVEE {shown.ssim:.4f}, evaluator {evaluated:.4f}",
+                    f"EEVEE {shown.ssim:.4f}, evaluator {evaluated:.4f}{parts['ssim']}",
                 )
                 off = shown.brightness - 1
                 detail = f"{shown.brightness:.4f}x"

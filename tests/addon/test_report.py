@@ -249,6 +249,26 @@ def test_targets_compare_held_out_views_with_the_fit_mean_and_eevee_with_the_sam
     assert checks["s A (fit): EEVEE's RMSE at most 1.25x the evaluator's (the same lights)"]["met"]
     hot = checks["s A (fit): EEVEE's hot-spot pixels at most 0.1%"]
     assert hot["met"] and hot["value"] == 0.0
+    # An attributed EEVEE row: each miss says whose part of the error it is.
+    a = {
+        "rmse": {"direct": 0.2, "vpl": 0.01, "rest": 0.1},
+        "share": {"direct": 0.8, "vpl": 0.05, "rest": 0.15},
+        "ssim_cycles_direct": 0.93,
+        "ssim_evaluator_vpl": 0.80,
+    }
+    rows[-1] = _row("A", "vplace+refit", 256, 0.80, rmse=0.3, renderer="eevee", seed=0,
+                    hot_pixels=0.0, details=RowDetails(attribution=a))  # fmt: skip
+    checks = {c["check"]: c for c in summary.targets(rows)}
+    rmse = checks["s A (fit): EEVEE's RMSE at most 1.25x the evaluator's (the same lights)"]
+    assert not rmse["met"]
+    assert "80% is EEVEE's direct light against Cycles' (not vplace's)" in rmse["detail"]
+    gap = checks[
+        "s A (fit): EEVEE with the VPLs within 0.02 SSIM of the evaluator (the same lights)"
+    ]
+    assert (
+        not gap["met"]
+        and "with Cycles' direct light under EEVEE's VPL light 0.9300" in gap["detail"]
+    )
 
 
 def test_break_even_counts_frames_until_the_one_time_cost_is_paid():
