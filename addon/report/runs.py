@@ -525,10 +525,8 @@ class _EeveeRun:
     def render_direct(self) -> None:
         """EEVEE's direct light on every view (:attr:`direct`), with the lights just written:
         their VPLs hidden for the render, vplace's stand-ins kept."""
-        vpls = [o for o in self.bl_scene.objects if o.get("vplace_index") is not None]
         with override() as g:
-            for obj in vpls:
-                g.set(obj, "hide_render", True)
+            apply.hide_vpl_lights(g, self.bl_scene)
             for view, img in self.each_view(eevee.SETUPS["vpl"], self.config.eevee_samples):
                 self.direct[view.name] = img.image
                 self.log(f"[vplace]   eevee {view.name} direct light only {img.seconds:6.1f} s")

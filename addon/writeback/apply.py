@@ -45,6 +45,7 @@ ones the evaluator renders (``vplace.VplSet`` carries profile and near-field rad
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import bpy
 import numpy as np
@@ -54,6 +55,9 @@ from ..errors import WriteBackError
 from ..native import vplace
 from ..scene.export import VPL_MARKER
 from .stand_ins import EmitterLight, SunLight
+
+if TYPE_CHECKING:
+    from ..settings import SettingsGuard
 
 COLLECTION_NAME = "vplace VPLs"
 #: EEVEE renders 8,192 lights; beyond 65,536 it drops them (DESIGN). We refuse more than this.
@@ -239,6 +243,14 @@ def _new_sun_object(coll: bpy.types.Collection, sun: SunLight) -> bpy.types.Obje
     obj["vplace_world_sun"] = True
     coll.objects.link(obj)
     return obj
+
+
+def hide_vpl_lights(g: SettingsGuard, scene: bpy.types.Scene) -> None:
+    """Hides the VPL lights written into ``scene`` (each keeps its ``vplace_index``) through
+    ``g`` for its block: a render then shows the rest, vplace's stand-ins included."""
+    for obj in scene.objects:
+        if obj.get("vplace_index") is not None:
+            g.set(obj, "hide_render", True)
 
 
 def world_sun_light(scene: bpy.types.Scene) -> bpy.types.Object | None:

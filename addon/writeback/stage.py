@@ -82,7 +82,7 @@ def score_eevee(
     reference: vplace.job.Reference,
     path: Path,
     cache_dir: Path | None,
-    vpl_light: np.ndarray | None = None,
+    vpl_light: np.ndarray,
 ) -> dict[str, float]:
     """Renders the written lights with EEVEE from the scene camera (float, Standard view, the
     scored set-up), scores the image against the reference, and saves it as a PNG picture.
@@ -94,8 +94,8 @@ def score_eevee(
 
     A second render hides the VPLs (the scene's lights and vplace's stand-ins stay): EEVEE's
     direct light, whose brightness against Cycles' (``direct_brightness``) is the part of the
-    difference that is EEVEE's, not vplace's. With ``vpl_light`` (the evaluator's image of the
-    written VPLs) the error is split as ``vplace.job.attribute`` does (``attribution_*``)."""
+    difference that is EEVEE's, not vplace's. ``vpl_light``, the evaluator's image of the
+    written VPLs, splits the error as ``vplace.job.attribute`` does (``attribution_*``)."""
     from . import eevee_render as eevee
 
     height, width = reference.gi.shape[:2]
@@ -112,25 +112,20 @@ def score_eevee(
     with eevee_setup.world_volume_for_render(bl_scene) as bake:
         img = render()
         with override() as g:
-            for obj in bl_scene.objects:
-                if obj.get("vplace_index") is not None:
-                    g.set(obj, "hide_render", True)
+            apply.hide_vpl_lights(g, bl_scene)
             direct = render()
     vplace.images.save_png(path, img.image)
-    lum = np.asarray(vplace.LUMINANCE)
-    cycles_direct = float((reference.direct[..., :3] @ lum).mean())
+    a = vplace.job.attribute(img.image, direct.image, reference.direct, vpl_light, reference.gi)
     out = {
         **vplace.job.score(img.image, reference.gi),
         "seconds": img.seconds,
         "samples": eevee.EEVEE_SAMPLES,
         "world_volume_bake_seconds": bake,
-        "direct_brightness": float((direct.image @ lum).mean()) / max(cycles_direct, 1e-12),
+        "direct_brightness": a.direct_brightness,
     }
-    if vpl_light is not None:
-        a = vplace.job.attribute(img.image, direct.image, reference.direct, vpl_light, reference.gi)
-        for part in vplace.job.ATTRIBUTION_PARTS:
-            out[f"attribution_rmse_{part}"] = a.rmse[part]
-            out[f"attribution_share_{part}"] = a.share[part]
-        out["attribution_vpl_brightness"] = a.vpl_brightness
-        out["attribution_vpl_hot_pixels"] = a.vpl_hot_pixels
+    for part in vplace.job.ATTRIBUTION_PARTS:
+        out[f"attribution_rmse_{part}"] = a.rmse[part]
+        out[f"attribution_share_{part}"] = a.share[part]
+    out["attribution_vpl_brightness"] = a.vpl_brightness
+    out["attribution_vpl_hot_pixels"] = a.vpl_hot_pixels
     return out
