@@ -455,6 +455,7 @@ def run_main_job(
     )
     report.eevee = shown
     report.eevee_problems = written.problems if written else []
+    report.eevee_lamp_notes = written.lamp_notes if written else []
     report.baselines = compared
     vplace.job.write_files(out_dir, report, reference, computed, job.cell_px, log)
     return report

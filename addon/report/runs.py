@@ -710,6 +710,7 @@ def _run_scene(
         "fit_seconds": fit_seconds,
         "capture_seconds": data.capture_seconds,
         "views": {},
+        "lamp_notes": eevee_setup.lamp_notes(bl_scene) if config.with_eevee else [],
     }
     for view in data.views:
         cap = view.truth

@@ -526,6 +526,7 @@ def _scene_lines(name: str, info: dict[str, Any], rows: Sequence[Row]) -> list[s
         + f" (R^2 {fit['r2']:.3f}; per view {r2}; {info['fit_seconds']:.2f} s). Captures of "
         f"the fit views: {info['capture_seconds']:.1f} s.",
         "",
+        *[line for note in info.get("lamp_notes", []) for line in (f"Note: {note}.", "")],
     ]
     budgets = sorted({r.n_vpls for r in rows if r.scene == name and r.renderer == "evaluator"})
     for view, v in info["views"].items():

@@ -77,6 +77,13 @@ class VPLACE_PT_main(_Panel, bpy.types.Panel):
             for problem in found:
                 box.label(text=problem.setting)
                 box.label(text=f"  {problem.message}")
+        written = eevee_setup.vpl_lights(context.scene)
+        notes = eevee_setup.lamp_notes(context.scene) if written else []
+        if notes:
+            box = layout.box()
+            box.label(text="EEVEE's own light, not vplace's:", icon="INFO")
+            for note in notes:
+                box.label(text=note)
         layout.operator("vplace.report", icon="TEXT")
         layout.operator("vplace.bake_par2d", icon="IMAGE_DATA")
         report = vplace.job.PanelReport.from_json(settings.last_report)

@@ -24,10 +24,12 @@ if TYPE_CHECKING:
 
 @dataclass
 class WrittenBack:
-    """What the write-back left: the stand-in lights it wrote and EEVEE's problems, in words."""
+    """What the write-back left: the stand-in lights it wrote, EEVEE's problems and what EEVEE
+    shows of the user's own lamps differently (``eevee_setup.lamp_notes``), in words."""
 
     stand_ins: StandIns
     problems: list[str]
+    lamp_notes: list[str]
 
 
 def write_back(
@@ -68,7 +70,10 @@ def write_back(
     problems = [str(p) for p in eevee_setup.problems(bl_scene)]
     for problem in problems:
         log(f"[vplace] warning: EEVEE: {problem} (Set up EEVEE for vplace fixes it)")
-    return WrittenBack(lights, problems)
+    notes = eevee_setup.lamp_notes(bl_scene)
+    for note in notes:
+        log(f"[vplace] note: {note}")
+    return WrittenBack(lights, problems, notes)
 
 
 def vpl_specular(exported: ExportedScene) -> float:

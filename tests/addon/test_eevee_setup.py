@@ -141,3 +141,21 @@ def test_the_operator_is_undoable_and_reports_what_it_changed(scene):
     assert bpy.ops.vplace.setup_eevee() == {"FINISHED"}
     assert scene.eevee.use_shadows
     assert "UNDO" in bpy.types.VPLACE_OT_setup_eevee.bl_options
+
+
+def test_the_users_soft_lamps_without_jitter_are_noted_and_never_changed(scene):
+    lamp = scene.objects["light"]  # the box's area light, jitter off as Blender makes it
+    write(scene, 4)  # vplace's VPL lights (unjittered, by design) are not the user's lamps
+    assert eevee_setup.unjittered_lamps(scene) == ["light"]
+    (note,) = eevee_setup.lamp_notes(scene)
+    assert "1 of your lamps (e.g. 'light')" in note and "Jitter" in note
+    # vplace's own stand-ins are jittered and never noted; a set-up does not touch the lamp.
+    eevee_setup.set_up(scene, bake_volume=False)
+    assert not lamp.data.use_shadow_jitter and eevee_setup.unjittered_lamps(scene) == ["light"]
+    lamp.data.use_shadow_jitter = True
+    assert eevee_setup.lamp_notes(scene) == []
+    lamp.data.use_shadow_jitter, lamp.data.use_shadow = False, False
+    assert eevee_setup.lamp_notes(scene) == []  # no shadow, no noise
+    lamp.data.use_shadow = True
+    lamp.hide_render = True
+    assert eevee_setup.lamp_notes(scene) == []

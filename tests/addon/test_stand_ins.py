@@ -124,6 +124,8 @@ def test_written_emitter_lights_face_the_way_the_surface_emits(scene):
         assert (obj.data.size, obj.data.size_y) == pytest.approx((e.size, e.size_y))
         assert obj.data.energy * max(obj.data.color) == pytest.approx(max(e.power), rel=1e-5)
         assert obj.get(export.VPL_MARKER)
+        # The stand-ins' soft shadows are jittered (the VPLs' are not: apply's module docs).
+        assert obj.data.use_shadow and obj.data.use_shadow_jitter
     # vplace's own lights are never exported as part of the scene.
     again = export.export_scene(scene)
     assert not again.lights
@@ -177,7 +179,7 @@ def test_the_written_sun_shines_from_the_suns_direction_and_eevee_must_not_extra
     coll = apply.write_vpls(scene, none, scene_diagonal=3.0, sun=sun)
     bpy.context.view_layer.update()
     (obj,) = coll.objects
-    assert obj.data.type == "SUN" and obj.data.use_shadow
+    assert obj.data.type == "SUN" and obj.data.use_shadow and obj.data.use_shadow_jitter
     assert obj.data.energy * max(obj.data.color) == pytest.approx(max(sun.irradiance), rel=1e-5)
     travels = obj.matrix_world.to_3x3() @ Vector((0, 0, -1))
     np.testing.assert_allclose(tuple(travels), -np.array(sun.direction), atol=1e-6)

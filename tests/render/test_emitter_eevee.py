@@ -69,3 +69,37 @@ def test_eevee_with_the_world_sun_lamp_gives_cycles_direct_light_through_windows
     assert 0.85 < with_sun["brightness"] < 1.15, with_sun
     assert no_sun["brightness"] < 0.5, no_sun
     assert with_sun["ssim"] > no_sun["ssim"] + 0.1, (with_sun, no_sun)
+
+
+def test_the_stand_ins_jittered_soft_shadows_match_cycles_better_than_unjittered():
+    """The panels' stand-ins as written (jittered soft shadows) against the same lights with
+    jitter off, at the scored renders' samples: EEVEE's direct light against Cycles'."""
+    bpy.ops.wm.open_mainfile(filepath=str(default_scene.builtin_scene("panelroom")))
+    scene = bpy.context.scene
+    exported = export.export_scene(scene)
+    lights = emitter_lights.emitter_lights(exported, build_scene(exported))
+    cam = bpy.data.objects["Panelroom camera"]
+    truth = capture.capture(scene, camera=cam, resolution=RES, samples=256, seed=0).direct
+    coll = apply.write_vpls(scene, no_vpls(), scene_diagonal=8.0, emitters=lights)
+    scores = {}
+    try:
+        with eevee_setup.world_volume_for_render(scene):
+            for jitter in (True, False):
+                for obj in coll.objects:
+                    obj.data.use_shadow_jitter = jitter
+                img = eevee.render(
+                    scene,
+                    resolution=RES,
+                    camera=cam,
+                    samples=eevee.EEVEE_SAMPLES,
+                    setup=eevee.SETUPS["vpl"],
+                )
+                scores[jitter] = pipeline.score(img.image, truth)
+    finally:
+        apply.clear_vpls()
+    print(
+        {k: {m: round(v[m], 4) for m in ("ssim", "rmse", "brightness")} for k, v in scores.items()}
+    )
+    assert abs(scores[True]["brightness"] - 1) < 0.03, scores
+    assert scores[True]["ssim"] > scores[False]["ssim"] + 0.01, scores
+    assert scores[True]["rmse"] < scores[False]["rmse"], scores

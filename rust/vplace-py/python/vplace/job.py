@@ -471,6 +471,8 @@ class JobSummary:
     reference: ReferenceInfo | None = None
     eevee: dict[str, float] | None = None
     eevee_problems: list[str] = field(default_factory=list)
+    #: What EEVEE shows of the user's own lamps differently from Cycles (the user's to change).
+    eevee_lamp_notes: list[str] = field(default_factory=list)
     baselines: dict[str, Baseline] = field(default_factory=dict)
     files: list[str] = field(default_factory=list)
 
@@ -479,7 +481,14 @@ class JobSummary:
         out = asdict(self)
         out["evaluator"] = self.evaluator.to_dict()
         if not main_job:
-            for key in ("reference", "eevee", "eevee_problems", "baselines", "files"):
+            for key in (
+                "reference",
+                "eevee",
+                "eevee_problems",
+                "eevee_lamp_notes",
+                "baselines",
+                "files",
+            ):
                 del out[key]
         return out
 
@@ -649,6 +658,7 @@ def job_report(report: JobSummary) -> str:
         *markdown.table(["image", "RMSE", "relative MSE", "SSIM", "brightness"], rows),
         "",
         *[line for note in eevee_notes(report.eevee or {}) for line in (note, "")],
+        *[line for note in report.eevee_lamp_notes for line in (note + ".", "")],
         f"Evaluator: {s.shadow_rays} shadow rays in {s.seconds:.3f} s "
         f"= {s.rays_per_second / 1e6:.2f} M rays/s",
         "",
