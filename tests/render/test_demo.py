@@ -86,7 +86,11 @@ def test_main_job_writes_everything_and_eevee_shows_what_the_evaluator_computed(
     assert abs(e["direct_brightness"] - 1) < 0.05
     shares = [e[f"attribution_share_{k}"] for k in ("direct", "vpl", "rest")]
     assert sum(shares) == pytest.approx(1.0)
-    assert "EEVEE's own direct light" in (tmp_path / "report.md").read_text()
+    text = (tmp_path / "report.md").read_text()
+    assert "EEVEE's own direct light" in text
+    # The box's lamp casts soft shadows without jitter: said, the lamp left as it is.
+    assert "of your lamps (e.g. 'light')" in text and report.eevee_lamp_notes
+    assert not scene.objects["light"].data.use_shadow_jitter
     # The PNGs are pictures of the same vplace.images.
     shown = luminance(load_png_linear(tmp_path / "eevee_vpl.png")).mean()
     ours = luminance(load_png_linear(tmp_path / "direct_plus_vpl.png")).mean()
