@@ -262,7 +262,8 @@ class RowDetails:
     refit_seconds: float | None = None
     refit_error_before: float | None = None
     refit_error_after: float | None = None
-    #: The refit's ridge (chosen by cross-validation over blocks of the captured pixels).
+    #: The refit's ridge (chosen by cross-validation: one captured view left out at a time with
+    #: three or more captures, else blocks of the captured pixels).
     refit_ridge: float | None = None
     switched_off: int | None = None
     #: EEVEE rows of written VPLs: where EEVEE's error comes from (``vplace.job.Attribution``).

@@ -47,6 +47,9 @@ def test_fit_and_refit_params_take_the_core_defaults():
     r = vplace.RefitParams()
     assert (r.stride, r.ridge) == (4, 0.1)
     assert vplace.RefitParams(stride=2).stride == 2
+    # Leave-one-view-out by default (with three or more views), blocks when asked.
+    assert r.leave_out_views and "leave_out_views=True" in repr(r)
+    assert not vplace.RefitParams(leave_out_views=False).leave_out_views
 
 
 def test_the_layout_says_whether_it_iterated():

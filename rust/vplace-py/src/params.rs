@@ -322,16 +322,19 @@ pub struct PyRefitParams {
 
 #[pymethods]
 impl PyRefitParams {
-    /// `ridge` given: that ridge, not selected; None: chosen by cross-validation.
+    /// `ridge` given: that ridge, not selected; None: chosen by cross-validation, leaving out
+    /// whole views when there are three or more and `leave_out_views` (default True), else
+    /// blocks of pixels.
     #[new]
-    #[pyo3(signature = (*, stride = None, ridge = None))]
-    fn new(stride: Option<usize>, ridge: Option<f64>) -> Self {
+    #[pyo3(signature = (*, stride = None, ridge = None, leave_out_views = None))]
+    fn new(stride: Option<usize>, ridge: Option<f64>, leave_out_views: Option<bool>) -> Self {
         let d = RefitParams::DEFAULT;
         Self {
             inner: RefitParams {
                 stride: stride.unwrap_or(d.stride),
                 ridge: ridge.unwrap_or(d.ridge),
                 select_ridge: ridge.is_none(),
+                leave_out_views: leave_out_views.unwrap_or(d.leave_out_views),
                 ..d
             },
         }
@@ -362,10 +365,19 @@ impl PyRefitParams {
         self.inner.select_ridge
     }
 
+    /// Whether the cross-validation leaves out whole views (with three or more).
+    #[getter]
+    fn leave_out_views(&self) -> bool {
+        self.inner.leave_out_views
+    }
+
     fn __repr__(&self) -> String {
         format!(
-            "RefitParams(stride={}, ridge={:?}, select_ridge={})",
-            self.inner.stride, self.inner.ridge, self.inner.select_ridge
+            "RefitParams(stride={}, ridge={:?}, select_ridge={}, leave_out_views={})",
+            self.inner.stride,
+            self.inner.ridge,
+            py_bool(self.inner.select_ridge),
+            py_bool(self.inner.leave_out_views)
         )
     }
 }

@@ -20,10 +20,12 @@
 //! per-pixel noise would otherwise decide between ridges whose predictions differ less than it.
 //! Blocks, not single pixels, are left out, so the
 //! validation asks what the written lights must do: light surfaces the refit did not see with
-//! the layout's light-path powers, not interpolate between neighbouring pixels. (Leaving out
-//! whole views instead needs three or more captures, and captures of one region mostly see the
-//! same surfaces.) Each fold keeps its own normal equations, so the selection traces no extra
-//! ray: it costs `folds x grid` solves, and runs up to [`CV_MAX_VPLS`] VPLs.
+//! the layout's light-path powers, not interpolate between neighbouring pixels. With
+//! [`LOVO_MIN_VIEWS`] or more views (and [`RefitParams::leave_out_views`]) the folds are the
+//! views instead (at most [`LOVO_MAX_FOLDS`], view `v` in fold `v mod folds`): each ridge is
+//! refitted on the other captures and scored on the one left out, which asks the same of a
+//! whole view the refit never saw. Each fold keeps its own normal equations, so the selection
+//! traces no extra ray: it costs `folds x grid` solves, and runs up to [`CV_MAX_VPLS`] VPLs.
 //! `s = 1` is feasible and scores the error before the refit, so the refitted error is never
 //! larger: if rounding ever made it so, the refit returns `s = 1`.
 //!
@@ -79,6 +81,9 @@ pub struct RefitParams {
     /// Choose the ridge among [`RIDGE_GRID`] by [`CV_FOLDS`]-fold cross-validation over blocks
     /// of pixels (see the module docs), for sets of at most [`CV_MAX_VPLS`] VPLs.
     pub select_ridge: bool,
+    /// With [`LOVO_MIN_VIEWS`] or more views, cross-validate by leaving out whole views instead
+    /// of blocks of pixels (see the module docs).
+    pub leave_out_views: bool,
 }
 
 impl RefitParams {
@@ -90,6 +95,7 @@ impl RefitParams {
         stride: 4,
         ridge: 0.1,
         select_ridge: true,
+        leave_out_views: true,
     };
 }
 
@@ -108,6 +114,13 @@ pub const RIDGE_GRID: [f64; 5] = [0.01, 0.1, 1.0, 10.0, 100.0];
 
 /// Folds of the ridge's cross-validation.
 pub const CV_FOLDS: usize = 4;
+
+/// The fewest views whose cross-validation leaves out whole views
+/// ([`RefitParams::leave_out_views`]): with two, each ridge would be judged on one view alone.
+pub const LOVO_MIN_VIEWS: usize = 3;
+
+/// The most folds of a leave-one-view-out validation (each keeps an `n x n` Gram matrix).
+pub const LOVO_MAX_FOLDS: usize = 8;
 
 /// Side of the square blocks of pixels (full-resolution pixels) that go to one fold.
 pub const CV_BLOCK_PX: usize = 32;
@@ -592,15 +605,21 @@ pub fn refit(
         })
         .collect();
     let n = vpls.len();
-    let folds = if params.select_ridge && n <= CV_MAX_VPLS {
-        CV_FOLDS
-    } else {
-        1
+    let by_view = params.leave_out_views && views.len() >= LOVO_MIN_VIEWS;
+    let folds = match (params.select_ridge && n <= CV_MAX_VPLS, by_view) {
+        (false, _) => 1,
+        (true, true) => views.len().min(LOVO_MAX_FOLDS),
+        (true, false) => CV_FOLDS,
     };
     let mut groups = vec![Vec::new(); folds];
     for &(v, p) in &pixels {
         let w = sources[v].0.width;
-        groups[fold_of(v, (p % w) / CV_BLOCK_PX, (p / w) / CV_BLOCK_PX, folds)].push((v, p));
+        let fold = if by_view {
+            v % folds
+        } else {
+            fold_of(v, (p % w) / CV_BLOCK_PX, (p / w) / CV_BLOCK_PX, folds)
+        };
+        groups[fold].push((v, p));
     }
     let parts = normal_equations(scene, &sources, vpls, &groups, params, progress)?;
     let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
@@ -916,6 +935,7 @@ mod tests {
                     stride: 1,
                     ridge: 0.1,
                     select_ridge: false,
+                    leave_out_views: false,
                 };
                 let pixels: Vec<usize> = (0..144).filter(|&p| g.covered[p]).collect();
                 let radii = near_field_radii(&vpls, radius);
@@ -1093,6 +1113,94 @@ mod tests {
         let total = progress.total.load(Ordering::Relaxed);
         assert!(total >= 2);
         assert_eq!(progress.done.load(Ordering::Relaxed), total);
+    }
+
+    #[test]
+    fn leave_one_view_out_scores_each_view_with_the_others_refit() {
+        // Three views of the floor: two agree, the third's target has other powers. Each ridge's
+        // validation error is the one the explicit refit on the other two views makes on the
+        // left-out view's cells (16 px, strided pixels); with two views the blocks decide.
+        let w = 64; // four blocks of CV_BLOCK_PX a view: the block folds mix the views
+        let scene = closed_box(vec![]);
+        let fv = FloorView::new(w, Vec3::new(0.0, 0.0, 1.0), 10.0);
+        let base = vpls();
+        let a = render(
+            &scene,
+            &fv,
+            &scaled(&base, &[0.5, 2.0, 1.0, 0.0, 1.5, 0.8, 3.0]),
+        );
+        let b = render(
+            &scene,
+            &fv,
+            &scaled(&base, &[1.5, 0.5, 1.0, 2.0, 0.5, 0.8, 3.0]),
+        );
+        let views = [
+            fv.view_with(Some(&a)),
+            fv.view_with(Some(&a)),
+            fv.view_with(Some(&b)),
+        ];
+        let targets = [&a, &a, &b];
+        let stride = 2;
+        let lovo = RefitParams {
+            stride,
+            ..RefitParams::DEFAULT
+        };
+        let all: Vec<&View> = views.iter().collect();
+        let r = refit(&scene, &all, &base, &lovo, None).unwrap();
+        let mut cells_total = 0;
+        for (i, &(ridge, got)) in r.cv.iter().enumerate() {
+            assert_eq!(ridge, RIDGE_GRID[i]);
+            let mut err = 0.0;
+            cells_total = 0;
+            for (k, target) in targets.iter().enumerate() {
+                let others: Vec<&View> = (0..3).filter(|&j| j != k).map(|j| &views[j]).collect();
+                let s = refit(&scene, &others, &base, &params(stride, ridge), None).unwrap();
+                let s32: Vec<f32> = s.scales.iter().map(|&x| x as f32).collect();
+                let img = render(&scene, &fv, &scaled(&base, &s32));
+                let mut cells: HashMap<(usize, usize), ([f64; 3], usize)> = HashMap::new();
+                for y in (0..w).step_by(stride) {
+                    for x in (0..w).step_by(stride) {
+                        let cell = cells.entry((x / CV_CELL_PX, y / CV_CELL_PX)).or_default();
+                        for c in 0..3 {
+                            let i = 3 * (y * w + x) + c;
+                            cell.0[c] += f64::from(img[i]) - f64::from(target[i]);
+                        }
+                        cell.1 += 1;
+                    }
+                }
+                cells_total += cells.len();
+                err += cells
+                    .values()
+                    .map(|(d, m)| d.iter().map(|x| (x / *m as f64).powi(2)).sum::<f64>())
+                    .sum::<f64>();
+            }
+            let want = (err / (3.0 * cells_total as f64)).sqrt();
+            assert!(
+                (got - want).abs() <= 1e-6 * want.max(1e-12),
+                "{ridge}: {got} {want}"
+            );
+        }
+        assert_eq!(cells_total, 3 * (w / CV_CELL_PX).pow(2));
+        let best = r.cv.iter().min_by(|x, y| x.1.total_cmp(&y.1)).unwrap().0;
+        assert_eq!(r.ridge, best, "{:?}", r.cv);
+        // Blocks instead (asked for, or only two views): another validation.
+        let blocks = RefitParams {
+            leave_out_views: false,
+            ..lovo
+        };
+        let by_blocks = refit(&scene, &all, &base, &blocks, None).unwrap();
+        assert_ne!(by_blocks.cv, r.cv);
+        let two = refit(&scene, &all[..2], &base, &lovo, None).unwrap();
+        let two_blocks = refit(&scene, &all[..2], &base, &blocks, None).unwrap();
+        assert_eq!(two.ridge, two_blocks.ridge);
+        for (x, y) in two.cv.iter().zip(&two_blocks.cv) {
+            assert!(
+                x.0 == y.0 && (x.1 - y.1).abs() <= 1e-9 * y.1,
+                "{:?} {:?}",
+                two.cv,
+                two_blocks.cv
+            );
+        }
     }
 
     #[test]

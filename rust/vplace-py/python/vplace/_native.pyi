@@ -564,7 +564,13 @@ class Refit:
 
 @final
 class RefitParams:
-    def __new__(cls, *, stride: int | None = None, ridge: float | None = None) -> RefitParams: ...
+    def __new__(
+        cls,
+        *,
+        stride: int | None = None,
+        ridge: float | None = None,
+        leave_out_views: bool | None = None,
+    ) -> RefitParams: ...
     DEFAULT: RefitParams
     @property
     def stride(self) -> int: ...
@@ -572,6 +578,8 @@ class RefitParams:
     def ridge(self) -> float: ...
     @property
     def select_ridge(self) -> bool: ...
+    @property
+    def leave_out_views(self) -> bool: ...
 
 def refit(
     scene: Scene,
