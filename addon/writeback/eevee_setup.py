@@ -303,8 +303,9 @@ def problems(scene: bpy.types.Scene) -> list[Problem]:
 
 def unjittered_lamps(scene: bpy.types.Scene) -> list[str]:
     """The user's lamps (not vplace's) that cast soft shadows in EEVEE without jitter: shadowed,
-    render-visible, with a soft radius (a sun's angle, an area light's size, a point or spot
-    light's radius) and ``use_shadow_jitter`` off."""
+    render-visible, with a soft radius (an area light's size, a point or spot light's radius)
+    and ``use_shadow_jitter`` off. Suns are left out: on the sky-lit room a sun's jitter changed
+    nothing measurable (``apply.STAND_IN_SHADOW_SETTINGS``)."""
     if not scene.eevee.use_shadows:
         return []
     out = []
@@ -315,8 +316,8 @@ def unjittered_lamps(scene: bpy.types.Scene) -> list[str]:
         if not light.use_shadow or light.use_shadow_jitter:
             continue
         if light.type == "SUN":
-            soft = light.angle > 0.0
-        elif light.type == "AREA":
+            continue
+        if light.type == "AREA":
             soft = light.size > 0.0
         else:
             soft = light.shadow_soft_size > 0.0

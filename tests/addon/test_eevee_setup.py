@@ -159,3 +159,8 @@ def test_the_users_soft_lamps_without_jitter_are_noted_and_never_changed(scene):
     lamp.data.use_shadow = True
     lamp.hide_render = True
     assert eevee_setup.lamp_notes(scene) == []
+    # A sun's jitter gains nothing measurable: not noted.
+    sun = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
+    sun.data.angle = 0.1
+    scene.collection.objects.link(sun)
+    assert eevee_setup.unjittered_lamps(scene) == []
