@@ -78,12 +78,14 @@ class VPLACE_PT_main(_Panel, bpy.types.Panel):
                 box.label(text=problem.setting)
                 box.label(text=f"  {problem.message}")
         written = eevee_setup.vpl_lights(context.scene)
-        notes = eevee_setup.lamp_notes(context.scene) if written else []
-        if notes:
+        lamps = eevee_setup.unjittered_lamps(context.scene) if written else []
+        if lamps:  # eevee_setup.lamp_notes, in lines the panel does not cut
             box = layout.box()
             box.label(text="EEVEE's own light, not vplace's:", icon="INFO")
-            for note in notes:
-                box.label(text=note)
+            box.label(
+                text=f"{len(lamps)} lamp(s) with soft shadows, no jitter (e.g. {lamps[0]!r}):"
+            )
+            box.label(text="  noisier than Cycles; Light > Shadow > Jitter (slower)")
         layout.operator("vplace.report", icon="TEXT")
         layout.operator("vplace.bake_par2d", icon="IMAGE_DATA")
         report = vplace.job.PanelReport.from_json(settings.last_report)

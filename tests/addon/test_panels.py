@@ -95,6 +95,13 @@ def test_panel_shows_settings_buttons_and_last_results(scene):
     assert any(t.startswith("R² ") for t in labels)
     assert any(t.startswith("capture Cornell camera (Cycles):") for t in labels)
     assert "EEVEE will not show these lights right:" not in labels
+    # The box's lamp casts soft shadows without jitter: the panel says it is EEVEE's, not ours.
+    assert "EEVEE's own light, not vplace's:" in labels
+    assert any(
+        t.startswith("1 lamp(s) with soft shadows, no jitter (e.g. 'light')") for t in labels
+    )
+    scene.objects["light"].data.use_shadow_jitter = True
+    assert "EEVEE's own light, not vplace's:" not in [t for _, t in draw(scene)]
     # A setting that would drop the VPLs' shadows is named in the panel.
     scene.eevee.use_shadows = False
     labels = [t for kind, t in draw(scene) if kind == "label"]
