@@ -51,6 +51,9 @@ PASS_FLAGS = {
 }
 
 
+#: Cycles' pixel filter of every capture and ground truth: a one-pixel box, so each pass is the
+#: mean over its pixel (``eevee_render`` scores every other render with the same spread).
+PIXEL_FILTER: dict[str, object] = {"pixel_filter_type": "BOX", "filter_width": 1.0}
 #: Image settings in the order they must be restored (each may reset the ones after it).
 IMAGE_SETTINGS = ("media_type", "file_format", "color_mode", "color_depth", "exr_codec")
 
@@ -188,8 +191,8 @@ def _configure(
     g.set(c, "use_denoising", False)
     g.set(c, "seed", seed)
     g.set(c, "use_animated_seed", False)
-    g.set(c, "pixel_filter_type", "BOX")
-    g.set(c, "filter_width", 1.0)
+    for attr, value in PIXEL_FILTER.items():
+        g.set(c, attr, value)
     g.set(r, "resolution_x", resolution[0])
     g.set(r, "resolution_y", resolution[1])
     g.set(r, "resolution_percentage", 100)

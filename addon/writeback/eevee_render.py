@@ -42,7 +42,7 @@ import numpy as np
 import OpenEXR
 
 from ..capture import render_key
-from ..capture.passes import IMAGE_SETTINGS, hide_vpls, vpl_objects
+from ..capture.passes import IMAGE_SETTINGS, PIXEL_FILTER, hide_vpls, vpl_objects
 from ..compat import eevee_engine
 from ..errors import AddonError, run_operator
 from ..settings import SettingsGuard, override, standard_view
@@ -89,9 +89,9 @@ class Setup:
             if self.denoise:
                 g.set(c, "denoiser", "OPENIMAGEDENOISE")
             g.set(c, "use_animated_seed", False)
-            # The truth's filter (``capture.passes``), not the user's: scored like the others.
-            g.set(c, "pixel_filter_type", "BOX")
-            g.set(c, "filter_width", 1.0)
+            # The truth's filter, not the user's: scored like the others.
+            for attr, value in PIXEL_FILTER.items():
+                g.set(c, attr, value)
             return
         e = scene.eevee
         g.set(scene.render, "filter_size", FILM_FILTER_SIZE)

@@ -317,11 +317,8 @@ def unjittered_lamps(scene: bpy.types.Scene) -> list[str]:
             continue
         if light.type == "SUN":
             continue
-        if light.type == "AREA":
-            soft = light.size > 0.0
-        else:
-            soft = light.shadow_soft_size > 0.0
-        if soft:
+        radius = light.size if light.type == "AREA" else light.shadow_soft_size
+        if radius > 0.0:
             out.append(obj.name)
     return sorted(out)
 
