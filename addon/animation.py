@@ -15,8 +15,9 @@ captured ones is scored against a Cycles truth of that frame (``truth_samples``)
 evaluator's image of the keyed lights at that frame (``vplace.temporal.at_frame``: what
 Blender's linear keys give there), the evaluator's image of a still layout laid out for that
 frame alone, the direct light alone, and, when asked, Cycles + OpenImageDenoise at a few
-samples (its seed the frame's, as Cycles' animated seed), EEVEE with the keyed lights and
-EEVEE's ray tracing with a light probe volume baked once at the first scored frame. Per
+samples (its seed the frame's, as Cycles' animated seed), EEVEE with the keyed lights, and
+EEVEE's ray tracing with a light probe volume baked once at the first scored frame or baked
+again on every scored frame (its seconds then the bake's and the render's). Per
 image and frame: SSIM, RMSE, brightness; per image: the temporal error
 (``vplace.temporal.temporal_error``) over the scored frames. Files: ``results.csv`` (a
 ``frame`` column), ``animation.json``, ``animation.md``, ``scene.blend`` (a copy with the
@@ -29,6 +30,7 @@ import csv
 import json
 import time
 from collections.abc import Callable, Sequence
+from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -53,6 +55,7 @@ DIRECT = "direct only"
 EEVEE = "EEVEE + keyed VPLs"
 EEVEE_STILL = "EEVEE + still VPLs of the frame"
 VOLUME_ONCE = "EEVEE RT + volume baked once"
+VOLUME_PER_FRAME = "EEVEE RT + volume baked per frame"
 
 
 def cycles_kind(samples: int) -> str:
@@ -115,6 +118,12 @@ class AnimationSummary:
     costs: list[FrameCost] = field(default_factory=list)
     #: Image -> seconds of one frame of it (mean over the scored frames).
     seconds_per_frame: dict[str, float] = field(default_factory=dict)
+    #: Where EEVEE's temporal error comes from (:func:`attribute_flicker`), when EEVEE was
+    #: scored: part -> its temporal error, each over the truth's mean luminance.
+    flicker: dict[str, float] = field(default_factory=dict)
+    #: Per scored frame: EEVEE's direct light (VPLs hidden) over Cycles' direct light (mean
+    #: luminance), when EEVEE was scored.
+    eevee_direct_brightness: list[float] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, object]:
         """The summary as plain JSON values."""
@@ -244,6 +253,7 @@ def run_animated_job(
     eevee: bool = False,
     eevee_still: bool = False,
     volume_once: bool = False,
+    volume_per_frame: bool = False,
     write_back: bool = True,
     log: Callable[[str], None] = print,
 ) -> AnimationSummary:
@@ -301,6 +311,9 @@ def run_animated_job(
         images: dict[str, list[np.ndarray]] = {}
         truths: list[np.ndarray] = []
         seconds: dict[str, list[float]] = {}
+        # per scored frame, for attribute_flicker: EEVEE's direct light, Cycles' direct light,
+        # the evaluator's light of the keyed VPLs
+        parts: dict[str, list[np.ndarray]] = {"eevee_direct": [], "direct": [], "vpl": []}
 
         def add(frame: int, kind: str, image: np.ndarray, truth: np.ndarray, s: float) -> None:
             images.setdefault(kind, []).append(image)
@@ -328,6 +341,8 @@ def run_animated_job(
             lights = vplace.temporal.at_frame(tracked, frames, f)
             indirect, _ = vplace.evaluate(run.prepared.scene, ref.view, lights)
             add(f, KEYED, ref.direct + indirect, ref.gi, time.perf_counter() - start)
+            parts["direct"].append(ref.direct)
+            parts["vpl"].append(indirect)
             add(f, STILL, ref.direct + run.computed.indirect, ref.gi, run.computed.stats.seconds)
             add(f, DIRECT, ref.direct, ref.gi, 0.0)
             height, width = ref.gi.shape[:2]
@@ -343,9 +358,17 @@ def run_animated_job(
                     )
                 add(f, cycles_kind(n), img.image, ref.gi, img.seconds)
             if eevee and write_back:
-                with timer.stage(f"EEVEE, frame {f}"):
-                    img = _render_vpl_eevee(bl_scene, (width, height), job.cache_dir)
+                size = (width, height)
+                with eevee_setup.world_volume_for_render(bl_scene):  # one bake for both
+                    with timer.stage(f"EEVEE, frame {f}"):
+                        img = _render_vpl_eevee(bl_scene, size, job.cache_dir, world_volume=False)
+                    with timer.stage(f"EEVEE direct light, frame {f}"), override() as g:
+                        apply.hide_vpl_lights(g, bl_scene)
+                        direct = _render_vpl_eevee(
+                            bl_scene, size, job.cache_dir, world_volume=False
+                        )
                 add(f, EEVEE, img.image, ref.gi, img.seconds)
+                parts["eevee_direct"].append(direct.image)
         if eevee_still and eevee and write_back:
             for f in scored:
                 _score_eevee_still(bl_scene, scored_runs[f], job, add, timer)
@@ -357,7 +380,9 @@ def run_animated_job(
                 timer,
             )
         if volume_once:
-            _score_volume_once(bl_scene, scored, truths, job, add, timer)
+            _score_volume(bl_scene, scored, truths, add, timer, per_frame=False)
+        if volume_per_frame:
+            _score_volume(bl_scene, scored, truths, add, timer, per_frame=True)
     finally:
         bl_scene.frame_set(original)
     if len(truths) >= 2:
@@ -366,23 +391,84 @@ def run_animated_job(
             summary.temporal_steps[kind] = [float(x) for x in steps]
             summary.temporal_error[kind] = float(steps.mean())
     summary.seconds_per_frame = {k: float(np.mean(v)) for k, v in seconds.items()}
+    if EEVEE in images and len(truths) >= 2:
+        summary.flicker = attribute_flicker(
+            images[EEVEE], parts["eevee_direct"], parts["direct"], parts["vpl"], truths
+        )
+        summary.eevee_direct_brightness = [
+            _brightness(e, c) for e, c in zip(parts["eevee_direct"], parts["direct"], strict=True)
+        ]
     write_files(out_dir, summary)
     return summary
 
 
+#: The parts of EEVEE's temporal error (:func:`attribute_flicker`), in the tables' order.
+FLICKER_PARTS = {
+    "eevee": "EEVEE + keyed VPLs, all of it",
+    "direct": "(a) EEVEE's direct light (VPLs hidden) against Cycles' direct light",
+    "vpl": "(b) EEVEE's light of the VPLs against the evaluator's",
+    "evaluator": "(c) the evaluator's light of the VPLs against Cycles' indirect light",
+}
+
+
+def _luminance(image: np.ndarray) -> np.ndarray:
+    return np.asarray(image, dtype=np.float64)[..., :3] @ np.asarray(vplace.LUMINANCE)
+
+
+def _brightness(image: np.ndarray, truth: np.ndarray) -> float:
+    """Mean luminance of ``image`` over that of ``truth``."""
+    return float(_luminance(image).mean() / max(float(_luminance(truth).mean()), 1e-12))
+
+
+def attribute_flicker(
+    eevee: Sequence[np.ndarray],
+    eevee_direct: Sequence[np.ndarray],
+    direct: Sequence[np.ndarray],
+    vpl: Sequence[np.ndarray],
+    truths: Sequence[np.ndarray],
+) -> dict[str, float]:
+    """Where EEVEE's temporal error comes from, the still report's attribution (issue 21) taken
+    across frames. With E = D_e + V_e (EEVEE's direct light, with the VPLs hidden, and the rest)
+    and the truth T = D_c + I_c (Cycles' direct and indirect light), EEVEE's change error
+    ``(E_t - E_t-1) - (T_t - T_t-1)`` is the sum of (a) ``dD_e - dD_c``, (b) ``dV_e - dV`` (V:
+    the evaluator's light of the keyed VPLs) and (c) ``dV - dI_c``. Each part's temporal error
+    (:func:`vplace.temporal.temporal_error`, over the truth's mean luminance, so the parts are
+    in the same unit as the whole; they need not add up, as absolute values)."""
+    over = max(float(np.mean([_luminance(t).mean() for t in truths])), 1e-12)
+
+    def te(images: Sequence[np.ndarray], refs: Sequence[np.ndarray]) -> float:
+        return vplace.temporal.temporal_error(images, refs, over=over)
+
+    rest = [e - d for e, d in zip(eevee, eevee_direct, strict=True)]
+    indirect = [t - d for t, d in zip(truths, direct, strict=True)]
+    return {
+        "eevee": te(eevee, truths),
+        "direct": te(eevee_direct, direct),
+        "vpl": te(rest, vpl),
+        "evaluator": te(vpl, indirect),
+    }
+
+
 def _render_vpl_eevee(
-    bl_scene: bpy.types.Scene, resolution: tuple[int, int], cache_dir: Path | None
+    bl_scene: bpy.types.Scene,
+    resolution: tuple[int, int],
+    cache_dir: Path | None,
+    *,
+    world_volume: bool = True,
 ) -> eevee_render.EeveeImage:
     """EEVEE's render of the scene with the written VPLs at the current frame (the scored
-    setup, with the world's volume when the world emits)."""
-    with eevee_setup.world_volume_for_render(bl_scene):
-        return eevee_render.render(
-            bl_scene,
-            resolution=resolution,
-            samples=eevee_render.EEVEE_SAMPLES,
-            setup=eevee_render.SETUPS["vpl"],
-            cache_dir=cache_dir,
-        )
+    setup, with the world's volume when the world emits; ``world_volume=False``: the caller
+    holds ``eevee_setup.world_volume_for_render`` around it)."""
+    if world_volume:
+        with eevee_setup.world_volume_for_render(bl_scene):
+            return _render_vpl_eevee(bl_scene, resolution, cache_dir, world_volume=False)
+    return eevee_render.render(
+        bl_scene,
+        resolution=resolution,
+        samples=eevee_render.EEVEE_SAMPLES,
+        setup=eevee_render.SETUPS["vpl"],
+        cache_dir=cache_dir,
+    )
 
 
 def _score_eevee_still(
@@ -412,33 +498,42 @@ def _score_eevee_still(
     add(run.frame, EEVEE_STILL, img.image, run.reference.gi, img.seconds)
 
 
-def _score_volume_once(
+def _score_volume(
     bl_scene: bpy.types.Scene,
     scored: Sequence[int],
     truths: Sequence[np.ndarray],
-    job: Job,
     add: Callable[[int, str, np.ndarray, np.ndarray, float], None],
     timer: StageTimer,
+    *,
+    per_frame: bool,
 ) -> None:
-    """EEVEE ray tracing with a light probe volume baked once, at the first scored frame (with
-    vplace's lights hidden), rendered at every scored frame: what a user gets from one bake.
-    Not cached: a render's key does not say at which frame its volume was baked."""
-    height, width = truths[0].shape[:2]
-    bl_scene.frame_set(scored[0])
-    with override() as g:
+    """EEVEE ray tracing with a light probe volume (vplace's lights hidden) rendered at every
+    scored frame: baked once, at the first scored frame (what a user gets from one bake), or
+    ``per_frame`` baked again at each (its seconds then the bake's and the render's). The
+    probe is removed after. Not cached: a render's key does not say when its volume was baked."""
+    kind = VOLUME_PER_FRAME if per_frame else VOLUME_ONCE
+    with override() as g, ExitStack() as once:
         hide_vpls(g)
-        with eevee_setup.temporary_volume(bl_scene) as bake_seconds:
-            timer.log(f"[vplace] light probe volume baked once in {bake_seconds:.1f} s")
-            for f, truth in zip(scored, truths, strict=True):
-                bl_scene.frame_set(f)
-                with timer.stage(f"EEVEE RT + volume baked once, frame {f}"):
+        if not per_frame:
+            bl_scene.frame_set(scored[0])
+            seconds = once.enter_context(eevee_setup.temporary_volume(bl_scene))
+            timer.log(f"[vplace] light probe volume baked once in {seconds:.1f} s")
+        for f, truth in zip(scored, truths, strict=True):
+            bl_scene.frame_set(f)
+            height, width = truth.shape[:2]
+            with ExitStack() as each:
+                bake = 0.0
+                if per_frame:
+                    bake = each.enter_context(eevee_setup.temporary_volume(bl_scene))
+                    timer.log(f"[vplace] light probe volume baked at frame {f} in {bake:.1f} s")
+                with timer.stage(f"{kind}, frame {f}"):
                     img = eevee_render.render(
                         bl_scene,
                         resolution=(width, height),
                         samples=eevee_render.EEVEE_SAMPLES,
                         setup=eevee_render.SETUPS["rt+volume"],
                     )
-                add(f, VOLUME_ONCE, img.image, truth, img.seconds)
+            add(f, kind, img.image, truth, img.seconds + bake)
 
 
 def write_files(out_dir: Path, summary: AnimationSummary) -> None:
@@ -491,6 +586,21 @@ def animation_report(summary: AnimationSummary) -> str:
     lines += vplace.markdown.table(
         ["image", "mean SSIM", "mean RMSE", "temporal error", "s per frame"], rows
     )
+    if summary.flicker:
+        lines += [
+            "",
+            "## Where EEVEE's temporal error comes from",
+            "",
+            "Each part's temporal error over the truth's mean luminance (`attribute_flicker`); "
+            "EEVEE's direct light (VPLs hidden) over Cycles' per scored frame: "
+            + ", ".join(f"{b:.3f}" for b in summary.eevee_direct_brightness)
+            + ".",
+            "",
+        ]
+        lines += vplace.markdown.table(
+            ["part", "temporal error"],
+            [[FLICKER_PARTS[k], f"{v:.4f}"] for k, v in summary.flicker.items()],
+        )
     lines += ["", "## One-time cost per captured frame (s)", ""]
     rows = []
     for c in summary.costs:

@@ -129,6 +129,11 @@ def _demo_options(sub: argparse._SubParsersAction) -> None:
         "at the first frame",
     )  # fmt: skip
     demo.add_argument(
+        "--volume-per-frame", action="store_true",
+        help="with --animate: also score EEVEE ray tracing with a light probe volume baked again "
+        "at every scored frame",
+    )  # fmt: skip
+    demo.add_argument(
         "--samples", type=int, default=Job.samples, help="Cycles samples of each capture"
     )
     add_region_arguments(demo)
@@ -229,6 +234,11 @@ def _report_options(sub: argparse._SubParsersAction) -> None:
         help="with --blend: lights keyed over these frames (as demo --animate), every frame "
         "from START to END scored against a Cycles truth with the alternatives, plotted",
     )  # fmt: skip
+    rep.add_argument(
+        "--volume-per-frame", action="store_true",
+        help="with --animate: also EEVEE ray tracing with a light probe volume baked again at "
+        "every frame (slow: one bake a frame)",
+    )  # fmt: skip
     add_region_arguments(rep)
 
 
@@ -271,6 +281,10 @@ def run(args: argparse.Namespace) -> None:
     if args.command == "report" and args.animate:
         run_animated_report(args)
         return
+    if args.command == "report" and args.volume_per_frame:
+        from .errors import ReportError
+
+        raise ReportError("--volume-per-frame goes with --animate")
     if args.command == "report":
         from .report.config import ReportConfig
         from .report.runs import run_report
@@ -326,12 +340,19 @@ def run(args: argparse.Namespace) -> None:
         iterations=args.iterations,
         feature_mode=args.feature_mode,
     )
-    extra = (args.score_between, args.cycles_samples, args.volume_once, args.eevee_still)
+    extra = (
+        args.score_between,
+        args.cycles_samples,
+        args.volume_once,
+        args.volume_per_frame,
+        args.eevee_still,
+    )
     if not args.animate and any(extra):
         from .errors import AddonError
 
         raise AddonError(
-            "--score-between, --cycles-samples, --eevee-still and --volume-once go with --animate"
+            "--score-between, --cycles-samples, --eevee-still, --volume-once and "
+            "--volume-per-frame go with --animate"
         )
     if args.animate:
         from .animation import run_animated_job
@@ -347,6 +368,7 @@ def run(args: argparse.Namespace) -> None:
             eevee=not args.no_eevee,
             eevee_still=args.eevee_still,
             volume_once=args.volume_once,
+            volume_per_frame=args.volume_per_frame,
         )
         print(vplace_md(args.out))
         print(f"[vplace] {done.slots} keyed lights; results in {args.out}")
@@ -406,6 +428,7 @@ def run_animated_report(args: argparse.Namespace) -> None:
         cycles_samples=args.cycles_samples,
         eevee=not args.no_eevee,
         volume_once=not args.no_eevee and "rt+volume" in args.alternatives,
+        volume_per_frame=not args.no_eevee and args.volume_per_frame,
     )
     plot_animation(done, args.out / "animation.png")
     print(vplace_md(args.out))

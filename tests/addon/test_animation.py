@@ -54,6 +54,41 @@ def _mean_luminance(scene: bpy.types.Scene, frame: int) -> tuple[float, float]:
     return float(lum[:, :12].mean()), float(lum[:, 12:].mean())
 
 
+def test_eevee_flicker_is_split_into_its_parts():
+    """``attribute_flicker``: with the truth T = D + I and EEVEE E = D_e + V_e, a flicker only in
+    EEVEE's direct light is all part (a); one only in EEVEE's light of the VPLs (the evaluator's
+    steady) is all part (b); the evaluator's own drift from the truth is part (c). Each part is
+    over the truth's mean luminance, so a part that is the whole equals the whole."""
+    rng = np.random.default_rng(0)
+    frames = 4
+    direct = [np.full((6, 8, 3), 0.6) + 0.1 * t for t in range(frames)]  # Cycles' direct, moving
+    indirect = [np.full((6, 8, 3), 0.4) for _ in range(frames)]
+    truths = [d + i for d, i in zip(direct, indirect, strict=True)]
+    flick = [rng.uniform(-0.05, 0.05, (6, 8, 1)) * np.ones(3) for _ in range(frames)]
+    # (a) only: EEVEE's direct light flickers, its VPL light is the evaluator's, the truth's
+    eevee_direct = [d + f for d, f in zip(direct, flick, strict=True)]
+    eevee = [d + i for d, i in zip(eevee_direct, indirect, strict=True)]
+    parts = animation.attribute_flicker(eevee, eevee_direct, direct, indirect, truths)
+    assert parts["direct"] > 0.01
+    assert parts["direct"] == pytest.approx(parts["eevee"])
+    assert parts["vpl"] == pytest.approx(0.0, abs=1e-12)
+    assert parts["evaluator"] == pytest.approx(0.0, abs=1e-12)
+    # (b) only: EEVEE's VPL light flickers around the evaluator's
+    eevee = [d + i + f for d, i, f in zip(direct, indirect, flick, strict=True)]
+    parts = animation.attribute_flicker(eevee, direct, direct, indirect, truths)
+    assert parts["vpl"] == pytest.approx(parts["eevee"]) and parts["direct"] == pytest.approx(
+        0.0, abs=1e-12
+    )
+    # (c): the evaluator's VPL light misses a change of the truth's indirect light
+    vpl = [i - 0.05 * t for t, i in enumerate(indirect)]
+    eevee = [d + v for d, v in zip(direct, vpl, strict=True)]
+    parts = animation.attribute_flicker(eevee, direct, direct, vpl, truths)
+    assert parts["evaluator"] == pytest.approx(parts["eevee"]) and parts["vpl"] == pytest.approx(
+        0.0, abs=1e-12
+    )
+    assert parts["evaluator"] == pytest.approx(0.05 * 1.0 / np.mean([t.mean() for t in truths]))
+
+
 def test_cornell_moving_keys_its_lamp_and_the_light_follows():
     empty_file()
     scene = build_cornell_moving(bpy.context.scene)
@@ -216,6 +251,7 @@ def test_eevee_renders_the_keyed_lights_at_each_frame(tmp_path):
         eevee=True,
         eevee_still=True,
         volume_once=True,
+        volume_per_frame=True,
         log=lambda _line: None,
     )
     keys_after = _written_keys()
@@ -224,6 +260,10 @@ def test_eevee_renders_the_keyed_lights_at_each_frame(tmp_path):
     for r in rows.values():
         assert 0.8 < r["brightness"] < 1.2, r
     assert animation.EEVEE in done.temporal_error
+    # ... with its temporal error split, and EEVEE's direct light of each frame measured
+    assert set(done.flicker) == set(animation.FLICKER_PARTS)
+    assert len(done.eevee_direct_brightness) == 2
+    assert all(0.8 < b < 1.2 for b in done.eevee_direct_brightness)
     # Each frame's still layout rendered too, then the keyed lights written back, the same.
     still = {r["frame"]: r for r in done.rows if r["image"] == animation.EEVEE_STILL}
     assert sorted(still) == [1, 24]
@@ -233,6 +273,15 @@ def test_eevee_renders_the_keyed_lights_at_each_frame(tmp_path):
     # The volume baked once, at frame 1: rendered at both frames, and removed after.
     once = [r["frame"] for r in done.rows if r["image"] == animation.VOLUME_ONCE]
     assert once == [1, 24] and animation.VOLUME_ONCE in done.temporal_error
+    # Baked again at each frame: the volume follows the lamp (frame 1 as baked once; at frame
+    # 24, where the lamp gives 0.4 of its light, darker than the volume baked at frame 1), and
+    # its seconds hold the bakes.
+    per = {r["frame"]: r for r in done.rows if r["image"] == animation.VOLUME_PER_FRAME}
+    first = {r["frame"]: r for r in done.rows if r["image"] == animation.VOLUME_ONCE}
+    assert sorted(per) == [1, 24] and animation.VOLUME_PER_FRAME in done.temporal_error
+    assert per[1]["ssim"] == pytest.approx(first[1]["ssim"], abs=0.01)
+    assert per[24]["brightness"] < first[24]["brightness"] - 0.05
+    assert per[24]["seconds"] > first[24]["seconds"]
     assert not any(o.type == "LIGHT_PROBE" for o in bpy.data.objects)
 
 

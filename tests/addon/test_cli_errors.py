@@ -95,7 +95,12 @@ CASES = [
     ),
     Case(
         ["demo", "--score-between"],
-        "--cycles-samples, --eevee-still and --volume-once go with --animate",
+        "--cycles-samples, --eevee-still, --volume-once and --volume-per-frame go with --animate",
+        quick_demo=True,
+    ),
+    Case(
+        ["demo", "--volume-per-frame"],
+        "--volume-per-frame go with --animate",
         quick_demo=True,
     ),
     Case(["demo", "--cell-px", "0"], "cell_px = 0 is out of range", quick_demo=True),
@@ -133,6 +138,7 @@ CASES = [
         "no camera object named 'Nope'",
     ),
     Case(["report", "--scenes", "atrium"], "unknown scenes ['atrium']"),
+    Case(["report", "--volume-per-frame"], "--volume-per-frame goes with --animate"),
     Case(["report", "--animate", "1", "5", "1"], "report --animate needs --blend"),
     Case(["report", "--blend", "{blend}", "--animate", "5", "1", "1"], "frame range 5..1 is empty"),
     Case(["report", "--blend", "{blend}", "--animate", "1", "5", "0"], "step must be at least 1"),

@@ -42,6 +42,8 @@ def test_a_known_flicker_gives_its_amplitude_over_the_mean():
     steps = temporal.temporal_steps(once, truths)
     assert steps == pytest.approx([0.0, d / c, 0.0], abs=1e-6)
     assert temporal.temporal_error(once, truths) == pytest.approx(d / c / 3, rel=1e-5)
+    # Over another luminance (a part of an image against the whole's mean): d over that.
+    assert temporal.temporal_error(images, truths, over=4 * c) == pytest.approx(d / (4 * c))
 
 
 def test_the_temporal_error_refuses_what_it_cannot_score():

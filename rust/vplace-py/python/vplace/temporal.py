@@ -38,15 +38,21 @@ def _luminance(image: np.ndarray) -> np.ndarray:
     return np.asarray(image, dtype=np.float64)[..., :3] @ np.asarray(vplace.LUMINANCE)
 
 
-def temporal_error(images: Sequence[np.ndarray], truths: Sequence[np.ndarray]) -> float:
+def temporal_error(
+    images: Sequence[np.ndarray], truths: Sequence[np.ndarray], *, over: float | None = None
+) -> float:
     """The temporal error of ``images`` against ``truths`` (see the module docs): two sequences
-    of (H, W, 3) linear images of at least two frames, of one shape."""
-    return float(temporal_steps(images, truths).mean())
+    of (H, W, 3) linear images of at least two frames, of one shape. ``over``: the luminance
+    to divide by instead of the truths' mean (to compare a part of an image with the whole)."""
+    return float(temporal_steps(images, truths, over=over).mean())
 
 
-def temporal_steps(images: Sequence[np.ndarray], truths: Sequence[np.ndarray]) -> np.ndarray:
+def temporal_steps(
+    images: Sequence[np.ndarray], truths: Sequence[np.ndarray], *, over: float | None = None
+) -> np.ndarray:
     """Each step's term of :func:`temporal_error` (F - 1 values: frame t against t - 1), each
-    over the truth's mean luminance of all frames; their mean is the temporal error."""
+    over the truth's mean luminance of all frames (or ``over``); their mean is the temporal
+    error."""
     if len(images) != len(truths):
         raise ValueError(f"{len(images)} images against {len(truths)} truth frames")
     if len(images) < 2:
@@ -55,7 +61,7 @@ def temporal_steps(images: Sequence[np.ndarray], truths: Sequence[np.ndarray]) -
     t = np.stack([_luminance(i) for i in truths])
     if e.shape != t.shape:
         raise ValueError(f"images of shape {e.shape[1:]} against truths of shape {t.shape[1:]}")
-    mean_truth = max(float(t.mean()), 1e-12)
+    mean_truth = max(float(t.mean()) if over is None else float(over), 1e-12)
     change = np.abs(np.diff(e, axis=0) - np.diff(t, axis=0))
     return change.mean(axis=(1, 2)) / mean_truth
 
