@@ -182,3 +182,26 @@ def test_the_baked_sun_carries_its_power_on_every_sun_position(world, elevation,
     got = lum[rows[0] : rows[1], np.arange(*cols) % w]
     omega = solid_angles(h, w, *rows)
     assert (got * omega).sum() == pytest.approx((ref * omega).sum(), rel=0.01)
+
+
+def test_a_sun_the_tree_does_not_name_is_found_by_its_brightness(world):
+    """A Sky Texture behind a Mapping node (so its sun's direction is not read from the node):
+    the bake finds the sun as its brightest pixel and renders it again finer all the same."""
+    sky = sky_world(world, 31.0, 222.0)
+    nt = world.node_tree
+    mapping = nt.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(40))
+    coords = nt.nodes.new("ShaderNodeTexCoord")
+    nt.links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
+    nt.links.new(mapping.outputs["Vector"], sky.inputs[0])
+    assert world_mod.sky_sun_directions(world) == []
+    world_mod._BAKED.clear()
+    image = world_mod.bake_world(world)
+    h, w = image.shape[:2]
+    lum = image @ np.array([0.2126, 0.7152, 0.0722])
+    row, col = (int(i) for i in np.unravel_index(np.argmax(lum), lum.shape))
+    rows, cols = (row - 3, row + 4), (col - 5, col + 6)
+    ref = window_render(world, (h, w), rows, cols, 16, 64) @ np.array([0.2126, 0.7152, 0.0722])
+    got = lum[rows[0] : rows[1], np.arange(*cols) % w]
+    omega = solid_angles(h, w, *rows)
+    assert (got * omega).sum() == pytest.approx((ref * omega).sum(), rel=0.01)
