@@ -393,8 +393,8 @@ def run_animated_report(args: argparse.Namespace) -> None:
     the scene camera with the report's settings: one budget (:data:`ANIMATED_REPORT_BUDGET`),
     the first seed, every frame scored against a Cycles truth (``--truth-samples``, default
     1024), Cycles + OIDN at ``--cycles-samples``, EEVEE with the keyed lights and (``rt+volume``
-    among ``--alternatives``) a volume baked once, unless ``--no-eevee``; then the plot
-    ``animation.png``."""
+    among ``--alternatives``) a volume baked once (``--volume-per-frame``: and one baked again
+    at every frame), unless ``--no-eevee``; then the plot ``animation.png``."""
     from .animation import plot_animation, run_animated_job
     from .errors import ReportError
     from .job import Job, method_name
