@@ -396,8 +396,12 @@ def run_animated_job(
             images[EEVEE], parts["eevee_direct"], parts["direct"], parts["vpl"], truths
         )
         summary.eevee_direct_brightness = [
-            _brightness(e, c) for e, c in zip(parts["eevee_direct"], parts["direct"], strict=True)
-        ]
+            vplace.job.attribute(e, ed, d, v, t).direct_brightness
+            for e, ed, d, v, t in zip(
+                images[EEVEE], parts["eevee_direct"], parts["direct"], parts["vpl"], truths,
+                strict=True,
+            )
+        ]  # fmt: skip
     write_files(out_dir, summary)
     return summary
 
@@ -409,15 +413,6 @@ FLICKER_PARTS = {
     "vpl": "(b) EEVEE's light of the VPLs against the evaluator's",
     "evaluator": "(c) the evaluator's light of the VPLs against Cycles' indirect light",
 }
-
-
-def _luminance(image: np.ndarray) -> np.ndarray:
-    return np.asarray(image, dtype=np.float64)[..., :3] @ np.asarray(vplace.LUMINANCE)
-
-
-def _brightness(image: np.ndarray, truth: np.ndarray) -> float:
-    """Mean luminance of ``image`` over that of ``truth``."""
-    return float(_luminance(image).mean() / max(float(_luminance(truth).mean()), 1e-12))
 
 
 def attribute_flicker(
@@ -434,7 +429,8 @@ def attribute_flicker(
     the evaluator's light of the keyed VPLs) and (c) ``dV - dI_c``. Each part's temporal error
     (:func:`vplace.temporal.temporal_error`, over the truth's mean luminance, so the parts are
     in the same unit as the whole; they need not add up, as absolute values)."""
-    over = max(float(np.mean([_luminance(t).mean() for t in truths])), 1e-12)
+    lum = np.asarray(vplace.LUMINANCE, dtype=np.float64)
+    over = max(float(np.mean([(t[..., :3] @ lum).mean() for t in truths])), 1e-12)
 
     def te(images: Sequence[np.ndarray], refs: Sequence[np.ndarray]) -> float:
         return vplace.temporal.temporal_error(images, refs, over=over)

@@ -47,6 +47,7 @@ import bpy
 import numpy as np
 
 from ..errors import ExportError, run_operator
+from .materials import LUMINANCE
 
 __all__ = [
     "BAKE_SAMPLES",
@@ -424,9 +425,8 @@ def _refine_sun(world: Any, image: np.ndarray) -> np.ndarray:
     """``image`` with its sun's pixels rendered again finer (module docs); unchanged when it
     has no sun."""
     h, w = image.shape[:2]
-    lum = image @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
-    theta = (np.arange(h) + 0.5) / h * math.pi
-    mean = float((lum * np.sin(theta)[:, None]).sum() / (np.sin(theta).sum() * w))
+    lum = image @ LUMINANCE.astype(np.float32)
+    mean = float(LUMINANCE @ WorldInfo("", (1.0, 1.0, 1.0), image).mean_color)
     seeds = [(*_direction_pixel(d, (w, h)), size) for d, size in sky_sun_directions(world)]
     top = np.unravel_index(int(np.argmax(lum)), lum.shape)
     if mean > 0.0 and lum[top] > SUN_REFINE_CONTRAST * mean:
