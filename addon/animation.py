@@ -5,10 +5,11 @@ For each captured frame ``START, START + STEP, ..., END`` (at most
 still (:func:`job.prepare`: export and capture of the scene camera at the job's capture
 samples, cached by what Blender renders, so a frame that renders as an earlier one reuses its
 capture; then fit, layout and refit with the job's seed, the same on every frame, so the same
-light paths and random numbers). The frames' VPLs are matched into slots
-(``vplace.temporal.track``) and written as ONE set of lights keyed over the captured frames
-(``writeback.keyed``; linear keys, a dark slot keyed to 0 W), replacing only the ``vplace
-VPLs`` collection. The scene's frame is put back.
+light paths and random numbers; each frame's refit is its own: a refit pulled toward the
+previous frame's refitted scales was measured worse, README). The frames' VPLs are matched
+into slots (``vplace.temporal.track``) and written as ONE set of lights keyed over the
+captured frames (``writeback.keyed``; linear keys, a dark slot keyed to 0 W), replacing only
+the ``vplace VPLs`` collection. The scene's frame is put back.
 
 Then every frame from ``START`` to ``END`` (captured or between; ``score_between``) or only the
 captured ones is scored against a Cycles truth of that frame (``truth_samples``): the

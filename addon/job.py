@@ -349,6 +349,8 @@ def summary(
         evaluator.refit_error = [laid.refit.error_before, laid.refit.error_after]
         evaluator.refit_ridge = laid.refit.ridge
         evaluator.refit_cv = [list(c) for c in laid.refit.cv] or None
+        evaluator.refit_gain = laid.refit.gain
+        evaluator.refit_gain_cv = [list(c) for c in laid.refit.gain_cv] or None
     return vplace.job.JobSummary(
         scene=scene_label(bl_scene),
         triangles=prepared.scene.triangle_count,

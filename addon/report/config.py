@@ -265,6 +265,9 @@ class RowDetails:
     #: The refit's ridge (chosen by cross-validation: one captured view left out at a time with
     #: three or more captures, else blocks of the captured pixels).
     refit_ridge: float | None = None
+    #: What the refit pulled the powers toward, as a multiple of the light-path powers: 1, or
+    #: the captures' gain where the cross-validation took it.
+    refit_gain: float | None = None
     switched_off: int | None = None
     #: EEVEE rows of written VPLs: where EEVEE's error comes from (``vplace.job.Attribution``).
     attribution: dict[str, Any] | None = None

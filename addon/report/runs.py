@@ -284,6 +284,7 @@ def lay_out_all(
                         refit_error_before=refitted.error_before,
                         refit_error_after=refitted.error_after,
                         refit_ridge=refitted.ridge,
+                        refit_gain=refitted.gain,
                         switched_off=int((refitted.scales == 0).sum()),
                     )
                 rows.append(LaidSet(method, n, seed, vpls, t, details))

@@ -50,6 +50,9 @@ def test_fit_and_refit_params_take_the_core_defaults():
     # Leave-one-view-out by default (with three or more views), blocks when asked.
     assert r.leave_out_views and "leave_out_views=True" in repr(r)
     assert not vplace.RefitParams(leave_out_views=False).leave_out_views
+    # The captures' gain tried by the cross-validation by default.
+    assert r.free_gain and "free_gain=True" in repr(r)
+    assert not vplace.RefitParams(free_gain=False).free_gain
 
 
 def test_the_layout_says_whether_it_iterated():

@@ -147,10 +147,29 @@ def test_the_ridge_is_chosen_by_held_out_blocks():
     )
     v = view(d, indirect=target)
     assert vplace.RefitParams().select_ridge and not vplace.RefitParams(ridge=1.0).select_ridge
-    out = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2))
+    out = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, free_gain=False))
     # The VPLs reproduce the target exactly: the weakest pull predicts left-out blocks best.
     assert [r for r, _ in out.cv] == [0.01, 0.1, 1.0, 10.0, 100.0]
     assert out.ridge == 0.01 and min(e for _, e in out.cv) == out.cv[0][1]
     given = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, ridge=0.01))
     assert given.cv == [] and given.ridge == 0.01
     np.testing.assert_allclose(given.scales, out.scales, atol=1e-9)
+
+
+def test_the_gain_carries_the_captures_total_to_vpls_no_pixel_sees():
+    """A target that is every VPL at 2.5 times its power: the cross-validation takes the pull
+    toward the captures' gain, and the VPL no floor pixel sees gets 2.5 too; without
+    ``free_gain`` it keeps its light-path power."""
+    scene = box_scene()
+    d = floor_view(128)
+    base = inward_vpls()
+    target, _ = vplace.evaluate(scene, view(d), base.with_flux((base.flux * 2.5).astype("f4")))
+    v = view(d, indirect=target)
+    out = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2))
+    assert out.gain == pytest.approx(2.5, rel=1e-5)
+    assert [r for r, _ in out.gain_cv] == [0.01, 0.1, 1.0, 10.0, 100.0]
+    assert min(e for _, e in out.gain_cv) < min(e for _, e in out.cv)
+    np.testing.assert_allclose(out.scales, 2.5, rtol=1e-3)
+    fixed = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, free_gain=False))
+    assert fixed.gain == 1.0 and fixed.gain_cv == []
+    assert fixed.scales[6] == pytest.approx(1.0, abs=1e-9)

@@ -324,10 +324,16 @@ pub struct PyRefitParams {
 impl PyRefitParams {
     /// `ridge` given: that ridge, not selected; None: chosen by cross-validation, leaving out
     /// whole views when there are three or more and `leave_out_views` (default True), else
-    /// blocks of pixels.
+    /// blocks of pixels. `free_gain` (default True): the cross-validation also tries pulling
+    /// the powers toward the captures' gain instead of the light-path powers.
     #[new]
-    #[pyo3(signature = (*, stride = None, ridge = None, leave_out_views = None))]
-    fn new(stride: Option<usize>, ridge: Option<f64>, leave_out_views: Option<bool>) -> Self {
+    #[pyo3(signature = (*, stride = None, ridge = None, leave_out_views = None, free_gain = None))]
+    fn new(
+        stride: Option<usize>,
+        ridge: Option<f64>,
+        leave_out_views: Option<bool>,
+        free_gain: Option<bool>,
+    ) -> Self {
         let d = RefitParams::DEFAULT;
         Self {
             inner: RefitParams {
@@ -335,6 +341,7 @@ impl PyRefitParams {
                 ridge: ridge.unwrap_or(d.ridge),
                 select_ridge: ridge.is_none(),
                 leave_out_views: leave_out_views.unwrap_or(d.leave_out_views),
+                free_gain: free_gain.unwrap_or(d.free_gain),
                 ..d
             },
         }
@@ -371,13 +378,20 @@ impl PyRefitParams {
         self.inner.leave_out_views
     }
 
+    /// Whether the cross-validation also tries pulling toward the captures' gain.
+    #[getter]
+    fn free_gain(&self) -> bool {
+        self.inner.free_gain
+    }
+
     fn __repr__(&self) -> String {
         format!(
-            "RefitParams(stride={}, ridge={:?}, select_ridge={}, leave_out_views={})",
+            "RefitParams(stride={}, ridge={:?}, select_ridge={}, leave_out_views={}, free_gain={})",
             self.inner.stride,
             self.inner.ridge,
             py_bool(self.inner.select_ridge),
-            py_bool(self.inner.leave_out_views)
+            py_bool(self.inner.leave_out_views),
+            py_bool(self.inner.free_gain)
         )
     }
 }

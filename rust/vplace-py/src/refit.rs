@@ -82,6 +82,19 @@ impl PyRefit {
         self.r.cv.clone()
     }
 
+    /// The same, pulling toward the captures' gain (empty without `free_gain`).
+    #[getter]
+    fn gain_cv(&self) -> Vec<(f64, f64)> {
+        self.r.gain_cv.clone()
+    }
+
+    /// What the powers were pulled toward, as a multiple of the light-path powers: 1, or the
+    /// captures' gain where the cross-validation took it.
+    #[getter]
+    fn gain(&self) -> f64 {
+        self.r.gain
+    }
+
     /// Wall time, seconds.
     #[getter]
     fn seconds(&self) -> f64 {

@@ -560,6 +560,10 @@ class Refit:
     @property
     def cv(self) -> list[tuple[float, float]]: ...
     @property
+    def gain_cv(self) -> list[tuple[float, float]]: ...
+    @property
+    def gain(self) -> float: ...
+    @property
     def seconds(self) -> float: ...
 
 @final
@@ -570,6 +574,7 @@ class RefitParams:
         stride: int | None = None,
         ridge: float | None = None,
         leave_out_views: bool | None = None,
+        free_gain: bool | None = None,
     ) -> RefitParams: ...
     DEFAULT: RefitParams
     @property
@@ -580,6 +585,8 @@ class RefitParams:
     def select_ridge(self) -> bool: ...
     @property
     def leave_out_views(self) -> bool: ...
+    @property
+    def free_gain(self) -> bool: ...
 
 def refit(
     scene: Scene,

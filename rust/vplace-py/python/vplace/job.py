@@ -419,6 +419,10 @@ class EvaluatorSummary:
     #: The refit's ridge and its cross-validation: ``[ridge, held-out RMSE]`` per ridge tried.
     refit_ridge: float | None = None
     refit_cv: list[list[float]] | None = None
+    #: What the refit pulled the powers toward (1: the light-path powers; else the captures'
+    #: gain, taken where the cross-validation preferred it) and that pull's validation.
+    refit_gain: float | None = None
+    refit_gain_cv: list[list[float]] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready, without the figures a method does not have."""
