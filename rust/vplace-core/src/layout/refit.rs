@@ -143,7 +143,8 @@ pub const CV_BLOCK_PX: usize = 32;
 pub const CV_CELL_PX: usize = 16;
 
 /// The most VPLs for which the ridge is cross-validated: the folds keep one `n x n` Gram matrix
-/// each (4 x 8 MB at 1,024), and each fold and ridge is a solve.
+/// each and one for the sum of the others (2 x 4 x 8 MB at 1,024 with block folds), and each
+/// fold, ridge and pull is a solve.
 pub const CV_MAX_VPLS: usize = 1024;
 
 /// At most this many block exchanges before the solver falls back to coordinate descent.
@@ -439,9 +440,12 @@ struct Solved {
 
 /// Minimizes `1/2 s^T Q s - c^T s` over `s >= 0` for positive definite `Q` (column-major) by
 /// block principal pivoting, with a coordinate-descent fallback (see the module docs).
+/// `full`: the Cholesky factor of all of `Q`, when the caller has it (the first step, every
+/// variable free, then factors nothing).
 fn nnls_bpp(
     q: &[f64],
     c: &[f64],
+    full: Option<&Cholesky<f64, nalgebra::Dyn>>,
     max_exchanges: usize,
     cancelled: &dyn Fn() -> bool,
 ) -> Result<Solved> {
@@ -461,11 +465,17 @@ fn nnls_bpp(
         let f: Vec<usize> = (0..n).filter(|&i| free[i]).collect();
         x.iter_mut().for_each(|v| *v = 0.0);
         if !f.is_empty() {
-            let qff = DMatrix::from_fn(f.len(), f.len(), |a, b| q[f[b] * n + f[a]]);
-            let Some(chol) = Cholesky::new(qff) else {
-                break; // Not definite in floating point: polish below.
+            let rhs = DVector::from_iterator(f.len(), f.iter().map(|&i| c[i]));
+            let xf = match full {
+                Some(chol) if f.len() == n => chol.solve(&rhs),
+                _ => {
+                    let qff = DMatrix::from_fn(f.len(), f.len(), |a, b| q[f[b] * n + f[a]]);
+                    let Some(chol) = Cholesky::new(qff) else {
+                        break; // Not definite in floating point: polish below.
+                    };
+                    chol.solve(&rhs)
+                }
             };
-            let xf = chol.solve(&DVector::from_iterator(f.len(), f.iter().map(|&i| c[i])));
             for (k, &i) in f.iter().enumerate() {
                 x[i] = xf[k];
             }
@@ -561,24 +571,41 @@ fn add_to(acc: &mut Normal, part: &Normal) {
 }
 
 /// The refitted scales of the normal equations `ne` with relative ridge `ridge`
-/// (`lambda = ridge * trace / n`, the pull toward `pull`); all 1 where the trace is 0 (no
-/// pixel sees a VPL).
-fn solve(ne: &Normal, ridge: f64, pull: f64, cancelled: &dyn Fn() -> bool) -> Result<Solved> {
+/// (`lambda = ridge * trace / n`), one solution per pull of `pulls` (what the scales are pulled
+/// toward); all 1 where the trace is 0 (no pixel sees a VPL). The pulls share `Q` and its
+/// factor: a second pull costs no factorization where its solution keeps every VPL free.
+fn solve(
+    ne: &Normal,
+    ridge: f64,
+    pulls: &[f64],
+    cancelled: &dyn Fn() -> bool,
+) -> Result<Vec<Solved>> {
     let n = ne.atb.len();
     let trace: f64 = (0..n).map(|i| ne.gram[i * n + i]).sum();
     if trace <= 0.0 {
-        return Ok(Solved {
+        let ones = || Solved {
             s: vec![1.0; n],
             exchanges: 0,
-        });
+        };
+        return Ok(pulls.iter().map(|_| ones()).collect());
     }
     let lambda = ridge.max(MIN_RIDGE) * trace / n as f64;
     let mut q = ne.gram.clone();
     for i in 0..n {
         q[i * n + i] += lambda;
     }
-    let c: Vec<f64> = ne.atb.iter().map(|&v| v + lambda * pull).collect();
-    nnls_bpp(&q, &c, MAX_EXCHANGES, cancelled)
+    let full = if pulls.len() > 1 {
+        Cholesky::new(DMatrix::from_column_slice(n, n, &q))
+    } else {
+        None
+    };
+    pulls
+        .iter()
+        .map(|&pull| {
+            let c: Vec<f64> = ne.atb.iter().map(|&v| v + lambda * pull).collect();
+            nnls_bpp(&q, &c, full.as_ref(), MAX_EXCHANGES, cancelled)
+        })
+        .collect()
 }
 
 /// Refits the flux of `vpls` against the indirect image `indirect` (`I = G - D`, `H x W x 3`,
@@ -687,38 +714,40 @@ pub fn refit(
             })
             .collect();
         let cells: usize = usable.iter().map(|&k| parts[k].cells.len()).sum();
-        let modes: &[bool] = if params.free_gain {
-            &[false, true]
-        } else {
-            &[false]
-        };
-        for &gain in modes {
-            for &r in &RIDGE_GRID {
-                let mut err = 0.0;
-                for (train, &k) in trains.iter().zip(&usable) {
-                    let pull = if gain { train.gain() } else { 1.0 };
-                    let s = solve(train, r, pull, &cancelled)?.s;
-                    err += parts[k].cell_error(&s);
+        // Per ridge, the summed error pulling toward 1 and (free gain) toward the gain.
+        let mut errs = vec![[0.0f64; 2]; RIDGE_GRID.len()];
+        for (train, &k) in trains.iter().zip(&usable) {
+            let pulls: &[f64] = if params.free_gain {
+                &[1.0, train.gain()]
+            } else {
+                &[1.0]
+            };
+            for (e, &r) in errs.iter_mut().zip(&RIDGE_GRID) {
+                for (m, solved) in solve(train, r, pulls, &cancelled)?.iter().enumerate() {
+                    e[m] += parts[k].cell_error(&solved.s);
                 }
-                let rmse = (err / (3.0 * cells.max(1) as f64)).sqrt();
-                // Ties: to the larger ridge, and to the light-path powers.
-                if gain {
-                    gain_cv.push((r, rmse));
-                    if err < best {
-                        (best, ridge, free) = (err, r, true);
-                    }
-                } else {
-                    cv.push((r, rmse));
-                    if err <= best {
-                        (best, ridge) = (err, r);
-                    }
+            }
+        }
+        let rmse = |err: f64| (err / (3.0 * cells.max(1) as f64)).sqrt();
+        // Ties: to the larger ridge, and to the light-path powers.
+        for (e, &r) in errs.iter().zip(&RIDGE_GRID) {
+            cv.push((r, rmse(e[0])));
+            if e[0] <= best {
+                (best, ridge) = (e[0], r);
+            }
+        }
+        if params.free_gain {
+            for (e, &r) in errs.iter().zip(&RIDGE_GRID) {
+                gain_cv.push((r, rmse(e[1])));
+                if e[1] < best {
+                    (best, ridge, free) = (e[1], r, true);
                 }
             }
         }
     }
     let gain = if free { ne.gain() } else { 1.0 };
     let ones = vec![1.0f64; n];
-    let solved = solve(&ne, ridge, gain, &cancelled)?;
+    let solved = solve(&ne, ridge, &[gain], &cancelled)?.remove(0);
     let (mut scales, exchanges) = (solved.s, solved.exchanges);
     let rows = 3.0 * pixels.len().max(1) as f64;
     let before = ne.sq_error(&ones);
@@ -1134,9 +1163,15 @@ mod tests {
                 q[i * n + i] += 1e-6;
                 c[i] = (0..m).map(|r| a[r * n + i] * b[r]).sum();
             }
-            // Pivoting, and the coordinate-descent fallback alone (no exchange allowed).
-            for (cap, tol) in [(MAX_EXCHANGES, 1e-8), (0, 1e-4)] {
-                let r = nnls_bpp(&q, &c, cap, &|| false).unwrap();
+            // Pivoting, and the coordinate-descent fallback alone (no exchange allowed); the
+            // full factor computed here or given (as `solve` shares it between pulls).
+            let chol = Cholesky::new(DMatrix::from_column_slice(n, n, &q)).unwrap();
+            for (cap, tol, full) in [
+                (MAX_EXCHANGES, 1e-8, None),
+                (MAX_EXCHANGES, 1e-8, Some(&chol)),
+                (0, 1e-4, None),
+            ] {
+                let r = nnls_bpp(&q, &c, full, cap, &|| false).unwrap();
                 let s = r.s;
                 let scale = c.iter().map(|v| v.abs()).fold(1.0, f64::max);
                 for i in 0..n {
