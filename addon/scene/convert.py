@@ -12,7 +12,7 @@ import numpy as np
 
 from ..errors import ExportError
 from ..native import vplace
-from .export import ExportedScene, export_scene
+from .export import ExportedScene, MaterialInfo, export_scene
 
 if TYPE_CHECKING:
     from .export import AlphaInfo, LightInfo, TextureInfo, WorldInfo
@@ -93,6 +93,7 @@ def build_scene(exported: ExportedScene) -> vplace.Scene:
             exported.albedo,
             lights,
             emission=exported.emission,
+            **_gloss(mats, textured=False),
         )
     albedo = np.array(
         [m.albedo_offset if m.texture is not None else m.albedo for m in mats], dtype=np.float32
@@ -109,7 +110,31 @@ def build_scene(exported: ExportedScene) -> vplace.Scene:
         base_textures=[_texture_map(m.texture) if m.texture is not None else None for m in mats],
         texture_tint=np.array([m.texture_tint for m in mats], dtype=np.float32).reshape(-1, 3),
         alpha_tests=[_alpha_test(m.alpha) for m in mats],
+        **_gloss(mats, textured=True),
     )
+
+
+def _gloss(mats: list[MaterialInfo], *, textured: bool) -> dict[str, np.ndarray]:
+    """``vplace.Scene``'s ``gloss``, ``gloss_tint`` and ``gloss_roughness`` (the glossy layers the
+    light paths reflect off), or nothing when no material has one."""
+    if all(m.gloss is None for m in mats):
+        return {}
+    const, tint, rough = [], [], []
+    for m in mats:
+        tex = textured and m.texture is not None
+        if m.gloss is None:
+            const.append((0.0, 0.0, 0.0))
+            tint.append((0.0, 0.0, 0.0))
+        else:
+            const.append(m.gloss_offset if tex else m.gloss)
+            tint.append(m.gloss_tint if tex else (0.0, 0.0, 0.0))
+        r = m.gloss_roughness if m.gloss_roughness is not None else 0.5
+        rough.append(min(max(r, 0.0), 1.0))
+    return {
+        "gloss": np.array(const, dtype=np.float32).reshape(-1, 3),
+        "gloss_tint": np.array(tint, dtype=np.float32).reshape(-1, 3),
+        "gloss_roughness": np.array(rough, dtype=np.float32),
+    }
 
 
 def check_lights(exported: ExportedScene) -> None:

@@ -106,6 +106,12 @@ class MaterialInfo:
     alpha: AlphaInfo | None = None
     #: The roughness of its glossy layer (None: none; :mod:`.materials`).
     gloss_roughness: float | None = None
+    #: The glossy layers' reflectance, which the light paths reflect off besides the albedo
+    #: (:mod:`.materials`), its mean; None: no layer. With ``texture``, at a hit
+    #: ``gloss_offset + gloss_tint * rgb(texture)``.
+    gloss: tuple[float, float, float] | None = None
+    gloss_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gloss_tint: tuple[float, float, float] = (0.0, 0.0, 0.0)
     #: Only a volume (left out); true displacement (exported undisplaced).
     volume_only: bool = False
     displaced: bool = False
@@ -345,12 +351,27 @@ def _apply_surface(
             texture_index(use.image), use.uv_map, use.uv_scale, use.uv_offset, use.wrap
         )
 
-    alb = surface.albedo
-    if alb.tex is not None and alb.coef.any():
-        info.texture = texture(alb.tex)
-        if info.texture is not None:
+    alb, layer = surface.albedo, surface.gloss
+    if layer is not None:
+        info.gloss = _rgb(np.clip(layer.mean(images), 0.0, 1.0))
+    # The one texture a material reads: its albedo's, else (a metal) its glossy layer's.
+    use = next(
+        (v.tex for v in (alb, layer) if v is not None and v.tex is not None and v.coef.any()),
+        None,
+    )
+    if use is not None:
+        info.texture = texture(use)
+    if info.texture is not None:
+        if alb.tex == use:
             info.albedo_offset = _rgb(np.clip(alb.const, 0.0, 1.0))
             info.texture_tint = _rgb(np.maximum(alb.coef, 0.0))
+        else:
+            info.albedo_offset, info.texture_tint = info.albedo, (0.0, 0.0, 0.0)
+        if layer is not None and layer.tex == use:
+            info.gloss_offset = _rgb(np.clip(layer.const, 0.0, 1.0))
+            info.gloss_tint = _rgb(np.maximum(layer.coef, 0.0))
+        elif info.gloss is not None:
+            info.gloss_offset = info.gloss
     if surface.alpha_tested:
         a = surface.alpha
         tex = texture(a.tex) if a.tex is not None and a.coef.any() else None
@@ -551,6 +572,7 @@ class _Exporter:
                 info.name += " (not diffuse-visible)"
                 info.albedo = (0.0, 0.0, 0.0)
                 info.texture, info.albedo_offset = None, (0.0, 0.0, 0.0)
+                info.gloss = None
             self.mat_index[key] = len(self.materials)
             self.materials.append(info)
         return self.mat_index[key]

@@ -2,16 +2,19 @@
 its alpha cut-out (the material rule).
 
 vplace's light paths and shadow rays need, per material, the albedo of the *diffuse bounce* (the
-light a surface scatters diffusely, what Cycles' Diffuse Color pass shows) and where the surface
-is cut away. Every value is kept in the form ``constant + coefficient * texture``, with at most
-one image texture per value; the core looks the texture up at each ray hit (the base colour at
-the hit's UV, bilinear) and tests the alpha against a cutoff. The rule, from the active Cycles
+light a surface scatters diffusely, what Cycles' Diffuse Color pass shows), the reflectance of
+its glossy layer (the light paths go on off it) and where the surface is cut away. Every value
+is kept in the form ``constant + coefficient * texture``, with at most one image texture per
+value; the core looks the texture up at each ray hit (the base colour at the hit's UV,
+bilinear) and tests the alpha against a cutoff. The rule, from the active Cycles
 material output's Surface input:
 
 - **Principled BSDF**: albedo = Base Color x (1 - Metallic) x (1 - Transmission Weight) x
-  Weight: metal and glass are not diffuse bounce sources. Its Alpha is the cut-out (below).
-  (Cycles also takes the dielectric specular layer's reflection off the diffuse part, a few per
-  cent that depend on the view angle; vplace does not.)
+  Weight x (1 - E): metal and glass are not diffuse bounce sources, and the dielectric specular
+  layer over the diffuse part takes off what it reflects, ``E`` (:func:`dielectric_reflectance`,
+  0.092 at IOR 1.5 and the default level). Cycles takes off the layer's reflection at the view
+  angle (the Diffuse Color pass of a 0.5 base: 0.481 head-on, 0.468 at 60 degrees, 0.430 at
+  80); vplace its mean over the hemisphere. Its Alpha is the cut-out (below).
 - **Diffuse BSDF**, **Subsurface Scattering**: albedo = Color x Weight.
 - **Emission**, **Glossy**, **Metallic**, **Glass**, **Refraction**, **Holdout**: albedo 0 (no
   diffuse bounce; their emission is the lights' business).
@@ -42,8 +45,15 @@ material output's Surface input:
 - **The glossy layer**: a Principled BSDF with a specular level or metallic above 0, a Glossy,
   Anisotropic or Metallic BSDF has one, of its Roughness (the mean when a texture drives it);
   mixed or added shaders keep the sharpest of their sides'. Where it is rough (see
-  ``export.ROUGH_GLOSS``) vplace models its light as a broad lobe; a sharp one is left to
-  EEVEE's ray tracing.
+  ``export.ROUGH_GLOSS``) vplace models the light it shows a view as a broad lobe; a sharp one
+  is left to EEVEE's ray tracing.
+- **The glossy layer's reflectance** (its mean over incident directions): a Principled BSDF's
+  ``E x Weight x (1 - Metallic)`` plus, for the metal, Base Color x 20/21 + 1/21 (Schlick's
+  mean with the base colour as F0) x Weight x Metallic; a Glossy, Anisotropic or Metallic BSDF's
+  Color x Weight; Mix and Add Shaders combine it as the albedo. A light path that reaches the
+  surface leaves its VPL with the diffuse part and goes on off the layer in a mirror direction
+  (GGX), as Cycles' light does. Without it, a metal reflected nothing and a dark dielectric a
+  third too little: Sponza's light paths lit the views at 0.66-0.82 of Cycles' indirect light.
 - **Anything else** (other shader nodes, procedural colour nodes, vertex colours): the
   material's viewport colour (Viewport Display > Color) with a warning naming the material; a
   float input fed by an unsupported node keeps its own value, with a warning.
@@ -289,6 +299,9 @@ class Surface:
     #: The roughness of its glossy layer (the sharpest when there are several); None without
     #: one (see :data:`export.ROUGH_GLOSS`).
     gloss_roughness: float | None = None
+    #: The glossy layers' reflectance (their mean over incident directions; see the module's
+    #: rule), which the light paths reflect off besides the albedo; None: no layer.
+    gloss: Lin | None = None
     warnings: list[str] = field(default_factory=list)
 
     @property
@@ -598,17 +611,32 @@ class _Evaluator:
             k = w * (1.0 - min(max(metallic, 0.0), 1.0)) * (1.0 - min(max(trans, 0.0), 1.0))
             alpha, cutoff = self.alpha(node.inputs.get("Alpha"))
             level = self.mean_value(node.inputs.get("Specular IOR Level"), 0.5, "Specular")
-            gloss = None
+            rough = None
+            layer = None
+            e = 0.0
             if w > 0.0 and (level > 0.0 or metallic > 0.0):
-                gloss = self.mean_value(node.inputs.get("Roughness"), 0.5, "Roughness")
-            return Surface(base.scaled(k), alpha, cutoff, gloss_roughness=gloss)
+                rough = self.mean_value(node.inputs.get("Roughness"), 0.5, "Roughness")
+                ior = self.mean_value(node.inputs.get("IOR"), 1.5, "IOR")
+                m = min(max(metallic, 0.0), 1.0)
+                e = dielectric_reflectance(ior, level)
+                # The metal's layer (Schlick's mean, F0 = the base colour) and the dielectric
+                # layer over the rest.
+                layer = base.scaled(w * m * 20.0 / 21.0).plus(
+                    Lin.constant(w * (1.0 - m) * e + w * m / 21.0), self.images, self.warnings
+                )
+            albedo = base.scaled(k * (1.0 - e))
+            return Surface(albedo, alpha, cutoff, gloss_roughness=rough, gloss=layer)
         if kind in {"BSDF_DIFFUSE", "SUBSURFACE_SCATTERING"}:
             return Surface(self.color(node.inputs["Color"], stack).scaled(w), Lin.constant(1.0))
         if kind in NON_DIFFUSE:
-            gloss = None
+            rough = None
+            layer = None
             if kind in GLOSSY and w > 0.0:
-                gloss = self.mean_value(node.inputs.get("Roughness"), 0.5, "Roughness")
-            return Surface(Lin.constant(0.0), Lin.constant(1.0), gloss_roughness=gloss)
+                rough = self.mean_value(node.inputs.get("Roughness"), 0.5, "Roughness")
+                col = _named_input(node, "Color", "Base Color")
+                if col is not None:
+                    layer = self.color(col, stack).scaled(w)
+            return Surface(Lin.constant(0.0), Lin.constant(1.0), gloss_roughness=rough, gloss=layer)
         if kind == "BSDF_TRANSPARENT":
             return Surface(Lin.constant(0.0), Lin.constant(0.0), transparent=True)
         if kind == "MIX_SHADER":
@@ -623,6 +651,7 @@ class _Evaluator:
                 ),
                 min(a.cutoff, b.cutoff),
                 gloss_roughness=_sharpest(a, b),
+                gloss=self.mixed_gloss(a, b, 1.0, 1.0),
             )
         raise Unsupported(f"shader node {node.name!r} ({kind})")
 
@@ -651,14 +680,49 @@ class _Evaluator:
                 alpha = share.scaled(keep.alpha.const)
             else:
                 alpha = keep.alpha.times(share, self.images, self.warnings)
-            return Surface(keep.albedo, alpha, keep.cutoff, gloss_roughness=keep.gloss_roughness)
+            return Surface(
+                keep.albedo,
+                alpha,
+                keep.cutoff,
+                gloss_roughness=keep.gloss_roughness,
+                gloss=keep.gloss,
+            )
         f = min(max(float(fac.mean(self.images)[0]), 0.0), 1.0)
         return Surface(
             a.albedo.scaled(1.0 - f).plus(b.albedo.scaled(f), self.images, self.warnings),
             a.alpha.scaled(1.0 - f).plus(b.alpha.scaled(f), self.images, self.warnings),
             min(a.cutoff, b.cutoff),
             gloss_roughness=_sharpest(a if f < 1.0 else None, b if f > 0.0 else None),
+            gloss=self.mixed_gloss(a, b, 1.0 - f, f),
         )
+
+    def mixed_gloss(self, a: Surface, b: Surface, ka: float, kb: float) -> Lin | None:
+        """``ka a + kb b`` of two sides' glossy reflectance; None when neither side has a
+        layer."""
+        if a.gloss is None and b.gloss is None:
+            return None
+        zero = Lin.constant(0.0)
+        sides = [(s.gloss or zero).scaled(k) for s, k in ((a, ka), (b, kb))]
+        return sides[0].plus(sides[1], self.images, self.warnings)
+
+
+def dielectric_reflectance(ior: float, level: float = 0.5) -> float:
+    """The cosine-weighted mean over incident directions of the Fresnel reflectance of a
+    Principled BSDF's dielectric layer: ``F0 = ((ior - 1) / (ior + 1))^2 * 2 level`` (Blender's
+    Specular IOR Level), turned back into the index it stands for and integrated with the exact
+    unpolarized Fresnel term (0.092 at IOR 1.5, level 0.5; 0 at level 0)."""
+    f0 = min(max(((ior - 1.0) / (ior + 1.0)) ** 2 * 2.0 * level, 0.0), 0.999)
+    if f0 <= 0.0:
+        return 0.0
+    eta = (1.0 + f0**0.5) / (1.0 - f0**0.5)
+    mu = (np.arange(512) + 0.5) / 512.0
+    g = np.sqrt(eta * eta - 1.0 + mu * mu)
+    fr = (
+        0.5
+        * ((g - mu) / (g + mu)) ** 2
+        * (1.0 + ((mu * (g + mu) - 1.0) / (mu * (g - mu) + 1.0)) ** 2)
+    )
+    return float(2.0 * np.mean(fr * mu))
 
 
 def _sharpest(*sides: Surface | None) -> float | None:

@@ -8,7 +8,7 @@ import pytest
 from blender_util import empty_file, principled
 
 from addon.compat import new_material
-from addon.scene import export
+from addon.scene import export, materials
 from addon.scene.convert import build_scene
 
 #: A 2 x 2 texture (Blender rows bottom first): red, green / blue, white; alpha 0 on the left.
@@ -63,7 +63,11 @@ def test_metal_and_glass_are_not_diffuse_bounce_sources(scene):
     quad(scene, metal)
     quad(scene, glass, z=1.0)
     ex = export.export_scene(scene)
-    np.testing.assert_allclose(only_material(ex, "metal").albedo, (0.2, 0.1, 0.05), rtol=1e-5)
+    # The diffuse part under the dielectric layer loses what that layer reflects (0.092).
+    e = materials.dielectric_reflectance(1.5)
+    np.testing.assert_allclose(
+        only_material(ex, "metal").albedo, np.array([0.2, 0.1, 0.05]) * (1 - e), rtol=1e-5
+    )
     np.testing.assert_allclose(only_material(ex, "glass").albedo, (0, 0, 0), atol=1e-6)
 
 
@@ -88,8 +92,85 @@ def test_image_base_colour_is_looked_up_per_hit(scene):
     _, tri, bary = native.intersect(origins, down)
     assert np.all(tri >= 0)
     got = native.albedo_at(tri.astype(np.uint32), bary)
+    # The texel, less what the default dielectric layer over it reflects.
     want = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], np.float32)
+    want *= 1 - materials.dielectric_reflectance(1.5)
     np.testing.assert_allclose(got, want, atol=0.05)
+
+
+def _hits(native):
+    """Rays straight down near each texel's centre: (triangles, barycentrics)."""
+    centres = np.array([[0.26, 0.24], [0.74, 0.26], [0.24, 0.76], [0.76, 0.74]], np.float32)
+    origins = np.c_[centres, np.ones(4, np.float32)].astype(np.float32)
+    down = np.tile(np.array([[0, 0, -1]], np.float32), (4, 1))
+    _, tri, bary = native.intersect(origins, down)
+    assert np.all(tri >= 0)
+    return tri.astype(np.uint32), bary
+
+
+def test_glossy_layers_reflect_for_the_light_paths(scene):
+    """A dielectric layer (IOR 1.5, level 0.5) reflects 0.092 of the light over the hemisphere
+    and takes that off the diffuse albedo under it (as Cycles' Diffuse Color pass does, per
+    view angle); a metal's layer reflects its base colour (Schlick's mean), textured or not.
+    Before, the light paths reflected the albedo alone: a metal nothing."""
+    e = materials.dielectric_reflectance(1.5, 0.5)
+    assert e == pytest.approx(0.0918, abs=5e-4)
+    assert materials.dielectric_reflectance(1.5, 0.0) == 0.0
+    plain, _ = principled("plain", **{"Base Color": (0.5, 0.2, 0.1, 1), "Roughness": 0.7})
+    matte, _ = principled("matte", **{"Specular IOR Level": 0.0})
+    metal, p = principled("textured metal", Metallic=1.0)
+    tex = metal.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image = image()
+    metal.node_tree.links.new(tex.outputs["Color"], p.inputs["Base Color"])
+    quad(scene, plain)
+    quad(scene, matte, z=-1.0)
+    quad(scene, metal, z=-2.0)
+    ex = export.export_scene(scene)
+    base = np.array([0.5, 0.2, 0.1])
+    np.testing.assert_allclose(only_material(ex, "plain").albedo, base * (1 - e), rtol=1e-5)
+    np.testing.assert_allclose(only_material(ex, "plain").gloss, (e, e, e), rtol=1e-4)
+    assert only_material(ex, "matte").gloss is None
+    np.testing.assert_allclose(only_material(ex, "matte").albedo, 0.8, rtol=1e-5)
+    m = only_material(ex, "textured metal")
+    np.testing.assert_allclose(m.albedo, 0.0, atol=1e-6)
+    assert m.texture is not None
+    native = build_scene(ex)
+    tri, bary = _hits(native)  # the first quad hit from above: the plain one
+    np.testing.assert_allclose(native.gloss_at(tri, bary), np.full((4, 3), e), rtol=1e-4)
+    # The metal quad alone: its texels at 20/21 plus 1/21.
+    for o in list(scene.objects):
+        if o.type == "MESH" and o.active_material is not metal:
+            bpy.data.objects.remove(o)
+    native = build_scene(export.export_scene(scene))
+    tri, bary = _hits(native)
+    want = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], np.float32) * 20 / 21 + 1 / 21
+    np.testing.assert_allclose(native.albedo_at(tri, bary), 0.0, atol=1e-6)
+    np.testing.assert_allclose(native.gloss_at(tri, bary), want, atol=0.05)
+
+
+def test_native_gloss_is_checked():
+    from addon.native import vplace
+
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32)
+    t = np.array([[0, 1, 2]], np.uint32)
+    ids = np.zeros(1, np.uint32)
+    alb = np.full((1, 3), 0.5, np.float32)
+    lights = [vplace.Light.point((0.2, 0.2, 1.0), (1.0, 1.0, 1.0))]
+    s = vplace.Scene(v, t, ids, alb, lights, gloss=np.full((1, 3), 0.1, np.float32))
+    got = s.gloss_at(np.zeros(1, np.uint32), np.full((1, 2), 0.3, np.float32))
+    np.testing.assert_allclose(got, 0.1, rtol=1e-6)
+    plain = vplace.Scene(v, t, ids, alb, lights)
+    assert not plain.gloss_at(np.zeros(1, np.uint32), np.full((1, 2), 0.3, np.float32)).any()
+    one = np.full((1, 3), 0.1, np.float32)
+    for kwargs, words in (
+        ({"gloss": np.full((2, 3), 0.5, np.float32)}, "gloss"),
+        ({"gloss": np.full((1, 3), np.nan, np.float32)}, "gloss"),
+        ({"gloss": np.full((1, 3), -0.1, np.float32)}, "gloss"),
+        ({"gloss": one, "gloss_roughness": np.full(1, 1.5, np.float32)}, "roughness"),
+        ({"gloss_tint": np.ones((1, 3), np.float32)}, "need gloss"),
+    ):
+        with pytest.raises(vplace.InputError, match=words):
+            vplace.Scene(v, t, ids, alb, lights, **kwargs)
 
 
 def test_alpha_cut_surfaces_let_rays_through(scene):

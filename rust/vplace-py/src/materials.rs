@@ -6,7 +6,7 @@ use numpy::PyUntypedArrayMethods;
 use pyo3::prelude::*;
 use vplace_core::{
     scene::texture::{AlphaSource, AlphaTest, Texture, TextureRef, Wrap},
-    scene::Material,
+    scene::{Gloss, Material},
 };
 
 use crate::arrays::{array, slice, Dim};
@@ -224,13 +224,18 @@ pub fn surfaces(
 }
 
 /// The core materials: `albedo` (M x RGB) with the optional per-material `base_textures`,
-/// `texture_tint` (float32 (M, 3)) and `alpha_tests` (each a list of M entries, None for
-/// none).
+/// `texture_tint` (float32 (M, 3)), `alpha_tests` (each a list of M entries, None for
+/// none) and the glossy layers: `gloss` float32 (M, 3) with its `gloss_tint` (float32 (M, 3),
+/// default 0) and `gloss_roughness` (float32 (M,), default 0.5); a material whose reflectance
+/// and tint are all 0 has none.
 pub fn materials(
     albedo: Vec<Vec3>,
     base_textures: Option<Vec<Option<Bound<'_, PyTextureMap>>>>,
     texture_tint: Option<&Bound<'_, PyAny>>,
     alpha_tests: Option<Vec<Option<Bound<'_, PyAlphaTest>>>>,
+    gloss: Option<&Bound<'_, PyAny>>,
+    gloss_tint: Option<&Bound<'_, PyAny>>,
+    gloss_roughness: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<Vec<Material>> {
     let m = albedo.len();
     let check_len = |name: &str, len: usize| {
@@ -242,13 +247,45 @@ pub fn materials(
             )))
         }
     };
-    let tint: Vec<Vec3> = match texture_tint {
-        None => vec![Vec3::ONE; m],
-        Some(t) => {
-            let a = array::<f32>(t, "texture_tint", &[Dim::Is(m), Dim::Is(3)], "float32")?;
-            slice(&a, "texture_tint")?
-                .chunks_exact(3)
-                .map(Vec3::from_slice)
+    let rows = |arr: Option<&Bound<'_, PyAny>>, name: &str, default: Vec3| -> PyResult<_> {
+        let Some(t) = arr else {
+            return Ok(vec![default; m]);
+        };
+        let a = array::<f32>(t, name, &[Dim::Is(m), Dim::Is(3)], "float32")?;
+        Ok(slice(&a, name)?
+            .chunks_exact(3)
+            .map(Vec3::from_slice)
+            .collect::<Vec<_>>())
+    };
+    let tint = rows(texture_tint, "texture_tint", Vec3::ONE)?;
+    if gloss.is_none() && (gloss_tint.is_some() || gloss_roughness.is_some()) {
+        return Err(input_error(
+            "gloss_tint and gloss_roughness need gloss (the layer's reflectance)",
+        ));
+    }
+    let layers = match gloss {
+        None => vec![None; m],
+        Some(g) => {
+            let constant = rows(Some(g), "gloss", Vec3::ZERO)?;
+            let tints = rows(gloss_tint, "gloss_tint", Vec3::ZERO)?;
+            let rough = match gloss_roughness {
+                None => vec![0.5; m],
+                Some(r) => {
+                    let a = array::<f32>(r, "gloss_roughness", &[Dim::Is(m)], "float32")?;
+                    slice(&a, "gloss_roughness")?.to_vec()
+                }
+            };
+            constant
+                .into_iter()
+                .zip(tints)
+                .zip(rough)
+                .map(|((constant, tint), roughness)| {
+                    (constant != Vec3::ZERO || tint != Vec3::ZERO).then_some(Gloss {
+                        constant,
+                        tint,
+                        roughness,
+                    })
+                })
                 .collect()
         }
     };
@@ -261,10 +298,12 @@ pub fn materials(
         .zip(maps)
         .zip(alphas)
         .zip(tint)
-        .map(|(((a, map), alpha), tint)| Material {
+        .zip(layers)
+        .map(|((((a, map), alpha), tint), gloss)| Material {
             texture: map.map(|t| t.get().inner),
             texture_tint: tint,
             alpha_test: alpha.map(|t| t.get().inner),
+            gloss,
             ..Material::diffuse(a)
         })
         .collect())

@@ -254,10 +254,17 @@ impl PyScene {
     /// the top; `base_textures` one `TextureMap` or None per material (the albedo at a hit is
     /// `albedo + texture_tint * rgb`, clamped to [0, 1]); `texture_tint` float32 (M, 3), default
     /// ones; `alpha_tests` one `AlphaTest` or None per material.
+    ///
+    /// Glossy layers, which the light paths reflect off besides the albedo (optional): `gloss`
+    /// float32 (M, 3), each material's layer's reflectance (its mean over incident directions;
+    /// all zeros: no layer), plus `gloss_tint` float32 (M, 3) (default zeros) times the base
+    /// texture's RGB, clamped to [0, 1]; `gloss_roughness` float32 (M,) in [0, 1] (Blender's
+    /// roughness, default 0.5). The shading of views never reads them.
     #[new]
     #[pyo3(signature = (
         vertices, triangles, material_ids, albedo, lights, *, emission = None,
-        uvs = None, textures = None, base_textures = None, texture_tint = None, alpha_tests = None
+        uvs = None, textures = None, base_textures = None, texture_tint = None, alpha_tests = None,
+        gloss = None, gloss_tint = None, gloss_roughness = None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -273,6 +280,9 @@ impl PyScene {
         base_textures: Option<Vec<Option<Bound<'_, PyTextureMap>>>>,
         texture_tint: Option<&Bound<'_, PyAny>>,
         alpha_tests: Option<Vec<Option<Bound<'_, PyAlphaTest>>>>,
+        gloss: Option<&Bound<'_, PyAny>>,
+        gloss_tint: Option<&Bound<'_, PyAny>>,
+        gloss_roughness: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let v = array::<f32>(vertices, "vertices", &[Dim::Any, Dim::Is(3)], "float32")?;
         let t = array::<u32>(triangles, "triangles", &[Dim::Any, Dim::Is(3)], "uint32")?;
@@ -295,12 +305,19 @@ impl PyScene {
         };
         let lights: Vec<Light> = lights.iter().map(|l| l.get().inner.clone()).collect();
         let surf = crate::materials::surfaces(uvs, textures)?;
-        let materials: Vec<Material> =
-            crate::materials::materials(alb, base_textures, texture_tint, alpha_tests)?
-                .into_iter()
-                .zip(&emit)
-                .map(|(m, &e)| m.with_emission(e))
-                .collect();
+        let materials: Vec<Material> = crate::materials::materials(
+            alb,
+            base_textures,
+            texture_tint,
+            alpha_tests,
+            gloss,
+            gloss_tint,
+            gloss_roughness,
+        )?
+        .into_iter()
+        .zip(&emit)
+        .map(|(m, &e)| m.with_emission(e))
+        .collect();
         let scene = run(py, move || {
             Scene::new(SceneInput {
                 vertices: &verts,
@@ -443,34 +460,21 @@ impl PyScene {
         triangles: &Bound<'py, PyAny>,
         barycentrics: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        let t = array::<u32>(triangles, "triangles", &[Dim::Any], "uint32")?;
-        let n = t.shape()[0];
-        let b = array::<f32>(
-            barycentrics,
-            "barycentrics",
-            &[Dim::Is(n), Dim::Is(2)],
-            "float32",
-        )?;
-        let (t, b) = (slice(&t, "triangles")?, slice(&b, "barycentrics")?);
-        let count = self.inner.triangle_count();
-        if let Some(&bad) = t.iter().find(|&&i| i as usize >= count) {
-            return Err(input_error(format!(
-                "triangles: index {bad} is out of bounds for {count} triangles"
-            )));
-        }
-        if let Some(i) = b.iter().position(|x| !x.is_finite()) {
-            return Err(input_error(format!(
-                "barycentrics holds a non-finite value at index {i}"
-            )));
-        }
-        let out: Vec<f32> = t
-            .iter()
-            .zip(b.chunks_exact(2))
-            .flat_map(|(&t, b)| self.inner.albedo_at(t, Vec2::new(b[0], b[1])).to_array())
-            .collect();
-        Ok(numpy::ndarray::Array2::from_shape_vec((n, 3), out)
-            .map_err(|e| input_error(e.to_string()))?
-            .into_pyarray(py))
+        self.per_hit(py, triangles, barycentrics, Scene::albedo_at)
+    }
+
+    /// The glossy layer's reflectance at barycentrics `barycentrics` (float32 (N, 2)) of
+    /// triangles `triangles` (uint32 (N,)), zeros where the material has none (see `Scene()`).
+    /// float32 (N, 3).
+    fn gloss_at<'py>(
+        &self,
+        py: Python<'py>,
+        triangles: &Bound<'py, PyAny>,
+        barycentrics: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        self.per_hit(py, triangles, barycentrics, |s, t, b| {
+            s.gloss_at(t, b).map_or(Vec3::ZERO, |g| g.0)
+        })
     }
 
     /// Whether something blocks the segment from each of `origins` to the matching `targets`
@@ -636,4 +640,44 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MAX_RADIUS_FACTOR", vplace_core::vpl::MAX_RADIUS_FACTOR)?;
     m.add("SPACING_NEIGHBOURS", vplace_core::vpl::SPACING_NEIGHBOURS)?;
     Ok(())
+}
+
+impl PyScene {
+    /// `at` (the albedo or the reflectance) at each of `triangles`' `barycentrics`, checked.
+    fn per_hit<'py>(
+        &self,
+        py: Python<'py>,
+        triangles: &Bound<'py, PyAny>,
+        barycentrics: &Bound<'py, PyAny>,
+        at: fn(&Scene, u32, Vec2) -> Vec3,
+    ) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let t = array::<u32>(triangles, "triangles", &[Dim::Any], "uint32")?;
+        let n = t.shape()[0];
+        let b = array::<f32>(
+            barycentrics,
+            "barycentrics",
+            &[Dim::Is(n), Dim::Is(2)],
+            "float32",
+        )?;
+        let (t, b) = (slice(&t, "triangles")?, slice(&b, "barycentrics")?);
+        let count = self.inner.triangle_count();
+        if let Some(&bad) = t.iter().find(|&&i| i as usize >= count) {
+            return Err(input_error(format!(
+                "triangles: index {bad} is out of bounds for {count} triangles"
+            )));
+        }
+        if let Some(i) = b.iter().position(|x| !x.is_finite()) {
+            return Err(input_error(format!(
+                "barycentrics holds a non-finite value at index {i}"
+            )));
+        }
+        let out: Vec<f32> = t
+            .iter()
+            .zip(b.chunks_exact(2))
+            .flat_map(|(&t, b)| at(&self.inner, t, Vec2::new(b[0], b[1])).to_array())
+            .collect();
+        Ok(numpy::ndarray::Array2::from_shape_vec((n, 3), out)
+            .map_err(|e| input_error(e.to_string()))?
+            .into_pyarray(py))
+    }
 }

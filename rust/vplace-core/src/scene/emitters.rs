@@ -74,6 +74,30 @@ pub(crate) fn cosine_direction(n: Vec3, u1: f32, u2: f32) -> Vec3 {
     (n * (1.0 - u1).max(0.0).sqrt() + (t * phi.cos() + b * phi.sin()) * r).normalize()
 }
 
+/// The mirror direction of travel direction `d` (towards the surface) about a microfacet normal
+/// drawn from the GGX distribution of width `alpha` around unit normal `n` (which faces `d`'s
+/// origin). A direction below the surface is mirrored back above it: the light a single
+/// microfacet bounce would send into the surface leaves after further bounces in a
+/// multiple-scattering model such as Cycles', and the layer's reflectance already says how much
+/// leaves.
+#[inline]
+pub(crate) fn ggx_reflection(d: Vec3, n: Vec3, alpha: f32, u1: f32, u2: f32) -> Vec3 {
+    let a2 = alpha * alpha;
+    let cos2 = ((1.0 - u1) / (1.0 + (a2 - 1.0) * u1)).clamp(0.0, 1.0);
+    let (cos_t, sin_t) = (cos2.sqrt(), (1.0 - cos2).sqrt());
+    let phi = 2.0 * PI * u2;
+    let (t, b) = basis(n);
+    let h = n * cos_t + (t * phi.cos() + b * phi.sin()) * sin_t;
+    let out = d - h * (2.0 * d.dot(h));
+    let below = out.dot(n);
+    let out = if below < 0.0 {
+        out - n * (2.0 * below)
+    } else {
+        out
+    };
+    out.normalize_or(n)
+}
+
 /// A unit direction uniform in the cone of unit axis `axis` whose `1 - cos` of the half angle
 /// is `one_minus_cos` (density `1 / (2 pi one_minus_cos)`).
 #[inline]

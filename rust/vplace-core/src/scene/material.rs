@@ -18,6 +18,23 @@ pub struct Material {
     pub texture_tint: Vec3,
     /// Where the surface is cut away for every ray ([`AlphaTest`]); `None`: opaque.
     pub alpha_test: Option<AlphaTest>,
+    /// The glossy layer the light paths reflect off besides the diffuse albedo
+    /// ([`Scene::gloss_at`]); `None`: none. The shading of views does not read it (their
+    /// glossy layer comes from the captures).
+    pub gloss: Option<Gloss>,
+}
+
+/// A glossy layer: its reflectance (the mean over incident directions) `constant + tint * rgb`
+/// with `rgb` the material's texture (without one, `constant`), clamped to `[0, 1]`, and its
+/// roughness (Blender's: the GGX `alpha` is its square).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Gloss {
+    /// The constant part; every channel finite and `>= 0`.
+    pub constant: Vec3,
+    /// Multiplies the texture's RGB; every channel finite and `>= 0`.
+    pub tint: Vec3,
+    /// In `[0, 1]`.
+    pub roughness: f32,
 }
 
 impl Material {
@@ -30,6 +47,7 @@ impl Material {
             texture: None,
             texture_tint: Vec3::ONE,
             alpha_test: None,
+            gloss: None,
         }
     }
 
@@ -49,7 +67,19 @@ impl Material {
             texture: Some(map),
             texture_tint: tint,
             alpha_test: None,
+            gloss: None,
         }
+    }
+
+    /// The material with a glossy layer (see [`Gloss`]).
+    #[must_use]
+    pub const fn with_gloss(mut self, constant: Vec3, tint: Vec3, roughness: f32) -> Self {
+        self.gloss = Some(Gloss {
+            constant,
+            tint,
+            roughness,
+        });
+        self
     }
 
     /// True when hits need the material's UVs (a texture or a textured alpha test).
@@ -61,6 +91,26 @@ impl Material {
     /// Checks the texture references and values; `index` names the material in errors.
     pub(super) fn validate(&self, index: usize, textures: usize) -> Result<()> {
         let what = format!("materials[{index}]");
+        if let Some(g) = &self.gloss {
+            for (name, v) in [("constant", g.constant), ("tint", g.tint)] {
+                let name = format!("{what}.gloss.{name}");
+                check_finite(&name, &v.to_array())?;
+                if v.min_element() < 0.0 {
+                    return Err(VplaceError::OutOfRange {
+                        what: name,
+                        value: format!("{:?}", v.to_array()),
+                        expected: "every channel >= 0".into(),
+                    });
+                }
+            }
+            if !(0.0..=1.0).contains(&g.roughness) {
+                return Err(VplaceError::OutOfRange {
+                    what: format!("{what}.gloss.roughness"),
+                    value: g.roughness.to_string(),
+                    expected: "in [0, 1]".into(),
+                });
+            }
+        }
         let mut refs = Vec::new();
         if let Some(map) = &self.texture {
             refs.push(("texture", *map));

@@ -52,7 +52,7 @@ const BVH_BUILD: BvhBuildParams = BvhBuildParams {
 };
 
 pub use light::{Light, LightKind};
-pub use material::Material;
+pub use material::{Gloss, Material};
 use shadow_bvh::ShadowBvh;
 
 /// A surface hit: distance along the ray and the original triangle index.
@@ -83,6 +83,11 @@ pub struct Scene {
     normals: Vec<Vec3>,
     /// Albedo per original triangle.
     triangle_albedo: Vec<Vec3>,
+    /// Glossy layer per original triangle: reflectance (of the texture's mean colour) and
+    /// roughness ([`Scene::gloss_at`]).
+    triangle_gloss: Vec<Option<(Vec3, f32)>>,
+    /// The glossy layer of every material, for textured hits.
+    material_gloss: Vec<Option<Gloss>>,
     /// The scene's lights.
     pub lights: Vec<Light>,
     bounds_min: Vec3,
@@ -118,6 +123,16 @@ impl Surfaces {
     fn uv(&self, t: u32, b: Vec2) -> Vec2 {
         let [a, p, q] = self.uvs[t as usize];
         a * (1.0 - b.x - b.y) + p * b.x + q * b.y
+    }
+
+    /// The textured glossy reflectance at `b` of triangle `t` (clamped to `[0, 1]`), `None`
+    /// for a material without a texture.
+    #[inline]
+    fn gloss_at(&self, t: u32, b: Vec2, g: &Gloss) -> Option<Vec3> {
+        let m = &self.materials[self.triangle_material[t as usize] as usize];
+        let map = m.texture.as_ref()?;
+        let rgb = map.sample(&self.textures, self.uv(t, b)).truncate();
+        Some((g.constant + g.tint * rgb).clamp(Vec3::ZERO, Vec3::ONE))
     }
 
     /// The textured albedo at `b` of triangle `t`, `None` for a constant material.
@@ -207,6 +222,7 @@ impl Scene {
             tris,
             normals,
             triangle_albedo,
+            triangle_gloss,
             degenerate,
             lo,
             hi,
@@ -224,6 +240,8 @@ impl Scene {
             shadow,
             normals,
             triangle_albedo,
+            triangle_gloss,
+            material_gloss: materials.iter().map(|m| m.gloss).collect(),
             lights,
             bounds_min: lo,
             bounds_max: hi,
@@ -302,6 +320,24 @@ impl Scene {
             }
         }
         self.triangle_albedo[t as usize]
+    }
+
+    /// The glossy layer of triangle `t` at barycentrics `b` ([`Material::gloss`]): its
+    /// reflectance there (the texture at the interpolated UV for a textured material, clamped
+    /// to `[0, 1]`) and its roughness; `None` without one.
+    #[inline]
+    #[must_use]
+    pub fn gloss_at(&self, t: u32, b: Vec2) -> Option<(Vec3, f32)> {
+        let (mean, roughness) = self.triangle_gloss[t as usize]?;
+        if let Some(s) = &self.surfaces {
+            let m = s.triangle_material[t as usize] as usize;
+            if let Some(g) = &self.material_gloss[m] {
+                if let Some(r) = s.gloss_at(t, b, g) {
+                    return Some((r, roughness));
+                }
+            }
+        }
+        Some((mean, roughness))
     }
 
     /// The UV at barycentrics `b` of triangle `t`; `None` when the scene has no UVs (no
@@ -494,6 +530,19 @@ fn mean_albedo(m: &Material, textures: &[Texture]) -> Vec3 {
     }
 }
 
+/// The glossy layer of a material: its reflectance of the texture's mean colour when it has one
+/// (see [`Scene::gloss_at`]) and its roughness.
+fn mean_gloss(m: &Material, textures: &[Texture]) -> Option<(Vec3, f32)> {
+    let g = m.gloss?;
+    let mean = m.texture.map_or(Vec3::ZERO, |map| {
+        textures[map.texture as usize].mean().truncate()
+    });
+    Some((
+        (g.constant + g.tint * mean).clamp(Vec3::ZERO, Vec3::ONE),
+        g.roughness,
+    ))
+}
+
 impl Surfaces {
     /// The per-hit data of `materials`; `None` when no material has a texture or an alpha test.
     fn new(
@@ -615,6 +664,7 @@ struct Geometry {
     tris: Vec<Triangle>,
     normals: Vec<Vec3>,
     triangle_albedo: Vec<Vec3>,
+    triangle_gloss: Vec<Option<(Vec3, f32)>>,
     degenerate: usize,
     lo: Vec3,
     hi: Vec3,
@@ -633,6 +683,7 @@ fn geometry(
     let mut tris = Vec::with_capacity(triangles.len());
     let mut normals = Vec::with_capacity(triangles.len());
     let mut triangle_albedo = Vec::with_capacity(triangles.len());
+    let mut triangle_gloss = Vec::with_capacity(triangles.len());
     let mut degenerate = 0;
     let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
     for (t, (idx, &m)) in triangles.iter().zip(material_ids).enumerate() {
@@ -663,6 +714,7 @@ fn geometry(
         }
         normals.push(n.normalize_or_zero());
         triangle_albedo.push(mean_albedo(&materials[m as usize], textures));
+        triangle_gloss.push(mean_gloss(&materials[m as usize], textures));
         tris.push(Triangle {
             v0: a.into(),
             v1: b.into(),
@@ -679,6 +731,7 @@ fn geometry(
         tris,
         normals,
         triangle_albedo,
+        triangle_gloss,
         degenerate,
         lo,
         hi,
@@ -688,7 +741,7 @@ fn geometry(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_util::{box_with, card_scene, closed_box, extend};
+    use crate::test_util::{box_geometry, box_with, card_scene, closed_box, extend};
 
     #[test]
     fn closest_hit_and_occlusion() {
@@ -846,6 +899,65 @@ mod tests {
         };
         let s = card_scene(card, vec![]);
         assert_eq!(s.albedo_at(12, Vec2::ZERO), Vec3::new(1.0, 0.1, 0.2));
+    }
+
+    #[test]
+    fn gloss_at_reads_the_layer_and_its_texture() {
+        // A metal-like card: no diffuse albedo, its glossy layer the tinted texture plus a
+        // constant.
+        let card = Material::textured(extend(0), Vec3::ZERO).with_gloss(
+            Vec3::splat(0.05),
+            Vec3::new(0.9, 0.5, 1.0),
+            0.3,
+        );
+        let s = card_scene(card, vec![]);
+        // Texel red (u <= 0.25), then green (u >= 0.75).
+        assert_eq!(s.albedo_at(12, Vec2::ZERO), Vec3::ZERO);
+        let (red, r) = s.gloss_at(12, Vec2::ZERO).unwrap();
+        assert!((red - Vec3::new(0.95, 0.05, 0.05)).length() < 1e-6, "{red}");
+        assert_eq!(r, 0.3);
+        let (green, _) = s.gloss_at(12, Vec2::X).unwrap();
+        assert!(
+            (green - Vec3::new(0.05, 0.55, 0.05)).length() < 1e-6,
+            "{green}"
+        );
+        // The box's plain material has none.
+        assert_eq!(s.gloss_at(0, Vec2::ZERO), None);
+        // A constant material's, clamped to [0, 1].
+        let (v, t) = box_geometry(&[]);
+        let ids = vec![0; t.len()];
+        let build = |m: Material| {
+            Scene::new(SceneInput {
+                vertices: &v,
+                triangles: &t,
+                material_ids: &ids,
+                materials: &[m],
+                ..Default::default()
+            })
+        };
+        let plain = Material::diffuse(Vec3::new(0.2, 0.7, 0.5)).with_gloss(
+            Vec3::new(0.1, 1.4, 0.0),
+            Vec3::ONE,
+            1.0,
+        );
+        let s = build(plain).unwrap();
+        assert_eq!(s.albedo_at(3, Vec2::ZERO), Vec3::new(0.2, 0.7, 0.5));
+        assert_eq!(
+            s.gloss_at(3, Vec2::ZERO),
+            Some((Vec3::new(0.1, 1.0, 0.0), 1.0))
+        );
+        // A negative or non-finite layer, a roughness outside [0, 1]: refused.
+        let half = Vec3::splat(0.5);
+        for (gloss, roughness) in [
+            (Vec3::new(-0.1, 0.0, 0.0), 0.5),
+            (Vec3::new(f32::NAN, 0.0, 0.0), 0.5),
+            (Vec3::ZERO, 1.5),
+            (Vec3::ZERO, f32::NAN),
+        ] {
+            let m = Material::diffuse(half).with_gloss(gloss, Vec3::ZERO, roughness);
+            let err = build(m).unwrap_err();
+            assert!(err.to_string().contains("gloss"), "{err}");
+        }
     }
 
     #[test]
