@@ -100,3 +100,41 @@ def test_held_out_poses_stay_in_the_region_and_look_elsewhere(scene):
     # Given a radius, the poses keep to it.
     near = coverage.held_out_poses(scene, eye, forward, 3, seed=3, radius=0.2)
     assert all(np.linalg.norm(p.eye - eye) <= 0.2 * coverage.HELD_OUT_REACH[1] + 1e-6 for p in near)
+
+
+def test_the_refit_keeps_the_light_of_what_no_capture_sees(scene):
+    """A capture that wants 3x the layout's light on the one wall it sees: the refit of the
+    capture alone brings 3x to every wall; with the coverage views keeping the layout's own light
+    (``job.refit_views``) the walls no capture saw stay nearer it, and the seen wall gains."""
+    user = user_view(scene)
+    vpls = vplace.uniform_vpls(scene, 64, seed=1, bounces=vplace.MAX_BOUNCES)
+    own, _ = vplace.evaluate(scene, user, vpls)
+    user = user.with_indirect(np.ascontiguousarray(3.0 * own, dtype=np.float32))
+    cov = coverage.cover(scene, BOX_V[BOX_T], [user], coverage.Region(count=4, size=16))
+    views = job.refit_views(scene, [user, *cov.views], vpls)
+    assert views[0] is user and len(views) == 1 + len(cov.views)
+    for kept, view in zip(views[1:], cov.views, strict=True):
+        np.testing.assert_allclose(kept.indirect, vplace.evaluate(scene, view, vpls)[0])
+        assert kept.name == view.name and kept.has_indirect
+
+    def light(view, v):
+        return float(vplace.evaluate(scene, view, v)[0].mean())
+
+    alone = vplace.refit(scene, [user], vpls).vpls
+    kept = vplace.refit(scene, views, vpls).vpls
+    unseen = [light(v, kept) / light(v, vpls) for v in cov.views]
+    unseen_alone = [light(v, alone) / light(v, vpls) for v in cov.views]
+    assert max(abs(r - 1) for r in unseen) < min(abs(r - 1) for r in unseen_alone)
+    # In a closed box every VPL lights the seen wall and the others: the validation settles
+    # between them, and the seen wall still gains.
+    assert light(user, kept) > 1.05 * light(user, vpls)
+
+
+def test_with_indirect_is_checked(scene):
+    user = user_view(scene)
+    with pytest.raises(vplace.InputError, match="indirect"):
+        user.with_indirect(np.zeros((3, 3, 3), np.float32))
+    bad = np.zeros((user.height, user.width, 3), np.float32)
+    bad[1, 2, 0] = np.nan
+    with pytest.raises(vplace.InputError, match="finite"):
+        user.with_indirect(bad)
