@@ -116,21 +116,6 @@ impl PyView {
         }
     }
 
-    /// The same view with `indirect` (float32 (H, W, 3), finite, >= 0) as its target indirect
-    /// image and no `diffuse_indirect`: a target the refit is to keep, such as a coverage view's
-    /// light as the layout's own VPLs give it (`vplace.job.lay_out`).
-    fn with_indirect(&self, py: Python<'_>, indirect: &Bound<'_, PyAny>) -> PyResult<Self> {
-        let (h, w) = (self.inner.height, self.inner.width);
-        let img3 = [Dim::Is(h), Dim::Is(w), Dim::Is(3)];
-        let a = array::<f32>(indirect, "indirect", &img3, "float32")?;
-        let values = slice(&a, "indirect")?.to_vec();
-        let inner = self.inner.clone();
-        let view = run(py, move || inner.with_indirect(values))?;
-        Ok(Self {
-            inner: Arc::new(view),
-        })
-    }
-
     /// The view's name.
     #[getter]
     fn name(&self) -> &str {

@@ -206,32 +206,6 @@ impl View {
         }
     }
 
-    /// The view with `indirect` (`H x W x 3`, finite, `>= 0`) as its target indirect image and
-    /// no `diffuse_indirect`: a target the refit is to keep (a coverage view's light as the
-    /// layout's own VPLs give it). Errors on a wrong length or a negative or non-finite value.
-    pub fn with_indirect(&self, indirect: Vec<f32>) -> Result<Self> {
-        let want = self.width * self.height * 3;
-        if indirect.len() != want {
-            return Err(VplaceError::Shape {
-                what: format!("indirect of view {:?}", self.name),
-                expected: format!("{} x {} x 3 = {want} values", self.height, self.width),
-                got: format!("{} values", indirect.len()),
-            });
-        }
-        if let Some(i) = indirect.iter().position(|x| !x.is_finite() || *x < 0.0) {
-            return Err(VplaceError::OutOfRange {
-                what: format!("indirect of view {:?}", self.name),
-                value: format!("{} at index {i}", indirect[i]),
-                expected: "finite and >= 0".into(),
-            });
-        }
-        Ok(Self {
-            diffuse_indirect: None,
-            indirect: Some(indirect),
-            ..self.clone()
-        })
-    }
-
     /// The G-buffer of the view, for the feature extraction, the evaluator and the refit.
     #[must_use]
     pub fn gbuffer(&self) -> GBuffer<'_> {

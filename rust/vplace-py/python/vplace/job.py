@@ -175,36 +175,15 @@ def lay_out(
     if settings.method == "vplace+refit" and all(v.has_indirect for v in views):
         with timer.stage("refit VPL powers"):
             start = time.perf_counter()
+            # The captures only: a coverage view's target is itself light-path VPLs, and
+            # fitting powers to it fits that estimate's noise (the layout uses it to place).
+            captured = [v for v in views if not is_coverage(v)] or views
             out.refit = vplace.refit(
-                scene,
-                refit_views(scene, views, laid.vpls),
-                laid.vpls,
-                vplace.RefitParams(stride=stride),
-                progress=progress,
+                scene, captured, laid.vpls, vplace.RefitParams(stride=stride), progress=progress
             )
             out.refit_seconds = time.perf_counter() - start
         out.vpls = out.refit.vpls
     return out
-
-
-def refit_views(
-    scene: vplace.Scene, views: Sequence[vplace.View], vpls: vplace.VplSet
-) -> list[vplace.View]:
-    """The views the refit fits: the captures, and each coverage view with the light the laid
-    out ``vpls`` themselves give it as its target. Those keep what surfaces no capture saw get
-    at the light-path powers, and with three views or more the ridge is chosen by leaving out one
-    view at a time, so a ridge that changes the light of a view it did not fit scores worse.
-    (A coverage view's own target, light-path VPLs of another draw, would fit that estimate's
-    noise.) Without them, a single capture's block validation could take the smallest ridge and
-    scale a few VPLs 50-160x: hot spots on the surfaces no capture saw (RMSE 0.02-0.11 against
-    0.005 on a room with one camera)."""
-    captured = [v for v in views if not is_coverage(v)] or list(views)
-    kept = [
-        v.with_indirect(np.ascontiguousarray(vplace.evaluate(scene, v, vpls)[0], dtype=np.float32))
-        for v in views
-        if is_coverage(v)
-    ]
-    return captured + kept
 
 
 #: A hot-spot pixel: its luminance above this many times the truth's plus :data:`HOT_FLOOR`.
