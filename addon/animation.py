@@ -224,7 +224,7 @@ def key_lights(
 ) -> vplace.temporal.Keyed:
     """The frames' VPLs matched into slots (``vplace.temporal.track``) and, with
     ``write_back``, written as one set of keyed lights (``writeback.keyed``) with the world's
-    sun of each frame and the first frame's emitter lights."""
+    sun and sky portals of each frame and the first frame's emitter lights."""
     scene = prepared[0].scene
     with timer.stage(f"match VPLs over {len(frames)} frames"):
         tracked = vplace.temporal.track(vpl_sets, scene.diagonal)
@@ -238,6 +238,7 @@ def key_lights(
                 specular=prepared[0].vpl_specular,
                 emitters=prepared[0].stand_ins.emitters,
                 suns=[p.stand_ins.sun for p in prepared],
+                portals=[p.stand_ins.portals for p in prepared],
             )
     return tracked
 
@@ -360,7 +361,7 @@ def run_animated_job(
                 add(f, cycles_kind(n), img.image, ref.gi, img.seconds)
             if eevee and write_back:
                 size = (width, height)
-                with eevee_setup.world_volume_for_render(bl_scene):  # one bake for both
+                with eevee_setup.world_for_render(bl_scene):  # one bake for both
                     with timer.stage(f"EEVEE, frame {f}"):
                         img = _render_vpl_eevee(bl_scene, size, job.cache_dir, world_volume=False)
                     with timer.stage(f"EEVEE direct light, frame {f}"), override() as g:
@@ -455,9 +456,9 @@ def _render_vpl_eevee(
 ) -> eevee_render.EeveeImage:
     """EEVEE's render of the scene with the written VPLs at the current frame (the scored
     setup, with the world's volume when the world emits; ``world_volume=False``: the caller
-    holds ``eevee_setup.world_volume_for_render`` around it)."""
+    holds ``eevee_setup.world_for_render`` around it)."""
     if world_volume:
-        with eevee_setup.world_volume_for_render(bl_scene):
+        with eevee_setup.world_for_render(bl_scene):
             return _render_vpl_eevee(bl_scene, resolution, cache_dir, world_volume=False)
     return eevee_render.render(
         bl_scene,

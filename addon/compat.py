@@ -27,6 +27,14 @@ def _with_nodes(idblock: T) -> T:
     return idblock
 
 
+def uses_nodes(idblock: bpy.types.ID) -> bool:
+    """Whether a material or world renders its node tree (from Blender 5.0 always; before, when
+    ``use_nodes`` is on)."""
+    if idblock.node_tree is None:
+        return False
+    return bpy.app.version >= (5, 0, 0) or bool(idblock.use_nodes)
+
+
 def new_material(name: str) -> bpy.types.Material:
     """A new material with Blender's default node tree (a Principled BSDF into the output)."""
     return _with_nodes(bpy.data.materials.new(name))

@@ -157,9 +157,13 @@ class Prepared:
 
     @functools.cached_property
     def stand_ins(self) -> StandIns:
-        """Lights that stand in for the scene's emissive meshes and the world's sun in EEVEE
-        (``writeback.stand_ins``)."""
-        return stand_ins(self.exported, self.scene, self.surfaces)
+        """Lights that stand in for the scene's emissive meshes, the world's sun and the sky
+        through the openings seen from the captured cameras and the coverage views' eyes in
+        EEVEE (``writeback.stand_ins``)."""
+        eyes = [c.camera_position for c in self.captures]
+        if self.coverage is not None:
+            eyes += [p.eye for p in self.coverage.poses]
+        return stand_ins(self.exported, self.scene, self.surfaces, eyes)
 
     @property
     def vpl_specular(self) -> float:
@@ -362,7 +366,10 @@ def summary(
         capture_render_seconds=sum(c.render_seconds for c in prepared.captures),
         n_vpls=job.n_vpls,
         lights_written=int((computed.vpls.blender_power.max(axis=1) > 0).sum()),
-        emitter_lights_written=len((lights or prepared.stand_ins).emitters),
+        emitter_lights_written=len(
+            [e for e in (lights or prepared.stand_ins).emitters if not e.portal]
+        ),
+        portals_written=len((lights or prepared.stand_ins).portals),
         method=job.method,
         alpha=job.alpha,
         iterations=job.iterations,
@@ -438,7 +445,7 @@ def run_main_job(
             computed.vpls,
             scene=prepared.scene,
             exported=prepared.exported,
-            surfaces=prepared.surfaces,
+            lights=prepared.stand_ins,
             blend_path=out_dir / "scene.blend",
             stage=timer.stage,
             log=log,

@@ -583,8 +583,10 @@ class _EeveeRun:
             world_bake = 0.0
             if chosen:  # the world's light, occluded, as eevee_setup.set_up bakes it
                 world_bake = stack.enter_context(
-                    eevee_setup.world_volume_for_render(
-                        self.bl_scene, probes=self.config.volume_resolution
+                    eevee_setup.world_for_render(
+                        self.bl_scene,
+                        probes=self.config.volume_resolution,
+                        portals=bool(self.data.prepared.stand_ins.portals),
                     )
                 )
             if world_bake:

@@ -201,8 +201,9 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
         scene.vplace.last_report = json.dumps(summary.to_dict())
         if computed.fit is not None:
             _store_fit(scene, computed.fit, self.key)
-        emitters = summary.emitter_lights_written
+        emitters, portals = summary.emitter_lights_written, summary.portals_written
         extra = f" and {emitters} lights for emissive meshes" if emitters else ""
+        extra += f" and {portals} sky portals" if portals else ""
         self.report({"INFO"}, f"wrote {summary.lights_written} VPL lights{extra}")
         for problem in eevee_setup.problems(scene):
             self.report({"WARNING"}, f"EEVEE: {problem} (Set up EEVEE for vplace fixes it)")
@@ -238,7 +239,13 @@ class VPLACE_OT_clear_vpls(bpy.types.Operator):
         except vplace.VplaceError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        self.report({"INFO"}, f"removed {n} VPL lights")
+        # Without the sky portals the world must light EEVEE again.
+        world = context.scene.world
+        if eevee_setup.is_camera_only(world):
+            eevee_setup.remove_camera_only(world)
+            self.report({"INFO"}, f"removed {n} VPL lights; the world lights EEVEE again")
+        else:
+            self.report({"INFO"}, f"removed {n} VPL lights")
         return {"FINISHED"}
 
 

@@ -32,6 +32,9 @@ ones the evaluator renders (``vplace.VplSet`` carries profile and near-field rad
   :mod:`.emitter_lights` (one AREA light per open side of each emissive polygon) are written
   into the same collection, shadowed with jittered soft shadows
   (:data:`STAND_IN_SHADOW_SETTINGS`), specular 1, custom cutoff as the VPLs.
+- Sky portals (``portals``): one AREA rectangle in each opening through which the sky reaches
+  the cameras' region, written as the emitters are and marked ``vplace_portal``; EEVEE must
+  then light with the world no more (``eevee_setup.camera_only``).
 - The world's sun (a compact lobe of a world image far brighter than the rest of the sky,
   ``emitter_lights.world_sun``): EEVEE lights a room through its windows with the world's
   probes only, without the sun's patches (the sky-lit room: 0.09x Cycles' direct light with the
@@ -210,7 +213,8 @@ def _new_emitter_object(
 ) -> bpy.types.Object:
     """Emitter light ``i`` (``emitter_lights``' module docs) as a new AREA light in ``coll``."""
     energy = max(e.power)
-    light = bpy.data.lights.new(f"vplace emitter {i:03d} ({e.material})", "AREA")
+    kind = "portal" if e.portal else "emitter"
+    light = bpy.data.lights.new(f"vplace {kind} {i:03d} ({e.material})", "AREA")
     light.energy = energy
     light.color = tuple(c / energy for c in e.power)
     light.shape = e.shape
@@ -231,6 +235,8 @@ def _new_emitter_object(
     obj.rotation_quaternion = Matrix((x, y, z)).transposed().to_quaternion()
     obj[VPL_MARKER] = True
     obj["vplace_emitter"] = e.material
+    if e.portal:
+        obj["vplace_portal"] = True
     coll.objects.link(obj)
     return obj
 

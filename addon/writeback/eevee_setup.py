@@ -19,6 +19,12 @@ settings that fix it:
   probe volume enclosing the scene (:data:`VOLUME_MARGIN` times its bounds) is baked with
   ``capture_indirect`` off, so the world reaches only what sees it (4 % left in the test room,
   2 % with ray-traced ambient occlusion);
+- **the sky through a room's openings**: where vplace wrote sky portals (``portals``: AREA
+  lights in the windows that carry the sky's light in), the world must light nothing more, or
+  its light would count twice: the world gets an EEVEE-only World Output (:func:`camera_only`,
+  its nodes marked ``vplace_world``) that shows the world's own surface to camera rays and black
+  to every other ray (EEVEE's probes), so the windows still show the sky and Cycles renders the
+  world as before. No probe volume is needed then;
 - each VPL light keeps its custom distance (then ``light_threshold`` does not cut it) and its
   shadow (written by :mod:`apply`); a user's edit that removes either is named;
 - **the user's own lamps fade out**: a lamp without a custom distance is faded by
@@ -47,7 +53,7 @@ from dataclasses import dataclass
 import bpy
 from mathutils import Vector
 
-from ..compat import eevee_engine
+from ..compat import eevee_engine, uses_nodes
 from ..errors import AddonError
 from ..scene.export import VPL_MARKER
 from ..settings import override
@@ -185,6 +191,78 @@ def world_emits(scene: bpy.types.Scene) -> bool:
     return False
 
 
+def portal_lights(scene: bpy.types.Scene) -> list[bpy.types.Object]:
+    """The sky portals vplace wrote into ``scene`` (``portals``) that render."""
+    return [o for o in scene.objects if o.get("vplace_portal", False) and not o.hide_render]
+
+
+#: The custom property that marks the world nodes :func:`camera_only` adds.
+WORLD_NODE_MARKER = "vplace_world"
+
+
+def _outputs(world: bpy.types.World) -> list[bpy.types.Node]:
+    return [n for n in world.node_tree.nodes if n.bl_idname == "ShaderNodeOutputWorld"]
+
+
+def is_camera_only(world: bpy.types.World | None) -> bool:
+    """Whether ``world`` has vplace's EEVEE-only output (:func:`camera_only`)."""
+    if world is None or world.node_tree is None:
+        return False
+    return any(n.get(WORLD_NODE_MARKER, False) for n in _outputs(world))
+
+
+def camera_only(world: bpy.types.World) -> str | None:
+    """Adds to ``world`` an EEVEE-only World Output that shows its own surface (and volume) to
+    camera rays and black to every other ray (the module docs; nodes marked
+    :data:`WORLD_NODE_MARKER`, :func:`remove_camera_only` takes them out). Returns why it
+    cannot (no node tree, no output, an EEVEE output of the user's), else None."""
+    if is_camera_only(world):
+        return None
+    if not uses_nodes(world):
+        return "the world does not use nodes"
+    outputs = [n for n in _outputs(world) if not n.mute]
+    if any(n.target == "EEVEE" for n in outputs):
+        return "the world has an EEVEE World Output of its own"
+    source = next((n for n in outputs if n.target == "ALL" and n.is_active_output), None)
+    source = source or next((n for n in outputs if n.target == "ALL"), None)
+    if source is None:
+        return "the world has no World Output that EEVEE renders"
+    tree = world.node_tree
+    nodes = {
+        "out": tree.nodes.new("ShaderNodeOutputWorld"),
+        "path": tree.nodes.new("ShaderNodeLightPath"),
+        "mix": tree.nodes.new("ShaderNodeMixShader"),
+        "black": tree.nodes.new("ShaderNodeBackground"),
+    }
+    for k, node in enumerate(nodes.values()):
+        node[WORLD_NODE_MARKER] = True
+        node.label = "vplace: the world for the camera only"
+        node.location = (source.location.x - 200.0 * k, source.location.y - 300.0)
+    nodes["out"].target = "EEVEE"
+    nodes["black"].inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    nodes["black"].inputs["Strength"].default_value = 0.0
+    links = tree.links
+    links.new(nodes["path"].outputs["Is Camera Ray"], nodes["mix"].inputs[0])
+    links.new(nodes["black"].outputs["Background"], nodes["mix"].inputs[1])
+    surface = source.inputs["Surface"]
+    if surface.is_linked:
+        links.new(surface.links[0].from_socket, nodes["mix"].inputs[2])
+    links.new(nodes["mix"].outputs["Shader"], nodes["out"].inputs["Surface"])
+    volume = source.inputs["Volume"]
+    if volume.is_linked:
+        links.new(volume.links[0].from_socket, nodes["out"].inputs["Volume"])
+    return None
+
+
+def remove_camera_only(world: bpy.types.World | None) -> None:
+    """Takes the nodes of :func:`camera_only` out of ``world`` again."""
+    if world is None or world.node_tree is None:
+        return
+    tree = world.node_tree
+    for node in [n for n in tree.nodes if n.get(WORLD_NODE_MARKER, False)]:
+        tree.nodes.remove(node)
+
+
 def vplace_volume(scene: bpy.types.Scene) -> bpy.types.Object | None:
     """The light probe volume :func:`set_up` added, if any."""
     coll = bpy.data.collections.get(PROBE_COLLECTION)
@@ -289,7 +367,25 @@ def problems(scene: bpy.types.Scene) -> list[Problem]:
                 "count twice; set the threshold to 0",
             )
         )
-    if world_emits(scene) and vplace_volume(scene) is None:
+    if portal_lights(scene):
+        if not is_camera_only(world):
+            found.append(
+                Problem(
+                    "world",
+                    "vplace wrote sky portals, which carry the sky's light through the "
+                    "openings, and EEVEE lights with the world too (counted twice): the world "
+                    "must light nothing but show to the camera",
+                )
+            )
+    elif is_camera_only(world):
+        found.append(
+            Problem(
+                "world",
+                "the world lights nothing in EEVEE (vplace's EEVEE World Output, for sky "
+                "portals that are no longer there): the scene misses the sky's light",
+            )
+        )
+    elif world_emits(scene) and vplace_volume(scene) is None:
         found.append(
             Problem(
                 "world",
@@ -414,13 +510,35 @@ def temporary_volume(
 
 
 @contextmanager
-def world_volume_for_render(
-    scene: bpy.types.Scene, *, probes: int = VOLUME_PROBES
+def world_for_render(
+    scene: bpy.types.Scene, *, probes: int = VOLUME_PROBES, portals: bool | None = None
 ) -> Iterator[float]:
-    """For a render of the VPLs as :func:`set_up` would leave the scene: when the world emits
-    and vplace has baked no volume, a temporary one without indirect light (the world's light,
-    occluded) for the block. Yields its bake seconds (0.0 when none is needed)."""
-    if world_emits(scene) and vplace_volume(scene) is None:
+    """For a render of the written lights as :func:`set_up` would leave the scene: with sky
+    portals, the world for the camera only (:func:`camera_only`) for the block; else, when the
+    world emits and vplace has baked no volume, a temporary one without indirect light (the
+    world's light, occluded). ``portals``: whether the lights rendered in the block have sky
+    portals (None: whether the scene has them now). Yields the volume's bake seconds (0.0 when
+    none is baked)."""
+    world = scene.world
+    if portals is None:
+        portals = bool(portal_lights(scene))
+    if portals and world is not None:
+        if is_camera_only(world):
+            yield 0.0
+            return
+        if camera_only(world) is None:
+            try:
+                yield 0.0
+            finally:
+                remove_camera_only(world)
+            return
+        # The world cannot be kept from lighting: the portals are left out, as before them.
+        with override() as g:
+            for obj in portal_lights(scene):
+                g.set(obj, "hide_render", True)
+            with world_for_render(scene, probes=probes, portals=False) as seconds:
+                yield seconds
+    elif world_emits(scene) and vplace_volume(scene) is None:
         with temporary_volume(scene, probes=probes, capture_indirect=False) as seconds:
             yield seconds
     else:
@@ -449,9 +567,10 @@ def _probe_collection(scene: bpy.types.Scene) -> bpy.types.Collection:
 
 
 def set_up(scene: bpy.types.Scene, *, bake_volume: bool = True) -> list[str]:
-    """Applies the settings of the module docs to ``scene`` (EEVEE settings; a probe volume in
-    its own collection when the world emits, baked unless ``bake_volume`` is false) and returns
-    what it changed, in words. The user's own objects are not touched."""
+    """Applies the settings of the module docs to ``scene`` (EEVEE settings; with sky portals
+    an EEVEE-only World Output, :func:`camera_only`; else a probe volume in its own collection
+    when the world emits, baked unless ``bake_volume`` is false) and returns what it changed,
+    in words. The user's own objects are not touched."""
     e = scene.eevee
     changed: list[str] = []
 
@@ -471,7 +590,22 @@ def set_up(scene: bpy.types.Scene, *, bake_volume: bool = True) -> list[str]:
     put(e, "fast_gi_method", "AMBIENT_OCCLUSION_ONLY", "scene.eevee.fast_gi_method")
     if scene.world is not None and apply.world_sun_light(scene):
         put(scene.world, "sun_threshold", 0.0, "world.sun_threshold")
-    if world_emits(scene):
+    if not portal_lights(scene) and is_camera_only(scene.world):
+        remove_camera_only(scene.world)
+        changed.append("the world lights EEVEE again (vplace wrote no sky portals)")
+    if portal_lights(scene) and scene.world is not None and not is_camera_only(scene.world):
+        why = camera_only(scene.world)
+        if why is None:
+            changed.append(
+                "the world lights EEVEE through vplace's sky portals only (an EEVEE World "
+                "Output that shows it to the camera)"
+            )
+        else:  # as before the portals: they are hidden, the world's volume occludes it
+            for obj in portal_lights(scene):
+                obj.hide_render = True
+            changed.append(f"hid the sky portals ({why}: the world would count twice)")
+    portals = bool(portal_lights(scene)) and is_camera_only(scene.world)
+    if world_emits(scene) and not portals:
         coll = _probe_collection(scene)
         volume = new_volume(scene, coll, margin=VOLUME_MARGIN, capture_indirect=False)
         changed.append(f"added the light probe volume {volume.name!r} (world light, occluded)")

@@ -11,7 +11,10 @@ so their component-wise interpolation turns the short way.
 
 The world's sun (``stand_ins.world_sun``) is one SUN light keyed the same way (rotation,
 energy, colour; 0 W on a frame where the sun lights nothing the views see). Lights for emissive
-meshes are written as on the first frame, unkeyed.
+meshes are written as on the first frame, unkeyed. A sky portal (``portals``) found on every
+frame in the same opening is one light keyed the same way (rotation: the way the sky's light
+enters; energy and colour: what it lets in as the sky changes); else the first frame's are
+written unkeyed.
 
 As the still write-back does, the new collection is built unlinked and replaces the old one
 only when complete, so nothing else in the file changes.
@@ -23,7 +26,7 @@ from collections.abc import Sequence
 
 import bpy
 import numpy as np
-from mathutils import Quaternion, Vector
+from mathutils import Matrix, Quaternion, Vector
 
 from ..compat import make_keys_linear
 from ..errors import WriteBackError
@@ -89,10 +92,13 @@ def write_keyed(
     specular: float = 0.0,
     emitters: Sequence[EmitterLight] = (),
     suns: Sequence[SunLight | None] = (),
+    portals: Sequence[Sequence[EmitterLight]] = (),
     name: str = apply.COLLECTION_NAME,
 ) -> bpy.types.Collection:
     """Writes the slots of ``keyed`` (one per light, keyed on ``frames``), the world's sun of
-    each frame (``suns``, one per frame, or none) and ``emitters`` into a fresh VPL collection
+    each frame (``suns``, one per frame, or none), the sky portals of each frame (``portals``,
+    one list per frame, or none; a portal in ``emitters`` is left to them) and ``emitters``
+    into a fresh VPL collection
     linked to ``scene`` (see the module docs); the :data:`apply.MAX_SHADOWED_VPLS` slots
     brightest on some frame cast shadows. The scene's current frame is kept."""
     slots = keyed.position.shape[1]
@@ -144,8 +150,11 @@ def write_keyed(
                 color[:, s],
                 2.0 * radii[:, s] if cosine else None,
             )
-        for j, e in enumerate(emitters):
-            apply._new_emitter_object(coll, j, e, apply.CUTOFF_DIAGONALS * scene_diagonal, shadows)
+        cutoff = apply.CUTOFF_DIAGONALS * scene_diagonal
+        for j, e in enumerate(e for e in emitters if not (portals and e.portal)):
+            apply._new_emitter_object(coll, j, e, cutoff, shadows)
+        if portals:
+            _write_keyed_portals(coll, frames, portals, cutoff, shadows)
         lit_suns = [s for s in suns if s is not None]
         if lit_suns:
             _write_keyed_sun(coll, frames, suns, lit_suns[0])
@@ -167,6 +176,49 @@ def write_keyed(
 def slot_name(slot: int) -> str:
     """The name of a keyed light (object and light data)."""
     return f"vplace VPL slot {slot:04d}"
+
+
+#: A portal is the same opening on two frames when its centre moved less than this share of its
+#: size.
+PORTAL_MOVE = 0.05
+
+
+def _write_keyed_portals(
+    coll: bpy.types.Collection,
+    frames: Sequence[int],
+    portals: Sequence[Sequence[EmitterLight]],
+    cutoff: float,
+    shadows: bool,
+) -> None:
+    """The sky portals of each frame: keyed where every frame has the same openings, else the
+    first frame's, unkeyed (module docs)."""
+    first = list(portals[0])
+
+    def same(a: EmitterLight, b: EmitterLight) -> bool:
+        gap = np.linalg.norm(np.subtract(a.position, b.position))
+        return bool(gap <= PORTAL_MOVE * max(a.size, a.size_y))
+
+    keyed = all(
+        len(p) == len(first) and all(same(a, b) for a, b in zip(first, p, strict=True))
+        for p in portals
+    )
+    for j, e in enumerate(first):
+        obj = apply._new_emitter_object(coll, j, e, cutoff, shadows)
+        if not keyed or len(portals) < 2:
+            continue
+        x = Vector(e.tangent)
+        quats = []
+        for p in portals:
+            z = -Vector(p[j].normal)
+            y = z.cross(x).normalized()
+            q = Matrix((y.cross(z), y, z)).transposed().to_quaternion()
+            if quats and quats[-1].dot(q) < 0.0:
+                q.negate()
+            quats.append(q)
+        power = np.array([p[j].power for p in portals], dtype=np.float64)
+        energy = power.max(axis=1)
+        color = power / np.maximum(energy, 1e-30)[:, None]
+        _key_light(obj, frames, None, quats, energy, color)
 
 
 def _write_keyed_sun(

@@ -3,7 +3,7 @@ what EEVEE will not show right, and the main job's EEVEE render of the written l
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,7 +16,7 @@ from ..errors import WriteBackError, run_operator
 from ..native import vplace
 from ..settings import override
 from . import apply, eevee_setup
-from .stand_ins import StandIns, stand_ins
+from .stand_ins import StandIns
 
 if TYPE_CHECKING:
     from ..scene.export import ExportedScene
@@ -38,19 +38,17 @@ def write_back(
     *,
     scene: vplace.Scene,
     exported: ExportedScene,
-    surfaces: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+    lights: StandIns,
     blend_path: Path | None,
     stage: Callable[[str], AbstractContextManager[None]],
     log: Callable[[str], None],
 ) -> WrittenBack:
-    """Writes ``vpls`` and the stand-in lights of ``exported`` (``stand_ins.stand_ins``: the
-    sun when it lights some of ``surfaces``, the captured (position, normal, covered) arrays)
+    """Writes ``vpls`` and the stand-in ``lights`` of ``exported`` (``stand_ins.stand_ins``)
     into the VPL collection (``apply.write_vpls``), saves a copy of the file to ``blend_path``
     when given, and logs what EEVEE will not show right. The VPLs get specular factor 1 when
     some material has a rough glossy layer (``apply``'s module docs)."""
     specular = vpl_specular(exported)
     with stage("write back"):
-        lights = stand_ins(exported, scene, surfaces)
         apply.write_vpls(
             bl_scene,
             vpls,
@@ -92,10 +90,11 @@ def score_eevee(
     """Renders the written lights with EEVEE from the scene camera (float, Standard view, the
     scored set-up), scores the image against the reference, and saves it as a PNG picture.
 
-    As "Set up EEVEE for vplace" would: when the world emits and the scene has no vplace probe
-    volume, one is baked for the render (without indirect light, removed after), or EEVEE
-    would light closed rooms with the world through their walls; its bake seconds are
-    reported apart from the frame's.
+    As "Set up EEVEE for vplace" would (``eevee_setup.world_for_render``): with sky portals the
+    world lights nothing but shows to the camera; else, when the world emits and the scene has
+    no vplace probe volume, one is baked for the render (without indirect light, removed
+    after), or EEVEE would light closed rooms with the world through their walls; its bake
+    seconds are reported apart from the frame's.
 
     A second render hides the VPLs (the scene's lights and vplace's stand-ins stay): EEVEE's
     direct light, whose brightness against Cycles' (``direct_brightness``) is the part of the
@@ -114,7 +113,7 @@ def score_eevee(
             cache_dir=cache_dir,
         )
 
-    with eevee_setup.world_volume_for_render(bl_scene) as bake:
+    with eevee_setup.world_for_render(bl_scene) as bake:
         img = render()
         with override() as g:
             apply.hide_vpl_lights(g, bl_scene)

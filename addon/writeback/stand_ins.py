@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 
 from ..native import vplace
+from . import portals
 
 if TYPE_CHECKING:
     from ..scene.export import ExportedScene
@@ -64,8 +65,10 @@ class EmitterLight:
     size_y: float
     #: Power per channel (W): ``pi * area * radiance``.
     power: tuple[float, float, float]
-    #: The emissive material's name.
+    #: The emissive material's name, or the portal's.
     material: str
+    #: A sky portal (``portals``): the world's light through an opening, not an emissive mesh.
+    portal: bool = False
 
 
 class _Shape(NamedTuple):
@@ -251,9 +254,19 @@ class SunLight:
     angle: float
 
 
-def world_sun(info: WorldInfo | None) -> SunLight | None:
-    """The sun of a world image (module docs of ``world_sun``'s constants), or None."""
-    if info is None or info.image is None or not info.emits:
+class _WorldImage(NamedTuple):
+    """A world image's radiance (RGB, colour applied), its pixels' world directions and the
+    mask of its sun's pixels (all False without a sun)."""
+
+    radiance: np.ndarray
+    dirs: np.ndarray
+    sun: np.ndarray
+
+
+def _world_image(info: WorldInfo) -> _WorldImage | None:
+    """The world image of ``info`` with its sun found (module docs of ``world_sun``'s
+    constants); None without an image."""
+    if info.image is None:
         return None
     img = info.image.astype(np.float64) * np.asarray(info.color, dtype=np.float64)
     h, w = img.shape[:2]
@@ -268,14 +281,34 @@ def world_sun(info: WorldInfo | None) -> SunLight | None:
         dirs = dirs @ np.asarray(info.rotation, dtype=np.float64)
     lum = img @ np.asarray(vplace.LUMINANCE, dtype=np.float64)
     top = np.unravel_index(int(np.argmax(lum)), lum.shape)
+    none = np.zeros(lum.shape, dtype=bool)
     if lum[top] <= 0.0:
-        return None
+        return _WorldImage(img, dirs, none)
     cos_cone = math.cos(SUN_CONE)
     near = dirs @ dirs[top] >= cos_cone
     rest = float(lum[~near].max()) if (~near).any() else 0.0
     sun = near & (lum > SUN_CONTRAST * rest)
-    if not sun[top]:
+    return _WorldImage(img, dirs, sun if sun[top] else none)
+
+
+def sun_pixels(info: WorldInfo) -> np.ndarray:
+    """(H, W) bool: the pixels of the world image of ``info`` that are its sun (none without
+    one, or without an image: an empty mask)."""
+    found = _world_image(info)
+    return found.sun if found is not None else np.zeros((0, 0), dtype=bool)
+
+
+def world_sun(info: WorldInfo | None) -> SunLight | None:
+    """The sun of a world image (module docs of ``world_sun``'s constants), or None."""
+    if info is None or not info.emits:
         return None
+    found = _world_image(info)
+    if found is None or not found.sun.any():
+        return None
+    img, dirs, sun = found
+    lum = img @ np.asarray(vplace.LUMINANCE, dtype=np.float64)
+    h, w = img.shape[:2]
+    st = np.sin((np.arange(h) + 0.5) / h * np.pi)[:, None]
     d_omega = (2.0 * np.pi / w) * (np.pi / h) * np.broadcast_to(st, (h, w))
     weight = (lum * d_omega)[sun]
     direction = (dirs[sun] * weight[:, None]).sum(axis=0)
@@ -317,22 +350,60 @@ def sun_lit_fraction(
 
 @dataclass(frozen=True)
 class StandIns:
-    """The lights that stand in for what EEVEE does not light with: the emissive meshes, and
-    the world's sun when it lights some of what the captured views see (``SUN_MIN_LIT``)."""
+    """The lights that stand in for what EEVEE does not light with: the emissive meshes and the
+    sky portals (``emitters``; ``portals``), and the world's sun when it lights some of what the
+    captured views see (``SUN_MIN_LIT``)."""
 
     emitters: list[EmitterLight]
     sun: SunLight | None
+    #: The share of the eyes' rays that leave the scene (``portals.openings``).
+    open_share: float = 0.0
+
+    @property
+    def portals(self) -> list[EmitterLight]:
+        """The sky portals among :attr:`emitters`."""
+        return [e for e in self.emitters if e.portal]
 
 
 def stand_ins(
     exported: ExportedScene,
     scene: vplace.Scene,
     surfaces: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+    eyes: Sequence[Sequence[float]] = (),
 ) -> StandIns:
     """The stand-in lights of ``exported``; ``surfaces`` are the captured views' (position,
-    normal, covered) arrays, which the sun must light somewhere."""
+    normal, covered) arrays, which the sun must light somewhere; ``eyes`` the captured cameras'
+    positions, from which the sky portals are found (none without eyes, or when the world
+    sends no light)."""
     sun = world_sun(exported.world)
     if sun is not None:
         lit = max(sun_lit_fraction(scene, p, n, c, sun) for p, n, c in surfaces)
         sun = sun if lit >= SUN_MIN_LIT else None
-    return StandIns(emitter_lights(exported, scene), sun)
+    lights = emitter_lights(exported, scene)
+    share = 0.0
+    world = exported.world
+    if eyes and world is not None and world.emits:
+        found, share = portals.openings(scene, eyes)
+        # The sun's pixels have their own light (the sun's stand-in, or none where the sun
+        # reaches nothing the views see): the portals carry the rest of the sky.
+        radiance = portals.sky_radiance(world, sun_pixels(world))
+        rng = np.random.default_rng([0, 31])
+        for k, o in enumerate(found):
+            power, heading = portals.sky_power(scene, radiance, o, rng)
+            if power.max() > 0.0:
+                # Facing the way the sky's light enters (downward through a window).
+                tangent = o.tangent - (o.tangent @ heading) * heading
+                lights.append(
+                    EmitterLight(
+                        tuple(float(c) for c in o.centre),
+                        tuple(float(c) for c in heading),
+                        tuple(float(c) for c in tangent / np.linalg.norm(tangent)),
+                        "RECTANGLE",
+                        o.size,
+                        o.size_y,
+                        tuple(float(c) for c in power),
+                        f"sky portal {k + 1}",
+                        portal=True,
+                    )
+                )
+    return StandIns(lights, sun, share)

@@ -7,6 +7,7 @@ import bpy
 import numpy as np
 import pytest
 from blender_util import data_snapshot, diff, empty_file
+from mathutils import Vector
 
 from addon import animation
 from addon.capture.passes import capture
@@ -211,26 +212,57 @@ def test_the_animated_job_keys_one_set_of_lights_the_same_on_a_rerun(tmp_path):
         assert k["rmse"] == pytest.approx(s["rmse"], rel=1e-4, abs=1e-7)
 
 
-def test_a_keyed_sun_is_dark_where_the_frame_has_none():
-    from addon.writeback.stand_ins import SunLight
-
-    empty_file()
-    scene = bpy.context.scene
+def _one_vpl_on_two_frames():
+    """An empty file's scene and one VPL tracked over two frames."""
     import vplace
 
+    empty_file()
     one = vplace.VplSet(
         np.zeros((1, 3), np.float32),
         np.array([[0, 0, 1]], np.float32),
         np.ones((1, 3), np.float32),
         radius=0.01,
     )
-    tracked = vplace.temporal.track([one, one], diagonal=10.0)
+    return bpy.context.scene, vplace.temporal.track([one, one], diagonal=10.0)
+
+
+def test_a_keyed_sun_is_dark_where_the_frame_has_none():
+    from addon.writeback.stand_ins import SunLight
+
+    scene, tracked = _one_vpl_on_two_frames()
     sun = SunLight((0.0, 0.0, 1.0), (2.0, 2.0, 1.0), 0.01)
     keyed.write_keyed(scene, [1, 5], tracked, suns=[sun, None])
     obj = apply.world_sun_light(scene)
     assert obj is not None
     energy = _keys(obj.data)[("energy", 0)]
     assert energy == [(1.0, 2.0), (5.0, 0.0)]
+
+
+def test_a_sky_portal_is_keyed_as_the_sky_changes():
+    """The same opening on both frames: one portal light, its power and facing keyed; a portal
+    that moved is written as the first frame's, unkeyed; portals in the emitters are not
+    written twice."""
+    from addon.writeback.stand_ins import EmitterLight
+
+    scene, tracked = _one_vpl_on_two_frames()
+
+    def portal(power, facing, x=0.0):
+        return EmitterLight((x, -1, 1), facing, (1, 0, 0), "RECTANGLE", 1, 1.2, power, "p", True)
+
+    morning = portal((2.0, 2.0, 3.0), (0.0, 1.0, 0.0))
+    evening = portal((1.0, 0.5, 0.5), (0.0, 0.8, -0.6))
+    keyed.write_keyed(scene, [1, 5], tracked, emitters=[morning], portals=[[morning], [evening]])
+    (obj,) = [o for o in scene.objects if o.get("vplace_portal")]
+    keys = _keys(obj.data)
+    assert keys[("energy", 0)] == [(1.0, 3.0), (5.0, 1.0)]
+    assert [v for _, v in keys[("color", 1)]] == pytest.approx([2.0 / 3.0, 0.5])
+    scene.frame_set(5)
+    facing = obj.matrix_world.to_3x3() @ Vector((0.0, 0.0, -1.0))
+    assert tuple(facing) == pytest.approx((0.0, 0.8, -0.6), abs=1e-4)
+    moved = portal((1.0, 1.0, 1.0), (0.0, 1.0, 0.0), x=0.5)
+    keyed.write_keyed(scene, [1, 5], tracked, portals=[[morning], [moved]])
+    (obj,) = [o for o in scene.objects if o.get("vplace_portal")]
+    assert obj.data.animation_data is None and obj.data.energy == pytest.approx(3.0)
 
 
 @pytest.mark.slow

@@ -19,6 +19,19 @@ pytestmark = pytest.mark.slow
 RES = (96, 54)
 
 
+def _scored_render(scene, cam):
+    """EEVEE's render from ``cam`` with the scored renders' set-up and samples."""
+    return eevee.render(
+        scene, resolution=RES, camera=cam, samples=eevee.EEVEE_SAMPLES, setup=eevee.SETUPS["vpl"]
+    )
+
+
+def _rounded(scores):
+    """SSIM, RMSE and brightness of each image's scores, to 4 places (for the test's log)."""
+    keys = ("ssim", "rmse", "brightness")
+    return {k: {m: round(v[m], 4) for m in keys} for k, v in scores.items()}
+
+
 def test_eevee_with_emitter_lights_gives_cycles_direct_light_of_emissive_panels(tmp_path):
     bpy.ops.wm.open_mainfile(filepath=str(default_scene.builtin_scene("panelroom")))
     scene = bpy.context.scene
@@ -30,7 +43,7 @@ def test_eevee_with_emitter_lights_gives_cycles_direct_light_of_emissive_panels(
     none = no_vpls()
     apply.write_vpls(scene, none, scene_diagonal=8.0, emitters=lights)
     try:
-        with eevee_setup.world_volume_for_render(scene):
+        with eevee_setup.world_for_render(scene):
             ours = eevee.render(
                 scene, resolution=RES, camera=cam, samples=4, setup=eevee.SETUPS["vpl"]
             )
@@ -53,7 +66,7 @@ def test_eevee_with_the_world_sun_lamp_gives_cycles_direct_light_through_windows
     cam = bpy.data.objects["Skyroom camera"]
     truth = capture.capture(scene, camera=cam, resolution=RES, samples=128, seed=0).direct
     none = no_vpls()
-    with eevee_setup.world_volume_for_render(scene):
+    with eevee_setup.world_for_render(scene):
         without = eevee.render(
             scene, resolution=RES, camera=cam, samples=4, setup=eevee.SETUPS["vpl"]
         )
@@ -84,24 +97,48 @@ def test_the_stand_ins_jittered_soft_shadows_match_cycles_better_than_unjittered
     coll = apply.write_vpls(scene, no_vpls(), scene_diagonal=8.0, emitters=lights)
     scores = {}
     try:
-        with eevee_setup.world_volume_for_render(scene):
+        with eevee_setup.world_for_render(scene):
             for jitter in (True, False):
                 if not jitter:  # first as written, then with every stand-in's jitter off
                     for obj in coll.objects:
                         obj.data.use_shadow_jitter = False
-                img = eevee.render(
-                    scene,
-                    resolution=RES,
-                    camera=cam,
-                    samples=eevee.EEVEE_SAMPLES,
-                    setup=eevee.SETUPS["vpl"],
-                )
+                img = _scored_render(scene, cam)
                 scores[jitter] = pipeline.score(img.image, truth)
     finally:
         apply.clear_vpls()
-    print(
-        {k: {m: round(v[m], 4) for m in ("ssim", "rmse", "brightness")} for k, v in scores.items()}
-    )
+    print(_rounded(scores))
     assert abs(scores[True]["brightness"] - 1) < 0.03, scores
     assert scores[True]["ssim"] > scores[False]["ssim"] + 0.01, scores
     assert scores[True]["rmse"] < scores[False]["rmse"], scores
+
+
+def test_sky_portals_let_the_sky_in_as_cycles_does():
+    """The sky room's windows found from its camera (three), written as sky portals with the
+    world lighting EEVEE no more: EEVEE's direct light against Cycles', beside the world
+    occluded by a baked probe volume (what vplace did before, without portals)."""
+    bpy.ops.wm.open_mainfile(filepath=str(default_scene.builtin_scene("skyroom")))
+    scene = bpy.context.scene
+    exported = export.export_scene(scene)
+    cam = bpy.data.objects["Skyroom camera"]
+    cap = capture.capture(scene, camera=cam, resolution=RES, samples=128, seed=0)
+    lights = emitter_lights.stand_ins(
+        exported,
+        build_scene(exported),
+        [(cap.position, cap.normal, cap.covered)],
+        [cap.camera_position],
+    )
+    assert len(lights.portals) == 3, lights.portals
+    scores = {}
+    for portals in (True, False):
+        kept = [e for e in lights.emitters if portals or not e.portal]
+        apply.write_vpls(scene, no_vpls(), scene_diagonal=8.0, emitters=kept, sun=lights.sun)
+        try:
+            with eevee_setup.world_for_render(scene) as bake:
+                assert (bake == 0.0) == portals  # no volume to bake with portals
+                img = _scored_render(scene, cam)
+        finally:
+            apply.clear_vpls()
+        scores[portals] = pipeline.score(img.image, cap.direct)
+    print(_rounded(scores))
+    assert 0.85 < scores[True]["brightness"] < 1.1, scores
+    assert scores[True]["ssim"] > scores[False]["ssim"] + 0.03, scores

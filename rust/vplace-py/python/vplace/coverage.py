@@ -160,7 +160,8 @@ class Coverage:
         )
 
 
-def _fibonacci(n: int) -> np.ndarray:
+def fibonacci_sphere(n: int) -> np.ndarray:
+    """``n`` unit directions spread evenly over the sphere (a Fibonacci lattice), float32."""
     i = np.arange(n) + 0.5
     z = 1.0 - 2.0 * i / n
     phi = i * math.pi * (3.0 - math.sqrt(5.0))
@@ -168,7 +169,7 @@ def _fibonacci(n: int) -> np.ndarray:
     return np.stack([rxy * np.cos(phi), rxy * np.sin(phi), z], axis=1).astype(np.float32)
 
 
-def _trace(scene: Scene, origin: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+def trace(scene: Scene, origin: np.ndarray, dirs: np.ndarray) -> np.ndarray:
     """Hit distances of rays from ``origin`` (inf where they escape)."""
     origins = np.ascontiguousarray(np.broadcast_to(origin.astype(np.float32), dirs.shape))
     t, tri, _ = scene.intersect(origins, np.ascontiguousarray(dirs))
@@ -178,7 +179,7 @@ def _trace(scene: Scene, origin: np.ndarray, dirs: np.ndarray) -> np.ndarray:
 def free_distance(scene: Scene, eye: np.ndarray) -> float:
     """Median distance rays from ``eye`` travel before a surface (the scene's diagonal when
     most escape)."""
-    t = _trace(scene, eye, _fibonacci(256))
+    t = trace(scene, eye, fibonacci_sphere(256))
     return float(min(np.median(t), scene.diagonal))
 
 
@@ -191,7 +192,7 @@ def _candidates(scene: Scene, eyes: Sequence[np.ndarray], radii: Sequence[float]
     points: list[np.ndarray] = []
     for eye, r in zip(eyes, radii, strict=True):
         points.append(eye)
-        t = _trace(scene, eye, dirs)
+        t = trace(scene, eye, dirs)
         for u, ti in zip(dirs, t, strict=True):
             reach = min(r, WALL_MARGIN * float(ti))
             if reach > 0.1 * r:
@@ -201,7 +202,7 @@ def _candidates(scene: Scene, eyes: Sequence[np.ndarray], radii: Sequence[float]
             d = b - a
             length = float(np.linalg.norm(d))
             way = (d / max(length, 1e-12))[None, :].astype(np.float32)
-            if length > 0 and _trace(scene, a, way)[0] > length:
+            if length > 0 and trace(scene, a, way)[0] > length:
                 points.append((a + b) / 2.0)
     return [
         Pose(np.asarray(p, dtype=np.float64), np.array(f), np.array(u))
@@ -390,13 +391,13 @@ def held_out_poses(
         for _draw in range(64):
             u = rng.normal(size=3) * np.array([1.0, 1.0, 0.3])
             u /= max(float(np.linalg.norm(u)), 1e-12)
-            hit = float(_trace(scene, e.astype(np.float32), u[None, :].astype(np.float32))[0])
+            hit = float(trace(scene, e.astype(np.float32), u[None, :].astype(np.float32))[0])
             reach = min(r * rng.uniform(*HELD_OUT_REACH), WALL_MARGIN * hit)
             turn = math.radians(rng.uniform(*HELD_OUT_TURN)) * rng.choice([-1.0, 1.0])
             c, s = math.cos(turn), math.sin(turn)
             f = np.array([c * f0[0] - s * f0[1], s * f0[0] + c * f0[1], f0[2]])
             p = e + reach * u
-            sees = _trace(scene, p.astype(np.float32), f[None, :].astype(np.float32))[0]
+            sees = trace(scene, p.astype(np.float32), f[None, :].astype(np.float32))[0]
             if reach >= 0.1 * r and np.isfinite(sees) and abs(float(f @ z)) < 0.95:
                 poses.append(Pose(p, f, z))
                 break

@@ -471,6 +471,9 @@ class JobSummary:
     stage_seconds: dict[str, float]
     evaluator: EvaluatorSummary
     metrics: dict[str, float]
+    #: Sky portals written (``addon.writeback.portals``): AREA lights in the openings that
+    #: carry the sky in for EEVEE.
+    portals_written: int = 0
     fit: FitSummary | None = None
     reference: ReferenceInfo | None = None
     eevee: dict[str, float] | None = None
@@ -631,6 +634,21 @@ def eevee_notes(e: dict[str, float]) -> list[str]:
     return lines
 
 
+def _stand_in_lines(report: JobSummary) -> list[str]:
+    """What the write-back added beside the VPLs, for EEVEE."""
+    parts = []
+    if report.emitter_lights_written:
+        n = report.emitter_lights_written
+        parts.append(f"{n} light{'s' * (n != 1)} for emissive meshes")
+    if report.portals_written:
+        n = report.portals_written
+        parts.append(
+            f"{n} sky portal{'s' * (n != 1)} (AREA lights in the openings that carry the sky's "
+            "light in; EEVEE's world then lights nothing but shows to the camera)"
+        )
+    return [f"Written beside the VPLs: {'; '.join(parts)}.", ""] if parts else []
+
+
 def job_report(report: JobSummary) -> str:
     """The main job's short human-readable report."""
     m, s = report.metrics, report.evaluator
@@ -661,6 +679,7 @@ def job_report(report: JobSummary) -> str:
         "",
         *markdown.table(["image", "RMSE", "relative MSE", "SSIM", "brightness"], rows),
         "",
+        *_stand_in_lines(report),
         *[line for note in eevee_notes(report.eevee or {}) for line in (note, "")],
         *[line for note in report.eevee_lamp_notes for line in (note + ".", "")],
         f"Evaluator: {s.shadow_rays} shadow rays in {s.seconds:.3f} s "

@@ -1,0 +1,305 @@
+"""Sky portals: AREA lights in a room's openings that carry the sky's light in, for EEVEE
+(DESIGN: Write-back).
+
+EEVEE lights a room with the world through its light probes: unoccluded, through the walls,
+unless a probe volume occludes it, and then the sky reaching a room through its windows is
+interpolated between probes (the sky-lit room: 0.6x Cycles' light in its sky-lit parts,
+``docs/EEVEE_NOTES.md`` Q7). Cycles users know the fix as *portals*: vplace writes one AREA
+rectangle in each opening through which the sky reaches the region the cameras work in, facing
+in, shadowed, and lets the world light EEVEE's scene no more (``eevee_setup``: the world stays
+what the camera sees through the windows, but lights nothing).
+
+- **Where the openings are** (:func:`openings`). From each eye (the captured cameras), rays in
+  :data:`DIRECTIONS` directions of a Fibonacci sphere; those that leave the scene see the sky.
+  Each connected patch of them (neighbouring directions) is one opening seen from that eye; the
+  rays next to the patch that do hit something hit its rim (the wall around a window, its
+  reveals). The opening's plane is the rim's (the least-squares plane of its hit points),
+  facing out along the escaping rays; its extent is where the escaping rays cross that plane,
+  widened by half a direction's spacing. Patches of several eyes in one plane that overlap are
+  one opening, a rectangle in that plane (its sides level and upright where the plane stands,
+  else along the patch's longest axis). When more than :data:`MAX_OPEN` of all rays escape the
+  scene is open (outdoors, a ruin): the world lights it directly and no portal is written.
+- **What an opening lets in** (:func:`sky_power`). Rays from random points of the rectangle
+  into the outside half-space, cosine-distributed: those that leave the scene bring the
+  world's radiance (the sun's pixels left out: the sun has its own light,
+  ``stand_ins.world_sun``). Their mean times ``pi`` is the irradiance the opening receives from
+  the sky, ``E``; a Lambertian rectangle of area ``A`` emitting ``A E`` (Blender's AREA power
+  ``P = pi A L``) lets in the same light, spread over the room as a Lambertian emitter spreads
+  it (the sky's light through a window comes mostly from above: the floor gets less of it
+  than Cycles gives, the ceiling more).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..native import vplace
+
+if TYPE_CHECKING:
+    from ..scene.world import WorldInfo
+
+__all__ = ["DIRECTIONS", "MAX_OPEN", "Opening", "openings", "sky_power", "sky_radiance"]
+
+#: Directions each eye casts to find the openings.
+DIRECTIONS = 4096
+#: Neighbours of a direction on the sphere (the patches' connectivity).
+NEIGHBOURS = 6
+#: Above this share of escaping rays the scene is open, not a room with openings.
+MAX_OPEN = 0.35
+#: Rim hits a patch needs for its plane.
+MIN_RIM = 6
+#: Escaping directions a patch needs to be an opening.
+MIN_PATCH = 3
+#: Two patches lie in one plane when their normals are within this angle (degrees) and their
+#: planes this share of the scene's diagonal apart.
+PLANE_ANGLE = 20.0
+PLANE_GAP = 0.02
+#: The most portals written (the largest first).
+MAX_PORTALS = 16
+#: Rays per portal that measure the sky it lets in.
+POWER_RAYS = 2048
+
+
+@dataclass(frozen=True)
+class Opening:
+    """A rectangle through which the sky reaches the region, in world space."""
+
+    centre: np.ndarray
+    #: Unit normal, pointing out of the room.
+    outward: np.ndarray
+    #: Unit direction of the first side (``size`` long); the second is ``outward x tangent``.
+    tangent: np.ndarray
+    size: float
+    size_y: float
+
+    @property
+    def bitangent(self) -> np.ndarray:
+        """Unit direction of the second side (``size_y`` long)."""
+        return np.cross(self.outward, self.tangent)
+
+    @property
+    def area(self) -> float:
+        """Square metres."""
+        return self.size * self.size_y
+
+
+@dataclass
+class _Patch:
+    """One eye's view of an opening: its plane and where its escaping rays cross it."""
+
+    point: np.ndarray
+    normal: np.ndarray
+    crossings: np.ndarray
+    pad: float
+
+
+@functools.cache
+def _sphere(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` Fibonacci directions and their :func:`_neighbours` (made once)."""
+    dirs = vplace.coverage.fibonacci_sphere(n)
+    return dirs, _neighbours(dirs)
+
+
+def _neighbours(dirs: np.ndarray) -> np.ndarray:
+    """(N, NEIGHBOURS) indices of each direction's nearest directions (itself left out)."""
+    near = np.empty((len(dirs), NEIGHBOURS), dtype=np.int64)
+    for start in range(0, len(dirs), 512):
+        cos = dirs[start : start + 512] @ dirs.T
+        top = np.argpartition(-cos, NEIGHBOURS, axis=1)[:, : NEIGHBOURS + 1]
+        order = np.take_along_axis(-cos, top, axis=1).argsort(axis=1)
+        near[start : start + 512] = np.take_along_axis(top, order, axis=1)[:, 1:]
+    return near
+
+
+def _components(mask: np.ndarray, near: np.ndarray) -> list[np.ndarray]:
+    """Connected sets of the directions ``mask`` marks, neighbours by ``near``."""
+    label = np.full(len(mask), -1, dtype=np.int64)
+    out = []
+    for seed in np.flatnonzero(mask):
+        if label[seed] >= 0:
+            continue
+        label[seed] = len(out)
+        stack, members = [int(seed)], []
+        while stack:
+            i = stack.pop()
+            members.append(i)
+            for j in near[i]:
+                if mask[j] and label[j] < 0:
+                    label[j] = len(out)
+                    stack.append(int(j))
+        out.append(np.array(members))
+    return out
+
+
+def _patches(
+    scene: vplace.Scene, eye: np.ndarray, dirs: np.ndarray, near: np.ndarray
+) -> tuple[list[_Patch], int]:
+    """The openings one eye sees, and how many of its rays escape."""
+    origins = np.ascontiguousarray(np.broadcast_to(eye.astype(np.float32), dirs.shape))
+    t, tri, _ = scene.intersect(origins, dirs)
+    escaped = tri < 0
+    spacing = math.sqrt(4.0 * math.pi / len(dirs))
+    patches = []
+    for members in _components(escaped, near):
+        if len(members) < MIN_PATCH:
+            continue
+        rim = np.unique(near[members].ravel())
+        rim = rim[~escaped[rim]]
+        if len(rim) < MIN_RIM:
+            continue
+        hits = eye + dirs[rim].astype(np.float64) * t[rim, None]
+        point = hits.mean(axis=0)
+        normal = np.linalg.svd(hits - point, full_matrices=False)[2][-1]
+        out = dirs[members].astype(np.float64)
+        if normal @ out.mean(axis=0) < 0.0:
+            normal = -normal
+        along = out @ normal
+        ok = along > 1e-3
+        if not ok.any():
+            continue
+        s = ((point - eye) @ normal) / along[ok]
+        if (s <= 0).any():
+            continue
+        crossings = eye + out[ok] * s[:, None]
+        patches.append(_Patch(point, normal, crossings, 0.5 * spacing * float(s.mean())))
+    return patches, int(escaped.sum())
+
+
+def _basis(normal: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """In-plane axes of an opening: level and upright where the plane stands, else along the
+    points' longest spread."""
+    up = np.array([0.0, 0.0, 1.0])
+    if abs(normal @ up) < 0.7:
+        u = np.cross(up, normal)
+    else:
+        flat = points - points.mean(axis=0)
+        flat -= np.outer(flat @ normal, normal)
+        u = np.linalg.svd(flat, full_matrices=False)[2][0] if len(points) > 1 else up
+        u = u - (u @ normal) * normal
+    u /= np.linalg.norm(u)
+    return u, np.cross(normal, u)
+
+
+def _same_plane(a: _Patch, b: _Patch, gap: float) -> bool:
+    if a.normal @ b.normal < math.cos(math.radians(PLANE_ANGLE)):
+        return False
+    if abs((b.point - a.point) @ a.normal) > gap:
+        return False
+    u, v = _basis(a.normal, a.crossings)
+    boxes = []
+    for p in (a, b):
+        x, y = p.crossings @ u, p.crossings @ v
+        boxes.append((x.min() - p.pad, x.max() + p.pad, y.min() - p.pad, y.max() + p.pad))
+    (a0, a1, a2, a3), (b0, b1, b2, b3) = boxes
+    return a0 <= b1 and b0 <= a1 and a2 <= b3 and b2 <= a3
+
+
+def openings(scene: vplace.Scene, eyes: Sequence[Sequence[float]]) -> tuple[list[Opening], float]:
+    """The openings through which the sky reaches the eyes' surroundings (module docs), largest
+    first, and the share of the eyes' rays that escape the scene. None when the scene is open
+    (more than :data:`MAX_OPEN` escape) or closed."""
+    dirs, near = _sphere(DIRECTIONS)
+    patches: list[_Patch] = []
+    escaped = 0
+    for eye in eyes:
+        found, n = _patches(scene, np.asarray(eye, dtype=np.float64), dirs, near)
+        patches += found
+        escaped += n
+    share = escaped / max(1, len(eyes) * len(dirs))
+    if share > MAX_OPEN or not patches:
+        return [], share
+    gap = PLANE_GAP * scene.diagonal
+    group = list(range(len(patches)))
+
+    def root(i: int) -> int:
+        while group[i] != i:
+            group[i] = group[group[i]]
+            i = group[i]
+        return i
+
+    for i in range(len(patches)):
+        for j in range(i + 1, len(patches)):
+            if root(i) != root(j) and _same_plane(patches[i], patches[j], gap):
+                group[root(j)] = root(i)
+    found: list[Opening] = []
+    for r in sorted({root(i) for i in range(len(patches))}):
+        members = [p for i, p in enumerate(patches) if root(i) == r]
+        weights = np.array([len(p.crossings) for p in members], dtype=np.float64)
+        normal = sum(w * p.normal for w, p in zip(weights, members, strict=True))
+        normal /= np.linalg.norm(normal)
+        point = sum(w * p.point for w, p in zip(weights, members, strict=True)) / weights.sum()
+        pts = np.concatenate([p.crossings for p in members])
+        pts = pts - np.outer((pts - point) @ normal, normal)
+        pad = float(np.mean([p.pad for p in members]))
+        u, v = _basis(normal, pts)
+        x, y = pts @ u, pts @ v
+        x0, x1, y0, y1 = x.min() - pad, x.max() + pad, y.min() - pad, y.max() + pad
+        centre = point - ((point @ u) - 0.5 * (x0 + x1)) * u - ((point @ v) - 0.5 * (y0 + y1)) * v
+        found.append(Opening(centre, normal, u, float(x1 - x0), float(y1 - y0)))
+    found.sort(key=lambda o: -o.area)
+    return found[:MAX_PORTALS], share
+
+
+def sky_radiance(
+    info: WorldInfo, without: np.ndarray | None = None
+) -> Callable[[np.ndarray], np.ndarray]:
+    """The world's radiance in world directions, ``(N, 3) -> (N, 3)``; the pixels of its image
+    that ``without`` marks (the sun's) give none."""
+    color = np.asarray(info.color, dtype=np.float64)
+    if info.image is None:
+        return lambda d: np.broadcast_to(color, (len(d), 3))
+    img = info.image.astype(np.float64) * color
+    if without is not None and without.any():
+        img[without] = 0.0
+    h, w = img.shape[:2]
+    rot = None if info.rotation is None else np.asarray(info.rotation, dtype=np.float64)
+
+    def radiance(d: np.ndarray) -> np.ndarray:
+        d = d if rot is None else d @ rot.T
+        theta = np.arccos(np.clip(d[:, 2], -1.0, 1.0))
+        phi = np.arctan2(d[:, 1], d[:, 0])
+        i = np.clip((theta / math.pi * h).astype(np.int64), 0, h - 1)
+        j = np.floor((0.5 - phi / (2.0 * math.pi)) * w).astype(np.int64) % w
+        return img[i, j]
+
+    return radiance
+
+
+def sky_power(
+    scene: vplace.Scene,
+    radiance: Callable[[np.ndarray], np.ndarray],
+    o: Opening,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The power (W per channel) the sky sends in through opening ``o``: ``pi`` times the mean
+    ``radiance`` of :data:`POWER_RAYS` cosine-distributed rays from random points of the opening
+    that leave the scene, times its area (module docs); and the unit mean direction of that
+    light as it enters (weighted by luminance; ``-outward`` where none enters)."""
+    u = rng.random((POWER_RAYS, 4))
+    r, a = np.sqrt(u[:, 0]), 2.0 * math.pi * u[:, 1]
+    t, b = o.tangent, o.bitangent
+    dirs = (
+        (r * np.cos(a))[:, None] * t
+        + (r * np.sin(a))[:, None] * b
+        + np.sqrt(1.0 - u[:, 0])[:, None] * o.outward
+    )
+    starts = (
+        o.centre
+        + ((u[:, 2] - 0.5) * o.size)[:, None] * t
+        + ((u[:, 3] - 0.5) * o.size_y)[:, None] * b
+    )
+    _, tri, _ = scene.intersect(
+        np.ascontiguousarray(starts, dtype=np.float32), np.ascontiguousarray(dirs, dtype=np.float32)
+    )
+    sky = radiance(dirs) * (tri < 0)[:, None]
+    weight = sky @ np.asarray(vplace.LUMINANCE, dtype=np.float64)
+    mean = -(weight[:, None] * dirs).sum(axis=0)
+    norm = float(np.linalg.norm(mean))
+    heading = mean / norm if norm > 0.0 else -o.outward
+    return math.pi * sky.mean(axis=0) * o.area, heading
