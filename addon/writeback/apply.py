@@ -33,8 +33,9 @@ ones the evaluator renders (``vplace.VplSet`` carries profile and near-field rad
   into the same collection, shadowed with jittered soft shadows
   (:data:`STAND_IN_SHADOW_SETTINGS`), specular 1, custom cutoff as the VPLs.
 - Sky portals (``portals``): one AREA rectangle in each opening through which the sky reaches
-  the cameras' region, written as the emitters are and marked ``vplace_portal``; EEVEE must
-  then light with the world no more (``eevee_setup.camera_only``).
+  the cameras' region, written as the emitters are (shadows unjittered,
+  :data:`PORTAL_SHADOW_SETTINGS`) and marked ``vplace_portal``; EEVEE must then light with the
+  world no more (``eevee_setup.camera_only``).
 - The world's sun (a compact lobe of a world image far brighter than the rest of the sky,
   ``emitter_lights.world_sun``): EEVEE lights a room through its windows with the world's
   probes only, without the sun's patches (the sky-lit room: 0.09x Cycles' direct light with the
@@ -81,6 +82,11 @@ SHADOW_SETTINGS: dict[str, object] = {"use_shadow_jitter": False}
 #: half-degree penumbra gained nothing (the sky room: SSIM 0.603 -> 0.604, RMSE 0.118 both,
 #: brightness 0.965 -> 0.959), and a sun's maps are the costliest to re-render.
 STAND_IN_SHADOW_SETTINGS: dict[str, object] = {"use_shadow_jitter": True}
+#: The sky portals' (``portals``): unjittered. On the sky-lit room's five views their direct
+#: light scored a lower RMSE against Cycles' without jitter (0.0724-0.1223 against
+#: 0.0735-0.1229; SSIM within -.017..+.015), and jitter made its render with 256 VPLs 19 %
+#: slower than with the world's volume, against 6 % without (``docs/EEVEE_NOTES.md`` Q7).
+PORTAL_SHADOW_SETTINGS: dict[str, object] = {"use_shadow_jitter": False}
 #: Every VPL light's ``shadow_maximum_resolution``, in scene diagonals: coarser than a 256-texel
 #: cube face at one diagonal's distance (1 / 128), so EEVEE makes its coarsest maps.
 SHADOW_TEXEL_DIAGONALS = 0.01
@@ -224,7 +230,7 @@ def _new_emitter_object(
     light.use_custom_distance = True
     light.cutoff_distance = cutoff
     light.use_shadow = shadows
-    for attr, value in STAND_IN_SHADOW_SETTINGS.items():
+    for attr, value in (PORTAL_SHADOW_SETTINGS if e.portal else STAND_IN_SHADOW_SETTINGS).items():
         setattr(light, attr, value)
     obj = bpy.data.objects.new(light.name, light)
     obj.location = e.position

@@ -10,6 +10,7 @@ from addon.capture import passes as capture
 from addon.scene import export
 from addon.scene.convert import build_scene
 from addon.scenes import registry as default_scene
+from addon.scenes import rooms
 from addon.writeback import apply, eevee_setup
 from addon.writeback import eevee_render as eevee
 from addon.writeback import stand_ins as emitter_lights
@@ -113,9 +114,9 @@ def test_the_stand_ins_jittered_soft_shadows_match_cycles_better_than_unjittered
 
 
 def test_sky_portals_let_the_sky_in_as_cycles_does():
-    """The sky room's windows found from its camera (three), written as sky portals with the
-    world lighting EEVEE no more: EEVEE's direct light against Cycles', beside the world
-    occluded by a baked probe volume (what vplace did before, without portals)."""
+    """The sky room's windows found from its three fit cameras (three windows), written as sky
+    portals with the world lighting EEVEE no more: EEVEE's direct light against Cycles', beside
+    the world occluded by a baked probe volume (what vplace did before, without portals)."""
     bpy.ops.wm.open_mainfile(filepath=str(default_scene.builtin_scene("skyroom")))
     scene = bpy.context.scene
     exported = export.export_scene(scene)
@@ -125,7 +126,7 @@ def test_sky_portals_let_the_sky_in_as_cycles_does():
         exported,
         build_scene(exported),
         [(cap.position, cap.normal, cap.covered)],
-        [cap.camera_position],
+        [tuple(location) for location, _, _ in rooms.SKYROOM_FIT.values()],
     )
     assert len(lights.portals) == 3, lights.portals
     scores = {}
