@@ -541,16 +541,17 @@ class _EeveeRun:
         self.vpl_differences.setdefault(view.name, {})[method] = img.image - direct - vpl_light
         return vplace.job.attribute(img.image, direct, view.truth.direct, vpl_light, view.truth.gi)
 
-    def vpl_rows(self, method: str, s: LaidSet, world_bake: float) -> None:
-        """The lights of ``s`` written, rendered on every view (and with ray tracing for
-        ``vplace+refit``), and removed again; the ``vpl`` renders are attributed."""
+    def vpl_rows(self, method: str, s: LaidSet, world_bake: float, portals: bool) -> None:
+        """The lights of ``s`` written (the sky portals with ``portals``), rendered on every view
+        (and with ray tracing for ``vplace+refit``), and removed again; the ``vpl`` renders are
+        attributed."""
         config, prepared = self.config, self.data.prepared
         apply.write_vpls(
             self.bl_scene,
             s.vpls,
             scene_diagonal=prepared.scene.diagonal,
             specular=prepared.vpl_specular,
-            emitters=prepared.stand_ins.emitters,
+            emitters=[e for e in prepared.stand_ins.emitters if portals or not e.portal],
             sun=prepared.stand_ins.sun,
         )
         try:
@@ -579,20 +580,22 @@ class _EeveeRun:
 
     def methods(self, chosen: dict[str, LaidSet]) -> None:
         """The chosen methods' lights, with the world's probe volume baked once for all."""
+        # Sky portals where the world can be kept from lighting EEVEE (else, as without them,
+        # the world's volume).
+        portals = bool(self.data.prepared.stand_ins.portals)
+        portals = portals and eevee_setup.camera_only_blocker(self.bl_scene.world) is None
         with contextlib.ExitStack() as stack:
             world_bake = 0.0
             if chosen:  # the world's light, occluded, as eevee_setup.set_up bakes it
                 world_bake = stack.enter_context(
                     eevee_setup.world_for_render(
-                        self.bl_scene,
-                        probes=self.config.volume_resolution,
-                        portals=bool(self.data.prepared.stand_ins.portals),
+                        self.bl_scene, probes=self.config.volume_resolution, portals=portals
                     )
                 )
             if world_bake:
                 self.log(f"[vplace] the world's light probe volume baked in {world_bake:.1f} s")
             for method, s in chosen.items():
-                self.vpl_rows(method, s, world_bake)
+                self.vpl_rows(method, s, world_bake, portals)
 
     def alternatives(self) -> None:
         """What a Blender user would pick instead: EEVEE plain, with ray tracing, with a baked

@@ -211,13 +211,9 @@ def is_camera_only(world: bpy.types.World | None) -> bool:
     return any(n.get(WORLD_NODE_MARKER, False) for n in _outputs(world))
 
 
-def camera_only(world: bpy.types.World) -> str | None:
-    """Adds to ``world`` an EEVEE-only World Output that shows its own surface (and volume) to
-    camera rays and black to every other ray (the module docs; nodes marked
-    :data:`WORLD_NODE_MARKER`, :func:`remove_camera_only` takes them out). Returns why it
-    cannot (no node tree, no output, an EEVEE output of the user's), else None."""
-    if is_camera_only(world):
-        return None
+def _source_output(world: bpy.types.World) -> bpy.types.Node | str:
+    """The World Output whose surface :func:`camera_only` shows to the camera, or why there is
+    none it may use."""
     if not uses_nodes(world):
         return "the world does not use nodes"
     outputs = [n for n in _outputs(world) if not n.mute]
@@ -225,8 +221,29 @@ def camera_only(world: bpy.types.World) -> str | None:
         return "the world has an EEVEE World Output of its own"
     source = next((n for n in outputs if n.target == "ALL" and n.is_active_output), None)
     source = source or next((n for n in outputs if n.target == "ALL"), None)
-    if source is None:
-        return "the world has no World Output that EEVEE renders"
+    return source if source is not None else "the world has no World Output that EEVEE renders"
+
+
+def camera_only_blocker(world: bpy.types.World | None) -> str | None:
+    """Why :func:`camera_only` cannot change ``world`` (None: it can, or it has)."""
+    if world is None:
+        return "the scene has no world"
+    if is_camera_only(world):
+        return None
+    source = _source_output(world)
+    return source if isinstance(source, str) else None
+
+
+def camera_only(world: bpy.types.World) -> str | None:
+    """Adds to ``world`` an EEVEE-only World Output that shows its own surface (and volume) to
+    camera rays and black to every other ray (the module docs; nodes marked
+    :data:`WORLD_NODE_MARKER`, :func:`remove_camera_only` takes them out). Returns why it
+    cannot (no node tree, no output, an EEVEE output of the user's), else None."""
+    if is_camera_only(world):
+        return None
+    source = _source_output(world)
+    if isinstance(source, str):
+        return source
     tree = world.node_tree
     nodes = {
         "out": tree.nodes.new("ShaderNodeOutputWorld"),

@@ -191,6 +191,7 @@ def test_a_written_portal_keeps_the_world_from_lighting_eevee(sky_scene):
     assert written[0].data.energy == pytest.approx(3.0)
     assert any(p.setting == "world" for p in eevee_setup.problems(scene))
     nodes_before = len(world.node_tree.nodes)
+    assert eevee_setup.camera_only_blocker(world) is None
     # For a render: the camera-only world for the block, taken out after.
     with eevee_setup.world_for_render(scene) as bake:
         assert bake == 0.0 and eevee_setup.is_camera_only(world)
@@ -226,6 +227,7 @@ def test_a_world_of_its_own_eevee_output_is_left_alone(sky_scene):
     out = world.node_tree.nodes.new("ShaderNodeOutputWorld")
     out.target = "EEVEE"
     assert "EEVEE World Output of its own" in eevee_setup.camera_only(world)
+    assert "of its own" in eevee_setup.camera_only_blocker(world)
     assert not eevee_setup.is_camera_only(world)
     _write_portal(scene)
     (portal,) = eevee_setup.portal_lights(scene)
