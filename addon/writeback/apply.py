@@ -54,7 +54,7 @@ from typing import TYPE_CHECKING
 
 import bpy
 import numpy as np
-from mathutils import Matrix, Vector
+from mathutils import Matrix, Quaternion, Vector
 
 from ..errors import WriteBackError
 from ..native import vplace
@@ -214,6 +214,14 @@ def _new_vpl_object(
     return obj
 
 
+def emitter_rotation(normal: Sequence[float], tangent: Sequence[float]) -> Quaternion:
+    """The rotation of an AREA light that emits along ``normal`` (its -Z) with its first side
+    along ``tangent`` (its X; made orthogonal to ``normal``)."""
+    z = -Vector(normal)
+    y = z.cross(Vector(tangent)).normalized()
+    return Matrix((y.cross(z), y, z)).transposed().to_quaternion()
+
+
 def _new_emitter_object(
     coll: bpy.types.Collection, i: int, e: EmitterLight, cutoff: float, shadows: bool
 ) -> bpy.types.Object:
@@ -234,11 +242,8 @@ def _new_emitter_object(
         setattr(light, attr, value)
     obj = bpy.data.objects.new(light.name, light)
     obj.location = e.position
-    n, x = Vector(e.normal), Vector(e.tangent)
-    z = -n
-    y = z.cross(x)
     obj.rotation_mode = "QUATERNION"
-    obj.rotation_quaternion = Matrix((x, y, z)).transposed().to_quaternion()
+    obj.rotation_quaternion = emitter_rotation(e.normal, e.tangent)
     obj[VPL_MARKER] = True
     obj["vplace_emitter"] = e.material
     if e.portal:

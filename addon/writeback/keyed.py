@@ -26,7 +26,7 @@ from collections.abc import Sequence
 
 import bpy
 import numpy as np
-from mathutils import Matrix, Quaternion, Vector
+from mathutils import Quaternion, Vector
 
 from ..compat import make_keys_linear
 from ..errors import WriteBackError
@@ -206,12 +206,9 @@ def _write_keyed_portals(
         obj = apply._new_emitter_object(coll, j, e, cutoff, shadows)
         if not keyed or len(portals) < 2:
             continue
-        x = Vector(e.tangent)
-        quats = []
+        quats: list[Quaternion] = []
         for p in portals:
-            z = -Vector(p[j].normal)
-            y = z.cross(x).normalized()
-            q = Matrix((y.cross(z), y, z)).transposed().to_quaternion()
+            q = apply.emitter_rotation(p[j].normal, e.tangent)
             if quats and quats[-1].dot(q) < 0.0:
                 q.negate()
             quats.append(q)
