@@ -343,6 +343,9 @@ def summary(
     """The run's figures, typed (``to_dict()`` for JSON); ``lights``: the stand-ins written
     (default: the prepared scene's)."""
     laid, stats = computed.laid, computed.stats
+    # The fields, not ``StandIns.portals``: the summary stays in this file and the library's.
+    emitters = (lights or prepared.stand_ins).emitters
+    portals = sum(1 for e in emitters if e.portal)
     evaluator = vplace.job.EvaluatorSummary(
         stats.shadow_rays, stats.pairs, stats.seconds, stats.rays_per_second
     )
@@ -366,10 +369,8 @@ def summary(
         capture_render_seconds=sum(c.render_seconds for c in prepared.captures),
         n_vpls=job.n_vpls,
         lights_written=int((computed.vpls.blender_power.max(axis=1) > 0).sum()),
-        emitter_lights_written=len(
-            [e for e in (lights or prepared.stand_ins).emitters if not e.portal]
-        ),
-        portals_written=len((lights or prepared.stand_ins).portals),
+        emitter_lights_written=len(emitters) - portals,
+        portals_written=portals,
         method=job.method,
         alpha=job.alpha,
         iterations=job.iterations,
