@@ -344,7 +344,8 @@ def summary(
     (default: the prepared scene's)."""
     laid, stats = computed.laid, computed.stats
     # The fields, not ``StandIns.portals``: the summary stays in this file and the library's.
-    emitters = (lights or prepared.stand_ins).emitters
+    written = lights or prepared.stand_ins
+    emitters = written.emitters
     portals = sum(1 for e in emitters if e.portal)
     evaluator = vplace.job.EvaluatorSummary(
         stats.shadow_rays, stats.pairs, stats.seconds, stats.rays_per_second
@@ -371,6 +372,7 @@ def summary(
         lights_written=int((computed.vpls.blender_power.max(axis=1) > 0).sum()),
         emitter_lights_written=len(emitters) - portals,
         portals_written=portals,
+        sun_written=written.sun is not None,
         method=job.method,
         alpha=job.alpha,
         iterations=job.iterations,

@@ -126,7 +126,8 @@ def _attribution_detail(a: dict[str, Any] | None) -> dict[str, str]:
     share = a["share"]
     return {
         "rmse": f"; of EEVEE's squared error {share['direct']:.0%} is EEVEE's direct light "
-        f"against Cycles' (not vplace's), {share['vpl']:.0%} its VPL light against the "
+        f"against Cycles' (the scene's lamps and vplace's stand-ins, not the VPLs), "
+        f"{share['vpl']:.0%} its VPL light against the "
         f"evaluator's, {share['rest']:.0%} the evaluator's own error",
         "ssim": f"; with Cycles' direct light under EEVEE's VPL light {a['ssim_cycles_direct']:.4f}"
         f", with the evaluator's VPL light over EEVEE's direct light "

@@ -204,6 +204,7 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
         emitters, portals = summary.emitter_lights_written, summary.portals_written
         extra = f" and {emitters} lights for emissive meshes" if emitters else ""
         extra += f" and {portals} sky portals" if portals else ""
+        extra += " and a SUN light for the world's sun" if summary.sun_written else ""
         self.report({"INFO"}, f"wrote {summary.lights_written} VPL lights{extra}")
         for problem in eevee_setup.problems(scene):
             self.report({"WARNING"}, f"EEVEE: {problem} (Set up EEVEE for vplace fixes it)")

@@ -98,8 +98,9 @@ def score_eevee(
 
     A second render hides the VPLs (the scene's lights and vplace's stand-ins stay): EEVEE's
     direct light, whose brightness against Cycles' (``direct_brightness``) is the part of the
-    difference that is EEVEE's, not vplace's. ``vpl_light``, the evaluator's image of the
-    written VPLs, splits the error as ``vplace.job.attribute`` does (``attribution_*``)."""
+    difference that is not the VPLs' (EEVEE's light of the scene's lamps and of the
+    stand-ins). ``vpl_light``, the evaluator's image of the written VPLs, splits the error as
+    ``vplace.job.attribute`` does (``attribution_*``)."""
     from . import eevee_render as eevee
 
     height, width = reference.gi.shape[:2]

@@ -261,7 +261,10 @@ def test_targets_compare_held_out_views_with_the_fit_mean_and_eevee_with_the_sam
     checks = {c["check"]: c for c in summary.targets(rows)}
     rmse = checks["s A (fit): EEVEE's RMSE at most 1.25x the evaluator's (the same lights)"]
     assert not rmse["met"]
-    assert "80% is EEVEE's direct light against Cycles' (not vplace's)" in rmse["detail"]
+    assert (
+        "80% is EEVEE's direct light against Cycles' (the scene's lamps and vplace's stand-ins, "
+        "not the VPLs)" in rmse["detail"]
+    )
     gap = checks[
         "s A (fit): EEVEE with the VPLs within 0.02 SSIM of the evaluator (the same lights)"
     ]

@@ -65,3 +65,11 @@ def test_job_report_says_what_of_eevees_difference_is_blenders():
     assert "is 0.91x Cycles': this part of EEVEE's difference is Blender's, not vplace's." in text
     assert "EEVEE's VPL light against the evaluator's 0.0100 (+10%)" in text
     assert "the evaluator's own error 0.0300 (+60%)" in text
+    # With stand-ins written, EEVEE's direct light is partly vplace's: the note says so.
+    ours = vjob.job_report(_report(eevee=dark, portals_written=2, sun_written=True))
+    assert "Blender's" not in ours
+    assert (
+        "this part of EEVEE's difference is not the VPLs' but how EEVEE lights the scene's lamps "
+        "and vplace's 3 stand-in lights." in ours
+    )
+    assert "a SUN light for the world's sun; 2 sky portals" in ours

@@ -474,6 +474,8 @@ class JobSummary:
     #: Sky portals written (``addon.writeback.portals``): AREA lights in the openings that
     #: carry the sky in for EEVEE.
     portals_written: int = 0
+    #: Whether a SUN light stands in for the world's sun (``addon.writeback.stand_ins``).
+    sun_written: bool = False
     fit: FitSummary | None = None
     reference: ReferenceInfo | None = None
     eevee: dict[str, float] | None = None
@@ -608,9 +610,11 @@ def _eevee_label(e: dict[str, float]) -> str:
 DIRECT_NOTE = 0.05
 
 
-def eevee_notes(e: dict[str, float]) -> list[str]:
+def eevee_notes(e: dict[str, float], stand_ins: int = 0) -> list[str]:
     """What the main job says of EEVEE's image beyond its scores: how its direct light compares
-    with Cycles' (not vplace's doing), and where its error comes from."""
+    with Cycles', and where its error comes from. ``stand_ins``: the lights vplace wrote beside
+    the VPLs (emissive meshes, the sun, sky portals); EEVEE's direct light is then partly
+    vplace's, and the note says so rather than calling it Blender's alone."""
     lines = []
     d = e.get("direct_brightness")
     if d is not None:
@@ -619,7 +623,12 @@ def eevee_notes(e: dict[str, float]) -> list[str]:
             f"is {d:.2f}x Cycles'"
         )
         if abs(d - 1.0) > DIRECT_NOTE:
-            line += ": this part of EEVEE's difference is Blender's, not vplace's"
+            line += (
+                f": this part of EEVEE's difference is not the VPLs' but how EEVEE lights the "
+                f"scene's lamps and vplace's {stand_ins} stand-in light{'s' * (stand_ins != 1)}"
+                if stand_ins
+                else ": this part of EEVEE's difference is Blender's, not vplace's"
+            )
         lines.append(line + ".")
     if "attribution_share_vpl" in e:
         parts = ", ".join(
@@ -634,12 +643,19 @@ def eevee_notes(e: dict[str, float]) -> list[str]:
     return lines
 
 
+def stand_ins_written(report: JobSummary) -> int:
+    """The lights vplace wrote beside the VPLs: for emissive meshes, the sun, the sky portals."""
+    return report.emitter_lights_written + int(report.sun_written) + report.portals_written
+
+
 def _stand_in_lines(report: JobSummary) -> list[str]:
     """What the write-back added beside the VPLs, for EEVEE."""
     parts = []
     if report.emitter_lights_written:
         n = report.emitter_lights_written
         parts.append(f"{n} light{'s' * (n != 1)} for emissive meshes")
+    if report.sun_written:
+        parts.append("a SUN light for the world's sun")
     if report.portals_written:
         n = report.portals_written
         parts.append(
@@ -680,7 +696,11 @@ def job_report(report: JobSummary) -> str:
         *markdown.table(["image", "RMSE", "relative MSE", "SSIM", "brightness"], rows),
         "",
         *_stand_in_lines(report),
-        *[line for note in eevee_notes(report.eevee or {}) for line in (note, "")],
+        *[
+            line
+            for note in eevee_notes(report.eevee or {}, stand_ins_written(report))
+            for line in (note, "")
+        ],
         *[line for note in report.eevee_lamp_notes for line in (note + ".", "")],
         f"Evaluator: {s.shadow_rays} shadow rays in {s.seconds:.3f} s "
         f"= {s.rays_per_second / 1e6:.2f} M rays/s",
