@@ -142,3 +142,23 @@ def test_bad_enum_and_query_input():
         scene.intersect(np.zeros((1, 3), np.float32), np.zeros((2, 3), np.float32))
     t, tri, bary = scene.intersect(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.float32))
     assert t.shape == (0,) and tri.shape == (0,) and bary.shape == (0, 2)
+
+
+def test_normal_at_is_the_triangles_winding_side():
+    """``Scene.normal_at``: the unit geometric normal of each hit triangle (the floor and the
+    card wind counter-clockwise seen from above: +z), zeros for a degenerate one."""
+    scene = floor_and_card()
+    _, tri, bary = down_at(scene, [(0.9, 0.9), (0.0, 0.0)])
+    np.testing.assert_allclose(scene.normal_at(tri.astype(np.uint32), bary), [[0, 0, 1]] * 2)
+    v = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [0, 1, 0]], dtype=np.float32)
+    flat = vplace.Scene(
+        v,
+        np.array([[0, 1, 2], [0, 3, 1]], dtype=np.uint32),
+        np.zeros(2, np.uint32),
+        np.array([[0.5, 0.5, 0.5]], np.float32),
+        [vplace.Light.point((0, 0, 1), (1, 1, 1))],
+    )
+    normals = flat.normal_at(np.array([0, 1], np.uint32), np.zeros((2, 2), np.float32))
+    np.testing.assert_allclose(normals, [[0, 0, 0], [0, 0, -1]])
+    with pytest.raises(vplace.InputError, match="index 4 is out of bounds for 4 triangles"):
+        scene.normal_at(np.array([4], np.uint32), np.zeros((1, 2), np.float32))

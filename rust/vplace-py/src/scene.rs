@@ -477,6 +477,18 @@ impl PyScene {
         })
     }
 
+    /// The unit geometric normal (the winding's side) of triangles `triangles` (uint32 (N,)),
+    /// zeros for a degenerate triangle; `barycentrics` (float32 (N, 2)) as `albedo_at` takes
+    /// them (the normal is the same at every point of a triangle). float32 (N, 3).
+    fn normal_at<'py>(
+        &self,
+        py: Python<'py>,
+        triangles: &Bound<'py, PyAny>,
+        barycentrics: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        self.per_hit(py, triangles, barycentrics, |s, t, _| s.normal(t))
+    }
+
     /// Whether something blocks the segment from each of `origins` to the matching `targets`
     /// (float32 (N, 3) each; an any-hit shadow ray, alpha-tested surfaces counting only where
     /// they are not cut). The caller offsets both ends off their surfaces. bool (N,).
