@@ -577,8 +577,10 @@ def _break_even_lines(found: Sequence[dict[str, Any]]) -> list[str]:
         "",
         "Frames after which vplace's one-time cost plus its EEVEE frames costs less than "
         "Cycles + OIDN frames of at least the same SSIM (the fewest samples that reach it). "
-        "EEVEE's frame time is software OpenGL on 2 cores; a GPU's is unknown here (no GPU "
-        "was lent).",
+        "EEVEE's frame time is this machine's (software OpenGL where it has no GPU). On an "
+        "NVIDIA H200 (docs/EEVEE_NOTES.md, Q8), Sponza at 1920x1080 and 16 samples took 1.9 s "
+        "without VPLs, 25.9 s with 256 and 79 s with 800; at 1 sample 1.85 s with 256. Cycles + "
+        "OIDN on that GPU was not measured.",
         "",
         *vplace.markdown.table(header, body),
         "",
