@@ -39,6 +39,16 @@ def test_job_report_rows():
     assert "| evaluator: direct + VPL indirect (vplace+refit) | 0.10000 |" in text
     assert "(rsm, same N)" in text and "EEVEE" not in text
     assert "Evaluator: 1000 shadow rays in 0.500 s = 2.00 M rays/s" in text
+    assert "written as lights" not in text
+
+
+def test_job_report_says_how_many_vpls_were_written():
+    # The refit can leave VPLs with no power; they are not written, and the header says so.
+    text = vjob.job_report(_report(lights_written=7))
+    assert (
+        "16 VPLs by vplace+refit (cosine, near-field radius 0.01 m); 7 written as lights, the "
+        "other 9 carry no power (vplace+refit) and are not written\n" in text
+    )
 
 
 def test_job_report_eevee_row():

@@ -665,6 +665,19 @@ def _stand_in_lines(report: JobSummary) -> list[str]:
     return [f"Written beside the VPLs: {'; '.join(parts)}.", ""] if parts else []
 
 
+def _unwritten(report: JobSummary) -> str:
+    """The header's note when fewer VPL lights were written than laid out: those of no power
+    are not written (``writeback.apply``), and a user who asked for N should see why there are
+    fewer lights in the file."""
+    missing = report.n_vpls - report.lights_written
+    if missing <= 0:
+        return ""
+    return (
+        f"; {report.lights_written} written as lights, the other {missing} carry no power "
+        f"({report.method}) and are not written"
+    )
+
+
 def job_report(report: JobSummary) -> str:
     """The main job's short human-readable report."""
     m, s = report.metrics, report.evaluator
@@ -685,7 +698,7 @@ def job_report(report: JobSummary) -> str:
         f"{report.triangles} triangles, {report.lights} lights, "
         f"{report.resolution[0]}x{report.resolution[1]} px, {report.samples} spp Cycles, "
         f"{report.n_vpls} VPLs by {report.method} ({report.profile}, "
-        f"near-field radius {report.radius:.3g} m)",
+        f"near-field radius {report.radius:.3g} m){_unwritten(report)}",
         "",
         *markdown.table(
             ["stage", "seconds"], [[k, f"{v:.2f}"] for k, v in report.stage_seconds.items()]
