@@ -205,12 +205,8 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
         extra = f" and {emitters} lights for emissive meshes" if emitters else ""
         extra += f" and {portals} sky portals" if portals else ""
         extra += " and a SUN light for the world's sun" if summary.sun_written else ""
-        of = summary.n_vpls
-        note = (
-            f" ({of - summary.lights_written} of {of} carry no power)"
-            if of > summary.lights_written
-            else ""
-        )
+        missing = vplace.job.unwritten_vpls(summary)
+        note = f" ({missing} of {summary.n_vpls} carry no power)" if missing else ""
         self.report({"INFO"}, f"wrote {summary.lights_written} VPL lights{note}{extra}")
         for problem in eevee_setup.problems(scene):
             self.report({"WARNING"}, f"EEVEE: {problem} (Set up EEVEE for vplace fixes it)")

@@ -17,7 +17,7 @@ echo "EGL vendor json: ${__EGL_VENDOR_LIBRARY_FILENAMES:-none}"
 nvidia-smi --query-gpu=name,utilization.gpu,memory.used,clocks.sm --format=csv,noheader -lms 1000 > $OUT/smi.log 2>&1 &
 SMI=$!
 cd $W
-SIZES="${SIZES:-320x180 1920x1080}" REPS=${REPS:-3} env -u PYTHONPATH timeout ${ETIME:-400} $PY gpu_time.py -- ${SPECS:-sp256:novpl sp256 sp800 sp111 sp256:rt} > $OUT/eevee.log 2>&1 &
+SIZES="${SIZES:-320x180 1920x1080}" REPS=${REPS:-3} env -u PYTHONPATH timeout ${ETIME:-400} $PY gpu_time.py -- ${SPECS:-sp256:novpl sp256 sp800 sp256:rt} > $OUT/eevee.log 2>&1 &
 P=$!; bash watch.sh $P > $OUT/libs.txt; wait $P; echo "eevee rc $?"
 echo "libs: $(cat $OUT/libs.txt)"
 grep -v -E "^EGL Error|Add-on not|Fra:|Read blend|Saved:" $OUT/eevee.log | tail -40

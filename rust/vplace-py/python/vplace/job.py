@@ -665,12 +665,17 @@ def _stand_in_lines(report: JobSummary) -> list[str]:
     return [f"Written beside the VPLs: {'; '.join(parts)}.", ""] if parts else []
 
 
+def unwritten_vpls(report: JobSummary) -> int:
+    """How many of the laid-out VPLs were not written: those of no power
+    (``writeback.apply``)."""
+    return max(report.n_vpls - report.lights_written, 0)
+
+
 def _unwritten(report: JobSummary) -> str:
-    """The header's note when fewer VPL lights were written than laid out: those of no power
-    are not written (``writeback.apply``), and a user who asked for N should see why there are
-    fewer lights in the file."""
-    missing = report.n_vpls - report.lights_written
-    if missing <= 0:
+    """The header's note when fewer VPL lights were written than laid out, so that a user who
+    asked for N sees why there are fewer lights in the file."""
+    missing = unwritten_vpls(report)
+    if not missing:
         return ""
     return (
         f"; {report.lights_written} written as lights, the other {missing} carry no power "
