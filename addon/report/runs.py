@@ -502,7 +502,8 @@ class _EeveeRun:
                 + f"; direct {a.direct_brightness:.3f}x Cycles', VPL light "
                 f"{a.vpl_brightness:.3f}x the evaluator's; SSIM with Cycles' direct light "
                 f"{a.ssim_cycles_direct:.4f}, with the evaluator's VPL light "
-                f"{a.ssim_evaluator_vpl:.4f}"
+                f"{a.ssim_evaluator_vpl:.4f}; (a) in the {a.seen_pixels:.1%} of pixels that "
+                f"see an emitter or the world: {a.seen_share:+.0%} of the squared error"
             )
 
     def each_view(
@@ -539,7 +540,9 @@ class _EeveeRun:
         vpl_light, _ = vplace.evaluate(self.data.prepared.scene, view.view, s.vpls)
         direct = self.direct[view.name]
         self.vpl_differences.setdefault(view.name, {})[method] = img.image - direct - vpl_light
-        return vplace.job.attribute(img.image, direct, view.truth.direct, vpl_light, view.truth.gi)
+        truth = view.truth
+        seen = vplace.job.seen_directly(truth.emission + truth.environment, truth.direct)
+        return vplace.job.attribute(img.image, direct, truth.direct, vpl_light, truth.gi, seen)
 
     def vpl_rows(self, method: str, s: LaidSet, world_bake: float, portals: bool) -> None:
         """The lights of ``s`` written (the sky portals with ``portals``), rendered on every view

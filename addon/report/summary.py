@@ -124,9 +124,15 @@ def _attribution_detail(a: dict[str, Any] | None) -> dict[str, str]:
     if not a:
         return {"rmse": "", "ssim": ""}
     share = a["share"]
+    seen = ""
+    if math.isfinite(a.get("seen_share", math.nan)):
+        seen = (
+            f" ({a['seen_share']:.0%} in the {a['seen_pixels']:.1%} of pixels where the camera "
+            "sees an emitter or the world: their edges and patterns, anti-aliased EEVEE's way)"
+        )
     return {
         "rmse": f"; of EEVEE's squared error {share['direct']:.0%} is EEVEE's direct light "
-        f"against Cycles' (the scene's lamps and vplace's stand-ins, not the VPLs), "
+        f"against Cycles' (the scene's lamps and vplace's stand-ins, not the VPLs){seen}, "
         f"{share['vpl']:.0%} its VPL light against the "
         f"evaluator's, {share['rest']:.0%} the evaluator's own error",
         "ssim": f"; with Cycles' direct light under EEVEE's VPL light {a['ssim_cycles_direct']:.4f}"
@@ -230,10 +236,17 @@ def targets(rows: list[Row]) -> list[dict[str, Any]]:
                 off = shown.brightness - 1
                 detail = f"{shown.brightness:.4f}x"
                 plain = _at(mine, scene, v, "eevee", "eevee", None)
-                if plain is not None and direct is not None:
-                    # EEVEE's own direct light against Cycles': a part vplace does not render.
+                attribution = shown.details.attribution or {}
+                if "direct_brightness" in attribution:
+                    # EEVEE's direct light as vplace renders it (the scene's lamps and vplace's
+                    # stand-ins, the VPLs hidden) against Cycles': a part the VPLs do not carry.
+                    own = attribution["direct_brightness"]
+                    detail += f"; EEVEE's direct light (VPLs hidden) is {own:.3f}x Cycles'"
+                elif plain is not None and direct is not None:
+                    # EEVEE without vplace (the world's light its own way) against Cycles'
+                    # direct light: no stand-ins, so not what vplace's EEVEE set-up renders.
                     own = plain.brightness / direct.brightness
-                    detail += f"; EEVEE's direct light alone is {own:.3f}x Cycles' direct light"
+                    detail += f"; EEVEE without vplace is {own:.3f}x Cycles' direct light"
                 check(
                     f"{scene} {v} ({role}): EEVEE with the VPLs within "
                     f"{BRIGHTNESS_TOLERANCE:.0%} of the truth's brightness",
@@ -492,6 +505,7 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
                 f"{r.worst_share:.2f} / {ev.worst_share:.2f}" if ev else f"{r.worst_share:.2f}",
                 f"{a['vpl_hot_pixels']:.2%}",
                 f"{a['ssim_cycles_direct']:.3f} / {a['ssim_evaluator_vpl']:.3f}",
+                _seen_cell(a),
             ]
         )
     if not body:
@@ -499,7 +513,7 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
     header = ["lights", "RMSE: EEVEE / evaluator", "(a) direct", "(b) VPL light", "(c) rest"]
     header += ["direct: EEVEE / Cycles", "VPL light: EEVEE / evaluator"]
     header += ["hot pixels: EEVEE / evaluator", "worst 1 %: EEVEE / evaluator", "(b) hot"]
-    header += ["SSIM without (a) / without (b)"]
+    header += ["SSIM without (a) / without (b)", "(a) where emitters are seen"]
     return [
         "",
         "Where EEVEE's error comes from, RMSE of each part (its share of EEVEE's squared error):"
@@ -509,10 +523,20 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
         "pixels are brighter than twice the truth plus 0.05, worst 1 % is the share of the "
         "squared error in the worst 1 % of pixels, (b) hot counts EEVEE's VPL light against "
         "the evaluator's. SSIM without (a) puts Cycles' direct light under EEVEE's VPL light, "
-        "without (b) the evaluator's VPL light over EEVEE's direct light.",
+        "without (b) the evaluator's VPL light over EEVEE's direct light. (a) where emitters "
+        "are seen: the share of EEVEE's squared error that (a) holds in the pixels where the "
+        "camera sees an emitter or the world (Cycles' emission and environment passes at least "
+        "half its direct light there), and how many pixels those are: edges and patterns "
+        "EEVEE anti-aliases its own way, not light on surfaces.",
         "",
         *vplace.markdown.table(header, body),
     ]
+
+
+def _seen_cell(a: dict[str, Any]) -> str:
+    """The attribution table's "(a) where emitters are seen" cell ("-" without a mask)."""
+    share, pixels = a.get("seen_share", math.nan), a.get("seen_pixels", math.nan)
+    return f"{share:+.0%} in {pixels:.1%}" if math.isfinite(share) else "-"
 
 
 def _scene_lines(name: str, info: dict[str, Any], rows: Sequence[Row]) -> list[str]:

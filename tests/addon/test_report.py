@@ -272,6 +272,21 @@ def test_targets_compare_held_out_views_with_the_fit_mean_and_eevee_with_the_sam
         not gap["met"]
         and "with Cycles' direct light under EEVEE's VPL light 0.9300" in gap["detail"]
     )
+    # Brightness: EEVEE's direct light is the one vplace renders (its stand-ins, VPLs hidden),
+    # not EEVEE without vplace (which lights a sky-lit room with the whole world, 1.8x).
+    rows += [
+        _row("A", "eevee", None, 0.4, renderer="eevee", brightness=1.8 * 0.5),
+        _row("A", "direct", None, 0.6, renderer="reference", brightness=0.5),
+    ]
+    bright = checks_of(rows, "s A (fit): EEVEE with the VPLs within 3% of the truth's brightness")
+    assert "without vplace is 1.800x Cycles' direct light" in bright["detail"]
+    rows[-3].details.attribution["direct_brightness"] = 0.95
+    bright = checks_of(rows, "s A (fit): EEVEE with the VPLs within 3% of the truth's brightness")
+    assert bright["detail"].endswith("EEVEE's direct light (VPLs hidden) is 0.950x Cycles'")
+
+
+def checks_of(rows, name):
+    return {c["check"]: c for c in summary.targets(rows)}[name]
 
 
 def test_break_even_counts_frames_until_the_one_time_cost_is_paid():

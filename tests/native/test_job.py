@@ -128,6 +128,41 @@ def test_attribution_splits_eevees_error_into_parts_that_add_up():
         vjob.attribute(eevee, eevee_direct, cycles_direct, evaluator_vpl, bad)
 
 
+def test_attribution_says_how_much_of_eevees_direct_error_is_where_emitters_are_seen():
+    # A lit wall with a panel (an emitter, 20x brighter) the camera sees in its top rows: EEVEE
+    # draws the panel's edge one pixel lower (anti-aliased its own way) and lights the wall right.
+    h, w = 12, 16
+    wall = np.full((h, w, 3), 0.2)
+    emission = np.zeros((h, w, 3))
+    emission[:3] = 4.0
+    cycles_direct = wall + emission
+    cycles_direct[:3] -= 0.2  # the panel's pixels see the panel, not the lit wall
+    eevee_direct = cycles_direct.copy()
+    eevee_direct[3] = 4.0  # the edge drawn a row lower
+    vpl = np.full((h, w, 3), 0.1)
+    truth = cycles_direct + vpl
+    seen = vjob.seen_directly(emission, cycles_direct)
+    assert seen.dtype == bool and seen[:3].all() and not seen[3:].any()
+    a = vjob.attribute(eevee_direct + vpl, eevee_direct, cycles_direct, vpl, truth, seen)
+    assert a.seen_pixels == pytest.approx(3 / h)
+    # The error lies beside the panel, on the wall's pixels: none of it where the panel is seen.
+    assert a.share["direct"] == pytest.approx(1.0) and a.seen_share == pytest.approx(0.0)
+    eevee_direct[3] = 0.2
+    eevee_direct[2] = 0.2  # now the edge drawn a row higher: the error is on the panel's pixels
+    a = vjob.attribute(eevee_direct + vpl, eevee_direct, cycles_direct, vpl, truth, seen)
+    assert a.seen_share == pytest.approx(1.0)
+    # Without a mask, the split is unknown; a wrong mask is a clear error.
+    assert np.isnan(vjob.attribute(truth, cycles_direct, cycles_direct, vpl, truth).seen_share)
+    with pytest.raises(ValueError, match="bool mask"):
+        vjob.attribute(truth, cycles_direct, cycles_direct, vpl, truth, seen[:4])
+    with pytest.raises(ValueError, match="bool mask"):
+        vjob.attribute(truth, cycles_direct, cycles_direct, vpl, truth, seen.astype(float))
+    with pytest.raises(ValueError, match="one shape"):
+        vjob.seen_directly(emission[:4], cycles_direct)
+    # The world seen through a window counts as the emitters do; a dark pixel never does.
+    assert not vjob.seen_directly(np.zeros((2, 2, 3)), np.zeros((2, 2, 3))).any()
+
+
 def test_baselines_share_the_fit_and_leave_the_method_out(room):
     scene, v, ref = room
     computed, compared = vjob.compute_with_baselines(

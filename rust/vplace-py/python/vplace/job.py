@@ -241,10 +241,36 @@ class Attribution:
     #: evaluator's VPL light (what EEVEE's VPL light costs is gone); NaN below 11 x 11 pixels.
     ssim_cycles_direct: float
     ssim_evaluator_vpl: float
+    #: With a ``seen`` mask (:func:`seen_directly`): the share of pixels where the camera sees
+    #: an emitter or the world, and the share of EEVEE's squared error that part ``direct``
+    #: holds in them (the emitters' edges and patterns, which EEVEE anti-aliases its own way,
+    #: not light on surfaces); NaN without a mask.
+    seen_pixels: float = float("nan")
+    seen_share: float = float("nan")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready."""
         return asdict(self)
+
+
+#: A pixel is "seen directly" (:func:`seen_directly`) where the emission and the world the
+#: camera sees make at least this share of Cycles' direct light there.
+SEEN_SHARE = 0.5
+
+
+def seen_directly(seen_light: np.ndarray, direct: np.ndarray) -> np.ndarray:
+    """(H, W) bool: the pixels where the camera sees an emitter or the world, from Cycles'
+    ``Emit + Env`` passes (``seen_light``) and its direct light (both (H, W, 3)): where their
+    luminance is positive and at least :data:`SEEN_SHARE` of the direct light's."""
+    a = np.asarray(seen_light, dtype=np.float64)
+    b = np.asarray(direct, dtype=np.float64)
+    if a.shape != b.shape or a.ndim != 3 or a.shape[-1] < 3:
+        raise ValueError(
+            f"seen_directly needs two (H, W, 3) images of one shape, got {a.shape}, {b.shape}"
+        )
+    lum = np.asarray(vplace.LUMINANCE, dtype=np.float64)
+    la, lb = a[..., :3] @ lum, b[..., :3] @ lum
+    return (la > 0.0) & (la >= SEEN_SHARE * lb)
 
 
 def attribute(
@@ -253,11 +279,14 @@ def attribute(
     cycles_direct: np.ndarray,
     evaluator_vpl: np.ndarray,
     truth: np.ndarray,
+    seen: np.ndarray | None = None,
 ) -> Attribution:
     """Splits ``eevee - truth`` (RGB images of one view, the same shape) into the three parts of
     :class:`Attribution`: ``eevee_direct - cycles_direct``, ``(eevee - eevee_direct) -
     evaluator_vpl`` and ``cycles_direct + evaluator_vpl - truth``. EEVEE adds lights linearly,
-    so ``eevee - eevee_direct`` is its image of the VPLs alone (up to its sampling noise)."""
+    so ``eevee - eevee_direct`` is its image of the VPLs alone (up to its sampling noise).
+    ``seen`` ((H, W) bool, :func:`seen_directly`) marks the pixels where the camera sees an
+    emitter or the world: how much of part ``direct`` lies there is ``seen_share``."""
     arrays = [eevee, eevee_direct, cycles_direct, evaluator_vpl, truth]
     e, ed, cd, vx, t = (np.asarray(a, dtype=np.float64)[..., :3] for a in arrays)
     if not e.shape == ed.shape == cd.shape == vx.shape == t.shape or e.ndim != 3:
@@ -265,6 +294,13 @@ def attribute(
         raise ValueError(f"attribute needs five (H, W, 3) images of one shape, got {shapes}")
     if not all(np.isfinite(a).all() for a in (e, ed, cd, vx, t)):
         raise ValueError("attribute: an image holds NaN or infinity")
+    if seen is not None:
+        seen = np.asarray(seen)
+        if seen.dtype != np.bool_ or seen.shape != e.shape[:2]:
+            raise ValueError(
+                f"attribute: seen must be an (H, W) = {e.shape[:2]} bool mask, got "
+                f"{seen.dtype} {seen.shape}"
+            )
     ve = e - ed
     parts = {"direct": ed - cd, "vpl": ve - vx, "rest": cd + vx - t}
     total = e - t
@@ -293,6 +329,12 @@ def attribute(
         vpl_worst_share=vpl_out["worst_share"],
         ssim_cycles_direct=ssim(cd + ve),
         ssim_evaluator_vpl=ssim(ed + vx),
+        seen_pixels=float(seen.mean()) if seen is not None else float("nan"),
+        seen_share=(
+            (float((parts["direct"] * total)[seen].sum()) / sq if sq > 0 else 0.0)
+            if seen is not None
+            else float("nan")
+        ),
     )
 
 
