@@ -140,6 +140,7 @@ def reference_of(
         label,
         camera=cap.view,
         samples=cap.samples,
+        seen=vplace.job.seen_directly(cap.emission + cap.environment, cap.direct),
     )
 
 

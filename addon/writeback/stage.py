@@ -120,7 +120,9 @@ def score_eevee(
             apply.hide_vpl_lights(g, bl_scene)
             direct = render()
     vplace.images.save_png(path, img.image)
-    a = vplace.job.attribute(img.image, direct.image, reference.direct, vpl_light, reference.gi)
+    a = vplace.job.attribute(
+        img.image, direct.image, reference.direct, vpl_light, reference.gi, reference.seen
+    )
     out = {
         **vplace.job.score(img.image, reference.gi),
         "seconds": img.seconds,
@@ -133,4 +135,7 @@ def score_eevee(
         out[f"attribution_share_{part}"] = a.share[part]
     out["attribution_vpl_brightness"] = a.vpl_brightness
     out["attribution_vpl_hot_pixels"] = a.vpl_hot_pixels
+    if reference.seen is not None:
+        out["attribution_seen_pixels"] = a.seen_pixels
+        out["attribution_seen_share"] = a.seen_share
     return out

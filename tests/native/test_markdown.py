@@ -83,3 +83,22 @@ def test_job_report_says_what_of_eevees_difference_is_blenders():
         "and vplace's 3 stand-in lights." in ours
     )
     assert "a SUN light for the world's sun; 2 sky portals" in ours
+
+
+def test_job_report_says_how_much_of_eevees_error_is_at_emitters_the_camera_sees():
+    e = {"rmse": 0.1, "relative_mse": 0.2, "ssim": 0.9, "brightness": 1.0, "seconds": 2.0}
+    e["samples"] = 16
+    for part in vjob.ATTRIBUTION_PARTS:
+        e[f"attribution_rmse_{part}"], e[f"attribution_share_{part}"] = 0.01, 1 / 3
+    before = vjob.job_report(_report(eevee=e))
+    assert "(+33%)." in before and "see an emitter" not in before
+    seen = {**e, "attribution_seen_pixels": 0.034, "attribution_seen_share": 0.8}
+    text = vjob.job_report(_report(eevee=seen))
+    assert (
+        "; of EEVEE's squared error, 80% is its direct light in the 3.4% of pixels that see an "
+        "emitter or the world (their edges and patterns, anti-aliased EEVEE's way: not light on "
+        "surfaces)." in text
+    )
+    # A view that sees no emitter: nothing to say.
+    none = vjob.job_report(_report(eevee={**seen, "attribution_seen_pixels": 0.0}))
+    assert "see an emitter" not in none

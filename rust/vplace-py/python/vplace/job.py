@@ -371,6 +371,9 @@ class Reference:
     #: The camera's name and the render's samples.
     camera: str = ""
     samples: int = 0
+    #: (H, W) bool, the pixels where the camera sees an emitter or the world
+    #: (:func:`seen_directly`); None where the render's passes do not say.
+    seen: np.ndarray | None = None
 
 
 @dataclass
@@ -681,7 +684,15 @@ def eevee_notes(e: dict[str, float], stand_ins: int = 0) -> list[str]:
                 ("rest", "the evaluator's own error"),
             )
         )
-        lines.append(f"EEVEE's error, RMSE by part (share of its squared error): {parts}.")
+        line = f"EEVEE's error, RMSE by part (share of its squared error): {parts}"
+        seen = e.get("attribution_seen_share")
+        if seen is not None and math.isfinite(seen) and e.get("attribution_seen_pixels", 0) > 0:
+            line += (
+                f"; of EEVEE's squared error, {seen:.0%} is its direct light in the "
+                f"{e['attribution_seen_pixels']:.1%} of pixels that see an emitter or the world "
+                "(their edges and patterns, anti-aliased EEVEE's way: not light on surfaces)"
+            )
+        lines.append(line + ".")
     return lines
 
 
