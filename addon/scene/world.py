@@ -96,6 +96,10 @@ class WorldInfo:
     #: How the world was read: "color", "image" or "baked".
     source: str = "color"
     warnings: list[str] = field(default_factory=list)
+    #: The sun discs of a baked world's Sky Texture nodes, known exactly (``sky_sun_directions``:
+    #: unit direction toward the sun, world space, and the disc's diameter in radians); the bake
+    #: spreads each over the pixels it touches.
+    suns: tuple[tuple[tuple[float, float, float], float], ...] = ()
 
     @property
     def emits(self) -> bool:
@@ -126,6 +130,7 @@ class WorldInfo:
             h.update(np.ascontiguousarray(self.image).tobytes())
         if self.rotation is not None:
             h.update(np.ascontiguousarray(self.rotation).tobytes())
+        # (``suns`` come from the node tree the baked ``image`` already changes with.)
         return h.digest()
 
 
@@ -540,4 +545,7 @@ def world_info(world: Any, *, bake: bool = True) -> WorldInfo | None:
             f"({BAKE_SAMPLES} samples per pixel, its sun's "
             f"{SUN_REFINE_FACTOR**2 * SUN_REFINE_SAMPLES}): an approximation"
         ],
+        tuple(
+            ((float(d[0]), float(d[1]), float(d[2])), size) for d, size in sky_sun_directions(world)
+        ),
     )

@@ -27,6 +27,7 @@ An emitter's texture is read as its material's constant emission (the export's r
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -316,6 +317,14 @@ def world_sun(info: WorldInfo | None) -> SunLight | None:
     irradiance = (img[sun] * d_omega[sun][:, None]).sum(axis=0)
     spread = float(np.arccos(np.clip(dirs[sun] @ direction, -1.0, 1.0)).max())
     angle = 2.0 * (spread + 0.5 * np.pi / h)
+    for disc, diameter in info.suns:
+        # A Sky Texture's disc among these pixels: its own direction and size. The pixels'
+        # spread is the bake's, up to 3.5x the disc (the sky room's: 1.92 degrees against
+        # 0.545), and EEVEE's shadows would blur the sun's patches by as much.
+        exact = np.asarray(disc, dtype=np.float64)
+        if exact @ direction >= math.cos(spread + np.pi / h):
+            direction, angle = exact / np.linalg.norm(exact), diameter
+            break
     return SunLight(
         tuple(float(x) for x in direction), tuple(float(x) for x in irradiance), float(angle)
     )
@@ -389,6 +398,8 @@ def stand_ins(
         radiance = portals.sky_radiance(world, sun_pixels(world))
         rng = np.random.default_rng([0, 31])
         for k, o in enumerate(found):
+            # In the opening's outer plane, where its reveals end (``portals``' module docs).
+            o = dataclasses.replace(o, centre=o.outer_centre, reveal=0.0)
             power, heading = portals.sky_power(scene, radiance, o, rng)
             if power.max() > 0.0:
                 # Facing the way the sky's light enters (downward through a window).

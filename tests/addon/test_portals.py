@@ -82,6 +82,9 @@ def test_the_window_is_found_where_it_is():
     # Level and upright: the first side along x, as wide and as tall as the window within 20 %.
     assert abs(o.tangent[0]) > 0.99 and abs(o.bitangent[2]) > 0.99
     assert o.size == pytest.approx(w, rel=0.2) and o.size_y == pytest.approx(h, rel=0.2)
+    # Its reveals reach through the wall: the outer plane is the wall's outer face.
+    assert o.centre[1] - o.reveal == pytest.approx(-1.5 - WALL, abs=0.02)
+    np.testing.assert_allclose(o.outer_centre, o.centre + o.reveal * o.outward)
 
 
 @pytest.mark.parametrize("eye", [(-1.9, 1.4, 1.6), (-1.9, 1.4, 2.3), (-1.9, 1.4, 1.2)])
@@ -107,6 +110,8 @@ def test_a_roof_open_to_the_sky_is_one_opening():
     top = found[0]
     np.testing.assert_allclose(top.outward, [0.0, 0.0, 1.0], atol=0.05)
     assert 2.4 <= top.centre[2] <= 2.75
+    # Its outer plane is where the walls end (the rim's hits lie a little below).
+    assert top.outer_centre[2] == pytest.approx(2.5, abs=0.03)
     (x0, y0, _), (x1, y1, _) = INTERIOR
     sides = sorted([top.size, top.size_y])
     np.testing.assert_allclose(sides, [y1 - y0, x1 - x0], rtol=0.15)

@@ -158,6 +158,30 @@ def test_a_world_sun_is_its_compact_bright_lobe_with_its_irradiance():
     assert 0.0 < sun.angle < np.radians(5.0)
 
 
+def test_a_sky_textures_sun_keeps_its_own_disc_where_the_bake_spread_it():
+    """A baked Sky Texture's disc (0.545 degrees) spreads over the map's pixels it touches: the
+    stand-in takes the disc's direction and diameter (``WorldInfo.suns``), not the pixels'
+    (their spread made the sky room's sun 1.92 degrees wide, and EEVEE blurred its patches by as
+    much); a disc that is not among the sun's pixels is someone else's and is left out."""
+    h, w = 64, 128
+    info = world_image(h, w, sun=(20, 40, 5000.0))
+    info.image[20:22, 40:42] = 5000.0
+    spread = emitter_lights.world_sun(info)
+    assert spread is not None and spread.angle > np.radians(5.0)
+    theta = (21.0 / h) * np.pi
+    phi = (0.5 - 41.0 / w) * 2 * np.pi
+    disc = (np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta))
+    far = (0.0, 0.0, 1.0)
+    size = np.radians(0.545)
+    info.suns = ((far, 0.01), (tuple(float(c) for c in disc), size))
+    sun = emitter_lights.world_sun(info)
+    np.testing.assert_allclose(sun.direction, disc, atol=1e-9)
+    assert sun.angle == size
+    np.testing.assert_allclose(sun.irradiance, spread.irradiance)
+    info.suns = ((far, 0.01),)
+    assert emitter_lights.world_sun(info).angle == spread.angle
+
+
 def test_a_sky_without_an_outstanding_sun_has_none():
     assert emitter_lights.world_sun(world_image()) is None
     assert emitter_lights.world_sun(world_image(sun=(20, 40, 2.0))) is None  # 10x, not 20x

@@ -389,7 +389,12 @@ impl Scene {
     /// Alpha-tested surfaces are skipped where they are cut.
     #[must_use]
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
-        let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), tmin, tmax);
+        let ray = Ray::new(
+            Vec3A::from(origin),
+            Vec3A::from(positive_zeros(dir)),
+            tmin,
+            tmax,
+        );
         let mut hit = RayHit::none();
         let found = match self.alpha_surfaces() {
             None => self
@@ -501,6 +506,15 @@ impl Scene {
         let ray = Ray::new(Vec3A::from(from), Vec3A::from(d / len), 0.0, len);
         self.occluded_ray_brute_force(&ray)
     }
+}
+
+/// `v` with each `-0.0` component made `+0.0`. obvhs's traversal takes a ray's octant from
+/// `d < 0.0` (false for `-0.0`) but its slabs from the inverse, which `safe_inverse` makes
+/// negative for `-0.0`: the two disagree and the ray misses boxes it crosses (a window's
+/// reveals along `-tangent`, a negated axis, were missed at every depth).
+#[inline(always)]
+fn positive_zeros(v: Vec3) -> Vec3 {
+    Vec3::select(v.cmpeq(Vec3::ZERO), Vec3::ZERO, v)
 }
 
 /// The barycentric coordinates `(b1, b2)` (weights of `v1` and `v2`) where `ray` meets the
@@ -742,6 +756,37 @@ fn geometry(
 mod tests {
     use super::*;
     use crate::test_util::{box_geometry, box_with, card_scene, closed_box, extend};
+
+    /// A direction with `-0.0` components finds what the same direction with `+0.0` finds.
+    #[test]
+    fn closest_hit_along_negative_zeros() {
+        let s = closed_box(vec![]);
+        let o = Vec3::new(0.1, -0.2, 0.3);
+        for d in [
+            Vec3::X,
+            Vec3::Y,
+            Vec3::Z,
+            Vec3::NEG_X,
+            Vec3::NEG_Y,
+            Vec3::NEG_Z,
+        ] {
+            let want = s
+                .closest_hit(o, d, 0.0, f32::INFINITY)
+                .expect("a closed box");
+            for signs in 1..8u32 {
+                let flip = |k: u32, c: f32| {
+                    if c == 0.0 && signs & (1 << k) != 0 {
+                        -0.0
+                    } else {
+                        c
+                    }
+                };
+                let neg = Vec3::new(flip(0, d.x), flip(1, d.y), flip(2, d.z));
+                let got = s.closest_hit(o, neg, 0.0, f32::INFINITY);
+                assert_eq!(got.map(|h| h.t), Some(want.t), "{neg:?}");
+            }
+        }
+    }
 
     #[test]
     fn closest_hit_and_occlusion() {
