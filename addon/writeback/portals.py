@@ -80,8 +80,10 @@ WALL_ANGLE = 45.0
 PASS_MARGIN = 0.02
 #: Depths at which :func:`_reveal_depth` probes for an opening's reveals, over its smaller side.
 REVEAL_STEPS = 64
-#: A lateral probe ray meets a reveal when it hits within this share of the opening's half
-#: width (the opening is widened by half a direction's spacing: its reveals lie inside it).
+#: A lateral probe ray meets a reveal when it hits between ``1 / REVEAL_REACH`` and this
+#: share of the opening's half side: the rim carried on through the wall (the opening is
+#: widened by half a direction's spacing, so its reveals lie a little inside it), not a mullion
+#: in the middle nor a roof's slope far off.
 REVEAL_REACH = 1.25
 #: The most portals written (the largest first).
 MAX_PORTALS = 16
@@ -296,13 +298,12 @@ def _reveal_depth(scene: vplace.Scene, o: Opening) -> float:
     window; 0 where nothing surrounds the opening beyond its plane, a roof left open). From
     points on its axis at :data:`REVEAL_STEPS` depths up to its smaller side, rays along both
     of its sides' directions: a depth is within the reveals while at least two of the four
-    hit within :data:`REVEAL_REACH` of the half side; the reveals end at the first depth where
-    they do not."""
+    hit at the half side's distance (within a factor :data:`REVEAL_REACH`); the reveals end
+    at the first depth where they do not."""
     limit = min(o.size, o.size_y)
     step = limit / REVEAL_STEPS
     depths = step * (np.arange(REVEAL_STEPS) + 0.5)
     sides = np.array([o.tangent, -o.tangent, o.bitangent, -o.bitangent], dtype=np.float64)
-    reach = REVEAL_REACH * 0.5 * np.array([o.size, o.size, o.size_y, o.size_y])
     starts = o.centre + depths[:, None] * o.outward
     origins = np.repeat(starts, 4, axis=0)
     dirs = np.tile(sides, (REVEAL_STEPS, 1))
@@ -310,7 +311,9 @@ def _reveal_depth(scene: vplace.Scene, o: Opening) -> float:
         np.ascontiguousarray(origins, dtype=np.float32),
         np.ascontiguousarray(dirs, dtype=np.float32),
     )
-    met = ((tri >= 0) & (t <= np.tile(reach, REVEAL_STEPS))).reshape(REVEAL_STEPS, 4)
+    half = np.tile(0.5 * np.array([o.size, o.size, o.size_y, o.size_y]), REVEAL_STEPS)
+    met = (tri >= 0) & (t <= REVEAL_REACH * half) & (t >= half / REVEAL_REACH)
+    met = met.reshape(REVEAL_STEPS, 4)
     inside = met.sum(axis=1) >= 2
     outside = np.flatnonzero(~inside)
     return float(depths[outside[0]] - 0.5 * step) if len(outside) else limit
