@@ -16,7 +16,9 @@ what the camera sees through the windows, but lights nothing).
   reveals). The opening's plane is the rim's: the wall the rim hits lie on (their least-squares
   plane, which reveals and sills tilt, refined to the largest group of hits on one surface
   near it: ``_rim_plane``), facing out along the escaping rays; its extent is where the
-  escaping rays cross that plane, widened by half a direction's spacing. Patches of several
+  escaping rays cross that plane, widened by half a direction's spacing. Those crossings must
+  lie within the rim (``_within_rim``), else the rim's least-squares plane is tried, else the
+  patch is no opening. Patches of several
   eyes in one plane that overlap are one opening, a rectangle in that plane (its sides level
   and upright where the plane stands, else along the patch's longest axis). When more than
   :data:`MAX_OPEN` of all rays escape the scene is open (outdoors, a ruin): the world lights
@@ -78,6 +80,9 @@ WALL_ANGLE = 45.0
 #: A ray that hits something this share of its way beyond an opening's plane has passed
 #: through the opening (the wall itself is hit on the plane).
 PASS_MARGIN = 0.02
+#: How far an opening's crossings may lie outside its rim's box, as a share of the box's
+#: larger side (``_within_rim``).
+RIM_MARGIN = 0.25
 #: Depths at which :func:`_reveal_depth` probes for an opening's reveals, over its smaller side.
 REVEAL_STEPS = 64
 #: A lateral probe ray meets a reveal when it hits between ``1 / REVEAL_REACH`` and this
@@ -193,22 +198,37 @@ def _patches(
         if len(rim) < MIN_RIM:
             continue
         hits = eye + dirs[rim].astype(np.float64) * t[rim, None]
-        point, normal = _rim_plane(scene, eye, hits, tri[rim])
         out = dirs[members].astype(np.float64)
-        if normal @ out.mean(axis=0) < 0.0:
-            normal = -normal
-        along = out @ normal
-        ok = along > 1e-3
-        if not ok.any():
-            continue
-        depth = float((point - eye) @ normal)
-        if depth <= 0.0:
-            continue
-        through = _through(members, escaped, t, dirs @ normal, depth, near)
-        s = depth / (dirs[through] @ normal).astype(np.float64)
-        crossings = eye + dirs[through].astype(np.float64) * s[:, None]
-        patches.append(_Patch(point, normal, crossings, 0.5 * spacing * float(s.mean())))
+        centred = hits - hits.mean(axis=0)
+        fitted = np.linalg.svd(centred, full_matrices=False)[2][-1]
+        for point, normal in (_rim_plane(scene, eye, hits, tri[rim]), (hits.mean(axis=0), fitted)):
+            if normal @ out.mean(axis=0) < 0.0:
+                normal = -normal
+            depth = float((point - eye) @ normal)
+            if not (out @ normal > 1e-3).any() or depth <= 0.0:
+                continue
+            through = _through(members, escaped, t, dirs @ normal, depth, near)
+            s = depth / (dirs[through] @ normal).astype(np.float64)
+            crossings = eye + dirs[through].astype(np.float64) * s[:, None]
+            if _within_rim(crossings, hits, normal):
+                patches.append(_Patch(point, normal, crossings, 0.5 * spacing * float(s.mean())))
+                break
     return patches, int(escaped.sum())
+
+
+def _within_rim(crossings: np.ndarray, hits: np.ndarray, normal: np.ndarray) -> bool:
+    """Whether an opening's ``crossings`` lie within its rim's ``hits`` (both seen along
+    ``normal``, the box of the hits widened by :data:`RIM_MARGIN` of its larger side). A rim
+    surrounds its opening; a plane that puts the crossings elsewhere is not the opening's (a
+    window's sill, seen from below it, gave a plane at the sill's height whose crossings spread
+    over the whole room: a 5.6 x 3.9 m "opening" facing up, half a metre over the floor)."""
+    u, v = _basis(normal, hits)
+    box = [(x.min(), x.max()) for x in (hits @ u, hits @ v)]
+    pad = RIM_MARGIN * max(hi - lo for lo, hi in box)
+    return all(
+        x.min() >= lo - pad and x.max() <= hi + pad
+        for x, (lo, hi) in zip((crossings @ u, crossings @ v), box, strict=True)
+    )
 
 
 def _through(
