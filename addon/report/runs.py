@@ -437,6 +437,11 @@ def reference_rows(view: ViewData, scene_name: str) -> list[Row]:
     ]
 
 
+#: Cycles' samples for the stand-ins' direct light (``_EeveeRun.stand_ins``): their noise
+#: counts toward the stand-ins' share, as the truth's does.
+STAND_IN_SAMPLES = 64
+
+
 @dataclass
 class _EeveeRun:
     """The EEVEE (and Cycles + OIDN) renders of one scene's report: every view of each setup,
@@ -454,6 +459,10 @@ class _EeveeRun:
     #: Per view, EEVEE's direct light: the ``vpl`` set-up with the VPLs hidden (the scene's
     #: lights, vplace's stand-ins and the world's volume on), rendered once for every method.
     direct: dict[str, np.ndarray] = field(default_factory=dict)
+    #: Per view, Cycles rendering the same lights (``eevee_setup.cycles_as_eevee_lights``,
+    #: :data:`STAND_IN_SAMPLES`): what splits attribution part ``direct`` into the stand-ins'
+    #: own error and EEVEE's rendering of them. Empty where the world lights EEVEE.
+    stand_ins: dict[str, np.ndarray] = field(default_factory=dict)
     #: Per view and method, EEVEE's VPL light minus the evaluator's (attribution part ``vpl``).
     vpl_differences: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
 
@@ -503,7 +512,9 @@ class _EeveeRun:
                 f"{a.vpl_brightness:.3f}x the evaluator's; SSIM with Cycles' direct light "
                 f"{a.ssim_cycles_direct:.4f}, with the evaluator's VPL light "
                 f"{a.ssim_evaluator_vpl:.4f}; (a) in the {a.seen_pixels:.1%} of pixels that "
-                f"see an emitter or the world: {a.seen_share:+.0%} of the squared error"
+                f"see an emitter or the world: {a.seen_share:+.0%} of the squared error; (a) "
+                f"the stand-ins' own light (Cycles rendering them) {a.stand_in_share:+.0%}, "
+                f"EEVEE's rendering of them {a.share['direct'] - a.stand_in_share:+.0%}"
             )
 
     def each_view(
@@ -532,6 +543,26 @@ class _EeveeRun:
             for view, img in self.each_view(eevee.SETUPS["vpl"], self.config.eevee_samples):
                 self.direct[view.name] = img.image
                 self.log(f"[vplace]   eevee {view.name} direct light only {img.seconds:6.1f} s")
+            emissive = [
+                m.name for m in self.data.prepared.exported.materials if max(m.emission) > 0
+            ]
+            if not eevee_setup.cycles_as_eevee_lights(g, self.bl_scene, emissive):
+                return
+            for view in self.data.views:
+                t0 = time.perf_counter()
+                c = capture.capture(
+                    self.bl_scene,
+                    camera=view.camera,
+                    resolution=self.data.resolution,
+                    samples=STAND_IN_SAMPLES,
+                    seed=CURVE_SEED,
+                    include_vpls=True,
+                )
+                self.stand_ins[view.name] = c.direct
+                self.log(
+                    f"[vplace]   cycles {view.name} the same lights (stand-ins) "
+                    f"{time.perf_counter() - t0:6.1f} s"
+                )
 
     def attribute(
         self, view: ViewData, method: str, s: LaidSet, img: eevee.EeveeImage
@@ -542,7 +573,15 @@ class _EeveeRun:
         self.vpl_differences.setdefault(view.name, {})[method] = img.image - direct - vpl_light
         truth = view.truth
         seen = vplace.job.seen_directly(truth.emission + truth.environment, truth.direct)
-        return vplace.job.attribute(img.image, direct, truth.direct, vpl_light, truth.gi, seen)
+        return vplace.job.attribute(
+            img.image,
+            direct,
+            truth.direct,
+            vpl_light,
+            truth.gi,
+            seen,
+            self.stand_ins.get(view.name),
+        )
 
     def vpl_rows(self, method: str, s: LaidSet, world_bake: float, portals: bool) -> None:
         """The lights of ``s`` written (the sky portals with ``portals``), rendered on every view

@@ -130,6 +130,12 @@ def _attribution_detail(a: dict[str, Any] | None) -> dict[str, str]:
             f" ({a['seen_share']:.0%} in the {a['seen_pixels']:.1%} of pixels where the camera "
             "sees an emitter or the world: their edges and patterns, anti-aliased EEVEE's way)"
         )
+    model = a.get("stand_in_share", math.nan)
+    if math.isfinite(model):
+        seen += (
+            f" (of it, {model:.0%} the stand-ins' own light as Cycles renders it, "
+            f"{share['direct'] - model:.0%} EEVEE's rendering of the lights)"
+        )
     return {
         "rmse": f"; of EEVEE's squared error {share['direct']:.0%} is EEVEE's direct light "
         f"against Cycles' (the scene's lamps and vplace's stand-ins, not the VPLs){seen}, "
@@ -506,6 +512,7 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
                 f"{a['vpl_hot_pixels']:.2%}",
                 f"{a['ssim_cycles_direct']:.3f} / {a['ssim_evaluator_vpl']:.3f}",
                 _seen_cell(a),
+                _stand_in_cell(a),
             ]
         )
     if not body:
@@ -514,6 +521,7 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
     header += ["direct: EEVEE / Cycles", "VPL light: EEVEE / evaluator"]
     header += ["hot pixels: EEVEE / evaluator", "worst 1 %: EEVEE / evaluator", "(b) hot"]
     header += ["SSIM without (a) / without (b)", "(a) where emitters are seen"]
+    header += ["(a): the stand-ins / EEVEE's rendering"]
     return [
         "",
         "Where EEVEE's error comes from, RMSE of each part (its share of EEVEE's squared error):"
@@ -527,10 +535,22 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
         "are seen: the share of EEVEE's squared error that (a) holds in the pixels where the "
         "camera sees an emitter or the world (Cycles' emission and environment passes at least "
         "half its direct light there), and how many pixels those are: edges and patterns "
-        "EEVEE anti-aliases its own way, not light on surfaces.",
+        "EEVEE anti-aliases its own way, not light on surfaces. (a) split by Cycles rendering "
+        "the same lights (the stand-ins, the emissive meshes lighting nothing, the world "
+        "lighting nothing where sky portals stand in for it): the stand-ins' own light against "
+        "Cycles' direct light (what vplace writes), and EEVEE's rendering of those lights "
+        "against Cycles' (its shadow maps, film and texture filtering).",
         "",
         *vplace.markdown.table(header, body),
     ]
+
+
+def _stand_in_cell(a: dict[str, Any]) -> str:
+    """The attribution table's split of (a) ("-" without Cycles' rendering of the lights)."""
+    model = a.get("stand_in_share", math.nan)
+    if not math.isfinite(model):
+        return "-"
+    return f"{model:+.0%} / {a['share']['direct'] - model:+.0%}"
 
 
 def _seen_cell(a: dict[str, Any]) -> str:

@@ -46,7 +46,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -56,7 +56,7 @@ from mathutils import Vector
 from ..compat import eevee_engine, uses_nodes
 from ..errors import AddonError
 from ..scene.export import VPL_MARKER
-from ..settings import override
+from ..settings import SettingsGuard, override
 from . import apply
 
 #: EEVEE's hard limit on lights in a scene (measured: 65,536; the excess is dropped).
@@ -269,6 +269,33 @@ def camera_only(world: bpy.types.World) -> str | None:
     if volume.is_linked:
         links.new(volume.links[0].from_socket, nodes["out"].inputs["Volume"])
     return None
+
+
+def cycles_as_eevee_lights(
+    g: SettingsGuard, scene: bpy.types.Scene, emissive: Sequence[str]
+) -> bool:
+    """Sets ``scene`` up (through ``g``, for its block) so that Cycles lights it as EEVEE's
+    direct light does: with the lamps and vplace's stand-ins, the emissive meshes (objects with
+    a material named in ``emissive``) seen but lighting nothing (their ray visibility off but
+    the camera's: Cycles samples no light its rays cannot see), and a world kept from lighting
+    EEVEE (:func:`camera_only`) kept from lighting Cycles too (its output's target made Cycles'
+    for the block). Returns False, setting nothing, where the world lights EEVEE (its probe
+    volume): Cycles would light with it exactly and with the sun's stand-in as well."""
+    world = scene.world
+    if world_emits(scene) and not is_camera_only(world):
+        return False
+    if world is not None and world.node_tree is not None:
+        for node in _outputs(world):
+            if node.get(WORLD_NODE_MARKER, False):
+                g.set(node, "target", "CYCLES")
+    names = set(emissive)
+    for obj in scene.objects:
+        slots = getattr(obj, "material_slots", ())
+        if any(s.material is not None and s.material.name in names for s in slots):
+            for attr in ("visible_diffuse", "visible_glossy", "visible_transmission"):
+                g.set(obj, attr, False)
+            g.set(obj, "visible_volume_scatter", False)
+    return True
 
 
 def remove_camera_only(world: bpy.types.World | None) -> None:

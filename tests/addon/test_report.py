@@ -283,6 +283,17 @@ def test_targets_compare_held_out_views_with_the_fit_mean_and_eevee_with_the_sam
     rows[-3].details.attribution["direct_brightness"] = 0.95
     bright = checks_of(rows, "s A (fit): EEVEE with the VPLs within 3% of the truth's brightness")
     assert bright["detail"].endswith("EEVEE's direct light (VPLs hidden) is 0.950x Cycles'")
+    # With Cycles' rendering of the same lights, (a) is split: vplace's stand-ins against EEVEE.
+    a["stand_in_share"] = 0.3
+    rmse = checks_of(
+        rows, "s A (fit): EEVEE's RMSE at most 1.25x the evaluator's (the same lights)"
+    )
+    assert (
+        "(of it, 30% the stand-ins' own light as Cycles renders it, 50% EEVEE's rendering of "
+        "the lights)" in rmse["detail"]
+    )
+    assert summary._stand_in_cell(a) == "+30% / +50%"
+    assert summary._stand_in_cell({**a, "stand_in_share": float("nan")}) == "-"
 
 
 def checks_of(rows, name):

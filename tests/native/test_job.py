@@ -128,6 +128,37 @@ def test_attribution_splits_eevees_error_into_parts_that_add_up():
         vjob.attribute(eevee, eevee_direct, cycles_direct, evaluator_vpl, bad)
 
 
+def test_attribution_splits_eevees_direct_error_into_the_stand_ins_and_eevees_rendering():
+    """Cycles rendering the stand-ins tells what vplace wrote from how EEVEE renders it: a room
+    whose stand-in light misses a strip the sky lights (a window's reveal), rendered by EEVEE
+    with a noisy patch elsewhere."""
+    h, w = 12, 16
+    cycles_direct = np.full((h, w, 3), 0.3)
+    stand_ins = cycles_direct.copy()
+    stand_ins[:, 14:] = 0.0  # the reveal the stand-in does not light
+    eevee_direct = stand_ins.copy()
+    eevee_direct[2:5, 2:6] += 0.2  # EEVEE's own error, elsewhere
+    vpl = np.full((h, w, 3), 0.1)
+    truth = cycles_direct + vpl
+    a = vjob.attribute(eevee_direct + vpl, eevee_direct, cycles_direct, vpl, truth, None, stand_ins)
+    strip, patch = 2 * h * 0.09, 12 * 0.04  # squared errors (per channel)
+    assert a.stand_in_share == pytest.approx(strip / (strip + patch))
+    assert a.share["direct"] == pytest.approx(1.0)
+    assert a.stand_in_rmse == pytest.approx(np.sqrt(strip / (h * w)))
+    # Stand-ins as Cycles' own direct light: all of part (a) is EEVEE's rendering.
+    exact = vjob.attribute(
+        eevee_direct + vpl, eevee_direct, cycles_direct, vpl, truth, None, truth - vpl
+    )
+    assert exact.stand_in_share == pytest.approx(0.0)
+    assert exact.stand_in_rmse == pytest.approx(0.0, abs=1e-12)
+    assert np.isnan(vjob.attribute(truth, cycles_direct, cycles_direct, vpl, truth).stand_in_share)
+    with pytest.raises(ValueError, match="stand_ins must be"):
+        vjob.attribute(truth, cycles_direct, cycles_direct, vpl, truth, None, stand_ins[:4])
+    stand_ins[0, 0, 0] = np.inf
+    with pytest.raises(ValueError, match="stand_ins holds NaN"):
+        vjob.attribute(truth, cycles_direct, cycles_direct, vpl, truth, None, stand_ins)
+
+
 def test_attribution_says_how_much_of_eevees_direct_error_is_where_emitters_are_seen():
     # A lit wall with a panel (an emitter, 20x brighter) the camera sees in its top rows: EEVEE
     # draws the panel's edge one pixel lower (anti-aliased its own way) and lights the wall right.

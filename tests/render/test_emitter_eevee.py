@@ -6,6 +6,7 @@ import pytest
 from blender_util import no_vpls
 
 from addon import job as pipeline
+from addon import settings
 from addon.capture import passes as capture
 from addon.scene import export
 from addon.scene.convert import build_scene
@@ -143,3 +144,42 @@ def test_sky_portals_let_the_sky_in_as_cycles_does():
     print(_rounded(scores))
     assert 0.85 < scores[True]["brightness"] < 1.1, scores
     assert scores[True]["ssim"] > scores[False]["ssim"] + 0.03, scores
+
+
+def test_cycles_lights_as_eevee_does_with_the_stand_ins_and_not_the_panels():
+    """Cycles rendering the lights EEVEE's direct light comes from (the report's split of part
+    (a)): the panels lighting nothing, their stand-ins lighting instead, so the panels' light is
+    not counted twice (2x) and not lost; without the stand-ins the room is lit only where the
+    camera sees a panel."""
+    bpy.ops.wm.open_mainfile(filepath=str(default_scene.builtin_scene("panelroom")))
+    scene = bpy.context.scene
+    exported = export.export_scene(scene)
+    lights = emitter_lights.emitter_lights(exported, build_scene(exported))
+    emissive = [m.name for m in exported.materials if max(m.emission) > 0.0]
+    cam = bpy.data.objects["Panelroom camera"]
+
+    def direct():
+        img = capture.capture(
+            scene, camera=cam, resolution=RES, samples=32, seed=0, include_vpls=True
+        )
+        return img.direct
+
+    truth = direct()
+    with settings.override() as g:
+        assert eevee_setup.cycles_as_eevee_lights(g, scene, emissive)
+        dark = pipeline.score(direct(), truth)
+    apply.write_vpls(scene, no_vpls(), scene_diagonal=8.0, emitters=lights)
+    try:
+        with settings.override() as g:
+            apply.hide_vpl_lights(g, scene)
+            assert eevee_setup.cycles_as_eevee_lights(g, scene, emissive)
+            ours = pipeline.score(direct(), truth)
+    finally:
+        apply.clear_vpls()
+    assert 0.95 < ours["brightness"] < 1.05, ours
+    assert dark["brightness"] < 0.7, dark
+    # The guard gave the panels their ray visibility back.
+    slots = {o.name: [s.material.name for s in o.material_slots if s.material] for o in
+             scene.objects if o.type == "MESH"}  # fmt: skip
+    panel = scene.objects[next(n for n, mats in slots.items() if set(mats) & set(emissive))]
+    assert panel.visible_diffuse and panel.visible_glossy

@@ -247,6 +247,15 @@ class Attribution:
     #: not light on surfaces); NaN without a mask.
     seen_pixels: float = float("nan")
     seen_share: float = float("nan")
+    #: With ``stand_ins`` (Cycles rendering the same direct lights EEVEE renders): part
+    #: ``direct`` split in two. ``stand_in_share`` is the share of EEVEE's squared error that
+    #: the stand-ins' own light holds (``stand_ins - cycles_direct``: what vplace writes in
+    #: place of the emissive meshes, the sky and the world's sun, however well rendered, and the
+    #: sampling noise of both Cycles images); the rest of part ``direct``
+    #: (``eevee_direct - stand_ins``) is EEVEE's rendering of those lights: its shadow maps,
+    #: film and texture filtering. ``stand_in_rmse`` is the first's RMSE; NaN without.
+    stand_in_share: float = float("nan")
+    stand_in_rmse: float = float("nan")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready."""
@@ -280,13 +289,17 @@ def attribute(
     evaluator_vpl: np.ndarray,
     truth: np.ndarray,
     seen: np.ndarray | None = None,
+    stand_ins: np.ndarray | None = None,
 ) -> Attribution:
     """Splits ``eevee - truth`` (RGB images of one view, the same shape) into the three parts of
     :class:`Attribution`: ``eevee_direct - cycles_direct``, ``(eevee - eevee_direct) -
     evaluator_vpl`` and ``cycles_direct + evaluator_vpl - truth``. EEVEE adds lights linearly,
     so ``eevee - eevee_direct`` is its image of the VPLs alone (up to its sampling noise).
     ``seen`` ((H, W) bool, :func:`seen_directly`) marks the pixels where the camera sees an
-    emitter or the world: how much of part ``direct`` lies there is ``seen_share``."""
+    emitter or the world: how much of part ``direct`` lies there is ``seen_share``.
+    ``stand_ins`` (RGB, the same shape: Cycles rendering the lights EEVEE's direct light comes
+    from) splits part ``direct`` into the stand-ins' own error and EEVEE's rendering of them
+    (``stand_in_share``)."""
     arrays = [eevee, eevee_direct, cycles_direct, evaluator_vpl, truth]
     e, ed, cd, vx, t = (np.asarray(a, dtype=np.float64)[..., :3] for a in arrays)
     if not e.shape == ed.shape == cd.shape == vx.shape == t.shape or e.ndim != 3:
@@ -301,10 +314,22 @@ def attribute(
                 f"attribute: seen must be an (H, W) = {e.shape[:2]} bool mask, got "
                 f"{seen.dtype} {seen.shape}"
             )
+    si = None
+    if stand_ins is not None:
+        si = np.asarray(stand_ins, dtype=np.float64)
+        if si.ndim != 3 or si.shape[-1] < 3 or si[..., :3].shape != e.shape:
+            raise ValueError(
+                f"attribute: stand_ins must be an (H, W, 3) image of shape {e.shape}, got "
+                f"{si.shape}"
+            )
+        si = si[..., :3]
+        if not np.isfinite(si).all():
+            raise ValueError("attribute: stand_ins holds NaN or infinity")
     ve = e - ed
     parts = {"direct": ed - cd, "vpl": ve - vx, "rest": cd + vx - t}
     total = e - t
     sq = float((total * total).sum())
+    model = si - cd if si is not None else None
     lum = np.asarray(vplace.LUMINANCE, dtype=np.float64)
 
     def ratio(a: np.ndarray, b: np.ndarray) -> float:
@@ -335,6 +360,12 @@ def attribute(
             if seen is not None
             else float("nan")
         ),
+        stand_in_share=(
+            (float((model * total).sum()) / sq if sq > 0 else 0.0)
+            if model is not None
+            else float("nan")
+        ),
+        stand_in_rmse=float(np.sqrt((model * model).mean())) if model is not None else float("nan"),
     )
 
 
