@@ -437,11 +437,6 @@ def reference_rows(view: ViewData, scene_name: str) -> list[Row]:
     ]
 
 
-#: Cycles' samples for the stand-ins' direct light (``_EeveeRun.stand_ins``): their noise
-#: counts toward the stand-ins' share, as the truth's does.
-STAND_IN_SAMPLES = 64
-
-
 @dataclass
 class _EeveeRun:
     """The EEVEE (and Cycles + OIDN) renders of one scene's report: every view of each setup,
@@ -459,9 +454,9 @@ class _EeveeRun:
     #: Per view, EEVEE's direct light: the ``vpl`` set-up with the VPLs hidden (the scene's
     #: lights, vplace's stand-ins and the world's volume on), rendered once for every method.
     direct: dict[str, np.ndarray] = field(default_factory=dict)
-    #: Per view, Cycles rendering the same lights (``eevee_setup.cycles_as_eevee_lights``,
-    #: :data:`STAND_IN_SAMPLES`): what splits attribution part ``direct`` into the stand-ins'
-    #: own error and EEVEE's rendering of them. Empty where the world lights EEVEE.
+    #: Per view, Cycles rendering the same lights (``eevee_setup.cycles_as_eevee_lights``):
+    #: what splits attribution part ``direct`` into the stand-ins' own error and EEVEE's
+    #: rendering of them. Empty where the world lights EEVEE.
     stand_ins: dict[str, np.ndarray] = field(default_factory=dict)
     #: Per view and method, EEVEE's VPL light minus the evaluator's (attribution part ``vpl``).
     vpl_differences: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
@@ -554,7 +549,7 @@ class _EeveeRun:
                     self.bl_scene,
                     camera=view.camera,
                     resolution=self.data.resolution,
-                    samples=STAND_IN_SAMPLES,
+                    samples=eevee_setup.STAND_IN_SAMPLES,
                     seed=CURVE_SEED,
                     include_vpls=True,
                 )

@@ -271,6 +271,11 @@ def camera_only(world: bpy.types.World) -> str | None:
     return None
 
 
+#: Cycles' samples for the lights of :func:`cycles_as_eevee_lights` (the attribution's split
+#: of EEVEE's direct light): their noise counts toward the stand-ins' share, as the truth's does.
+STAND_IN_SAMPLES = 64
+
+
 def cycles_as_eevee_lights(
     g: SettingsGuard, scene: bpy.types.Scene, emissive: Sequence[str]
 ) -> bool:

@@ -3,7 +3,7 @@ what EEVEE will not show right, and the main job's EEVEE render of the written l
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from pathlib import Path
@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import bpy
 import numpy as np
 
+from ..capture import passes as capture
 from ..errors import WriteBackError, run_operator
 from ..native import vplace
 from ..settings import override
@@ -86,6 +87,7 @@ def score_eevee(
     path: Path,
     cache_dir: Path | None,
     vpl_light: np.ndarray,
+    emissive: Sequence[str] = (),
 ) -> dict[str, float]:
     """Renders the written lights with EEVEE from the scene camera (float, Standard view, the
     scored set-up), scores the image against the reference, and saves it as a PNG picture.
@@ -100,7 +102,10 @@ def score_eevee(
     direct light, whose brightness against Cycles' (``direct_brightness``) is the part of the
     difference that is not the VPLs' (EEVEE's light of the scene's lamps and of the
     stand-ins). ``vpl_light``, the evaluator's image of the written VPLs, splits the error as
-    ``vplace.job.attribute`` does (``attribution_*``)."""
+    ``vplace.job.attribute`` does (``attribution_*``). Cycles rendering the same lights
+    (``eevee_setup.cycles_as_eevee_lights``; ``emissive``, the emissive materials' names, then
+    light nothing) splits EEVEE's direct light into the stand-ins' own error and EEVEE's
+    rendering of them (``attribution_stand_in_share``)."""
     from . import eevee_render as eevee
 
     height, width = reference.gi.shape[:2]
@@ -114,14 +119,28 @@ def score_eevee(
             cache_dir=cache_dir,
         )
 
+    stand_ins = None
     with eevee_setup.world_for_render(bl_scene) as bake:
         img = render()
         with override() as g:
             apply.hide_vpl_lights(g, bl_scene)
             direct = render()
+            if eevee_setup.cycles_as_eevee_lights(g, bl_scene, emissive):
+                stand_ins = capture.capture(
+                    bl_scene,
+                    resolution=(width, height),
+                    samples=eevee_setup.STAND_IN_SAMPLES,
+                    include_vpls=True,
+                ).direct
     vplace.images.save_png(path, img.image)
     a = vplace.job.attribute(
-        img.image, direct.image, reference.direct, vpl_light, reference.gi, reference.seen
+        img.image,
+        direct.image,
+        reference.direct,
+        vpl_light,
+        reference.gi,
+        reference.seen,
+        stand_ins,
     )
     out = {
         **vplace.job.score(img.image, reference.gi),
@@ -138,4 +157,6 @@ def score_eevee(
     if reference.seen is not None:
         out["attribution_seen_pixels"] = a.seen_pixels
         out["attribution_seen_share"] = a.seen_share
+    if stand_ins is not None:
+        out["attribution_stand_in_share"] = a.stand_in_share
     return out

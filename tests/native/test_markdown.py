@@ -102,3 +102,18 @@ def test_job_report_says_how_much_of_eevees_error_is_at_emitters_the_camera_sees
     # A view that sees no emitter: nothing to say.
     none = vjob.job_report(_report(eevee={**seen, "attribution_seen_pixels": 0.0}))
     assert "see an emitter" not in none
+
+
+def test_job_report_splits_eevees_direct_light_into_the_stand_ins_and_eevees_rendering():
+    e = {"rmse": 0.1, "relative_mse": 0.2, "ssim": 0.9, "brightness": 1.0, "seconds": 2.0}
+    e["samples"] = 16
+    for part in vjob.ATTRIBUTION_PARTS:
+        e[f"attribution_rmse_{part}"], e[f"attribution_share_{part}"] = 0.01, 0.25
+    e["attribution_share_direct"] = 0.5
+    before = vjob.job_report(_report(eevee=e))
+    assert "stand-ins' own light" not in before
+    text = vjob.job_report(_report(eevee={**e, "attribution_stand_in_share": 0.1}))
+    assert (
+        "; 10% is vplace's stand-ins' own light against Cycles' direct light (Cycles rendering "
+        "them), 40% EEVEE's rendering of the lights." in text
+    )

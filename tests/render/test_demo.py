@@ -70,6 +70,9 @@ def test_main_job_writes_everything_and_eevee_shows_what_the_evaluator_computed(
     # light its VPLs add (EEVEE with them less EEVEE without) is the evaluator's VPL light, and
     # its image is far closer to the truth than direct light alone.
     e = report.eevee
+    # The box's lamp is the user's own light, no stand-in: Cycles rendering the lights EEVEE
+    # renders gives Cycles' direct light, so all of EEVEE's direct-light error is its rendering.
+    assert abs(e["attribution_stand_in_share"]) < 0.02, e
     truth = capture.capture(
         scene, resolution=(48, 48), samples=256, seed=pipeline.REFERENCE_SEED,
         cache_dir=tmp_path / "cache",

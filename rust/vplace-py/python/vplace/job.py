@@ -723,6 +723,13 @@ def eevee_notes(e: dict[str, float], stand_ins: int = 0) -> list[str]:
                 f"{e['attribution_seen_pixels']:.1%} of pixels that see an emitter or the world "
                 "(their edges and patterns, anti-aliased EEVEE's way: not light on surfaces)"
             )
+        model = e.get("attribution_stand_in_share")
+        if model is not None and math.isfinite(model):
+            rendering = e["attribution_share_direct"] - model
+            line += (
+                f"; {model:.0%} is vplace's stand-ins' own light against Cycles' direct light "
+                f"(Cycles rendering them), {rendering:.0%} EEVEE's rendering of the lights"
+            )
         lines.append(line + ".")
     return lines
 
