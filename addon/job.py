@@ -456,14 +456,13 @@ def run_main_job(
     shown = None
     if eevee and written is not None:
         with timer.stage("EEVEE render"):
-            emissive = [m.name for m in prepared.exported.materials if max(m.emission) > 0.0]
             shown = writeback_stage.score_eevee(
                 bl_scene,
                 reference,
                 out_dir / "eevee_vpl.png",
                 job.cache_dir,
                 computed.indirect,
-                emissive,
+                prepared.exported.emissive_materials,
             )
     report = summary(
         bl_scene, job, prepared, computed, timer, written.stand_ins if written else None

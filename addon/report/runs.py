@@ -538,9 +538,7 @@ class _EeveeRun:
             for view, img in self.each_view(eevee.SETUPS["vpl"], self.config.eevee_samples):
                 self.direct[view.name] = img.image
                 self.log(f"[vplace]   eevee {view.name} direct light only {img.seconds:6.1f} s")
-            emissive = [
-                m.name for m in self.data.prepared.exported.materials if max(m.emission) > 0
-            ]
+            emissive = self.data.prepared.exported.emissive_materials
             if not eevee_setup.cycles_as_eevee_lights(g, self.bl_scene, emissive):
                 return
             for view in self.data.views:

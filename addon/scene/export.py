@@ -206,12 +206,17 @@ class ExportedScene:
         r = [m.gloss_roughness for m in self.materials]
         return np.array([g is not None and g < ROUGH_GLOSS for g in r], dtype=bool)
 
+    @property
+    def emissive_materials(self) -> list[str]:
+        """The names of the materials that emit light."""
+        return [m.name for m in self.materials if max(m.emission) > 0.0]
+
     def emitters(self) -> list[str]:
         """What sends light, in words: lights with power, the world, emissive materials."""
         out = [f"light {light.name!r}" for light in self.lights if max(light.power) > 0.0]
         if self.world is not None and self.world.emits:
             out.append(f"world {self.world.name!r}")
-        out += [f"material {m.name!r}" for m in self.materials if max(m.emission) > 0.0]
+        out += [f"material {name!r}" for name in self.emissive_materials]
         return out
 
     def fingerprint(self) -> str:

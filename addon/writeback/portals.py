@@ -15,7 +15,7 @@ what the camera sees through the windows, but lights nothing).
   rays next to the patch that do hit something hit its rim (the wall around a window, its
   reveals). The opening's plane is the rim's: the wall the rim hits lie on (their least-squares
   plane, which reveals and sills tilt, refined to the largest group of hits on one surface
-  near it: ``_rim_plane``), facing out along the escaping rays; its extent is where the
+  near it: ``_rim_planes``), facing out along the escaping rays; its extent is where the
   escaping rays cross that plane, widened by half a direction's spacing. Those crossings must
   lie within the rim (``_within_rim``), else the rim's least-squares plane is tried, else the
   patch is no opening. Patches of several
@@ -75,7 +75,7 @@ MIN_PATCH = 3
 PLANE_ANGLE = 20.0
 PLANE_GAP = 0.02
 #: A rim surface whose normal is within this angle (degrees) of the rim's least-squares
-#: plane's is the wall the opening is cut into, not a reveal (``_rim_plane``).
+#: plane's is the wall the opening is cut into, not a reveal (``_rim_planes``).
 WALL_ANGLE = 45.0
 #: A ray that hits something this share of its way beyond an opening's plane has passed
 #: through the opening (the wall itself is hit on the plane).
@@ -199,9 +199,7 @@ def _patches(
             continue
         hits = eye + dirs[rim].astype(np.float64) * t[rim, None]
         out = dirs[members].astype(np.float64)
-        centred = hits - hits.mean(axis=0)
-        fitted = np.linalg.svd(centred, full_matrices=False)[2][-1]
-        for point, normal in (_rim_plane(scene, eye, hits, tri[rim]), (hits.mean(axis=0), fitted)):
+        for point, normal in _rim_planes(scene, eye, hits, tri[rim]):
             if normal @ out.mean(axis=0) < 0.0:
                 normal = -normal
             depth = float((point - eye) @ normal)
@@ -250,16 +248,18 @@ def _through(
     return np.flatnonzero(_grow(members, passed, near) & np.isfinite(s))
 
 
-def _rim_plane(
+def _rim_planes(
     scene: vplace.Scene, eye: np.ndarray, hits: np.ndarray, tri: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """The plane of an opening's rim, a point on it and its unit normal. The least-squares
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The planes an opening's rim may lie in, best first, each a point on it and its unit
+    normal: the wall's plane (below), then the least-squares plane of the rim's ``hits``
+    (``_patches`` takes the first its opening lies within). The least-squares
     plane of the rim's ``hits`` is tilted by the reveals and the sill that the eye sees on some
     sides only (30 degrees by a sill seen from a far corner); the surface the opening is cut
     into is the largest group of hits whose triangles' normals lie within :data:`PLANE_ANGLE`
     of each other and within :data:`WALL_ANGLE` of that plane's (a reveal stands at 90
     degrees to its wall), and of those the ones at one depth. Without three such hits (a
-    courtyard's rim is its walls), the least-squares plane."""
+    courtyard's rim is its walls), the least-squares plane alone."""
     point = hits.mean(axis=0)
     fitted = np.linalg.svd(hits - point, full_matrices=False)[2][-1]
     zeros = np.zeros((len(tri), 2), dtype=np.float32)
@@ -279,9 +279,9 @@ def _rim_plane(
         tol = PASS_MARGIN * float(np.median(np.linalg.norm(hits - eye, axis=1)))
         group &= np.abs(depth - np.median(depth[group])) <= tol
     if group.sum() < 3:
-        return point, fitted
+        return [(point, fitted)]
     normal = normals[group].mean(axis=0)
-    return hits[group].mean(axis=0), normal / np.linalg.norm(normal)
+    return [(hits[group].mean(axis=0), normal / np.linalg.norm(normal)), (point, fitted)]
 
 
 def _basis(normal: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

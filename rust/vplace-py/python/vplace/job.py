@@ -332,6 +332,10 @@ def attribute(
     model = si - cd if si is not None else None
     lum = np.asarray(vplace.LUMINANCE, dtype=np.float64)
 
+    def share_of(part: np.ndarray) -> float:
+        """``part``'s projection on EEVEE's error over the error's square."""
+        return float((part * total).sum()) / sq if sq > 0 else 0.0
+
     def ratio(a: np.ndarray, b: np.ndarray) -> float:
         below = float((b @ lum).mean())
         return float((a @ lum).mean()) / below if below > 1e-12 else float("nan")
@@ -347,7 +351,7 @@ def attribute(
 
     return Attribution(
         rmse={k: float(np.sqrt((d * d).mean())) for k, d in parts.items()},
-        share={k: float((d * total).sum()) / sq if sq > 0 else 0.0 for k, d in parts.items()},
+        share={k: share_of(d) for k, d in parts.items()},
         direct_brightness=ratio(ed, cd),
         vpl_brightness=ratio(ve, vx),
         vpl_hot_pixels=vpl_out["hot_pixels"],
@@ -355,16 +359,8 @@ def attribute(
         ssim_cycles_direct=ssim(cd + ve),
         ssim_evaluator_vpl=ssim(ed + vx),
         seen_pixels=float(seen.mean()) if seen is not None else float("nan"),
-        seen_share=(
-            (float((parts["direct"] * total)[seen].sum()) / sq if sq > 0 else 0.0)
-            if seen is not None
-            else float("nan")
-        ),
-        stand_in_share=(
-            (float((model * total).sum()) / sq if sq > 0 else 0.0)
-            if model is not None
-            else float("nan")
-        ),
+        seen_share=share_of(parts["direct"] * seen[..., None]) if seen is not None else math.nan,
+        stand_in_share=share_of(model) if model is not None else math.nan,
         stand_in_rmse=float(np.sqrt((model * model).mean())) if model is not None else float("nan"),
     )
 
