@@ -71,7 +71,7 @@ from .config import (
     row_dict,
     write_csv,
 )
-from .summary import aggregate, break_even, markdown, targets
+from .summary import aggregate, break_even, markdown, pct, targets
 
 
 @contextmanager
@@ -502,14 +502,15 @@ class _EeveeRun:
             a = attribution
             self.log(
                 "[vplace]     RMSE by part: "
-                + ", ".join(f"{k} {a.rmse[k]:.4f} ({a.share[k]:+.0%})" for k in a.rmse)
+                + ", ".join(f"{k} {a.rmse[k]:.4f} ({pct(a.share[k], signed=True)})" for k in a.rmse)
                 + f"; direct {a.direct_brightness:.3f}x Cycles', VPL light "
                 f"{a.vpl_brightness:.3f}x the evaluator's; SSIM with Cycles' direct light "
                 f"{a.ssim_cycles_direct:.4f}, with the evaluator's VPL light "
                 f"{a.ssim_evaluator_vpl:.4f}; (a) in the {a.seen_pixels:.1%} of pixels that "
-                f"see an emitter or the world: {a.seen_share:+.0%} of the squared error; (a) "
-                f"the stand-ins' own light (Cycles rendering them) {a.stand_in_share:+.0%}, "
-                f"EEVEE's rendering of them {a.share['direct'] - a.stand_in_share:+.0%}"
+                f"see an emitter or the world: {pct(a.seen_share, signed=True)} of the squared "
+                "error; (a) the stand-ins' own light (Cycles rendering them) "
+                f"{pct(a.stand_in_share, signed=True)}, EEVEE's rendering of them "
+                f"{pct(a.share['direct'] - a.stand_in_share, signed=True)}"
             )
 
     def each_view(

@@ -29,6 +29,9 @@ from .config import (
     grid_budget,
 )
 
+#: A share as a whole percentage, never "-0%" (``vplace.markdown.percent``).
+pct = vplace.markdown.percent
+
 
 def aggregate(rows: Sequence[Row]) -> list[Row]:
     """One row per (scene, view, method, renderer, budget or samples): the mean over seeds of
@@ -127,20 +130,20 @@ def _attribution_detail(a: dict[str, Any] | None) -> dict[str, str]:
     seen = ""
     if math.isfinite(a.get("seen_share", math.nan)):
         seen = (
-            f" ({a['seen_share']:.0%} in the {a['seen_pixels']:.1%} of pixels where the camera "
+            f" ({pct(a['seen_share'])} in the {a['seen_pixels']:.1%} of pixels where the camera "
             "sees an emitter or the world: their edges and patterns, anti-aliased EEVEE's way)"
         )
     model = a.get("stand_in_share", math.nan)
     if math.isfinite(model):
         seen += (
-            f" (of it, {model:.0%} the stand-ins' own light as Cycles renders it, "
-            f"{share['direct'] - model:.0%} EEVEE's rendering of the lights)"
+            f" (of it, {pct(model)} the stand-ins' own light as Cycles renders it, "
+            f"{pct(share['direct'] - model)} EEVEE's rendering of the lights)"
         )
     return {
-        "rmse": f"; of EEVEE's squared error {share['direct']:.0%} is EEVEE's direct light "
+        "rmse": f"; of EEVEE's squared error {pct(share['direct'])} is EEVEE's direct light "
         f"against Cycles' (the scene's lamps and vplace's stand-ins, not the VPLs){seen}, "
-        f"{share['vpl']:.0%} its VPL light against the "
-        f"evaluator's, {share['rest']:.0%} the evaluator's own error",
+        f"{pct(share['vpl'])} its VPL light against the "
+        f"evaluator's, {pct(share['rest'])} the evaluator's own error",
         "ssim": f"; with Cycles' direct light under EEVEE's VPL light {a['ssim_cycles_direct']:.4f}"
         f", with the evaluator's VPL light over EEVEE's direct light "
         f"{a['ssim_evaluator_vpl']:.4f}",
@@ -499,7 +502,10 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
         if r.renderer != "eevee" or not a:
             continue
         ev = _at(mine, name, view, r.method, "evaluator", r.n_vpls)
-        parts = [f"{a['rmse'][k]:.4f} ({a['share'][k]:+.0%})" for k in vplace.job.ATTRIBUTION_PARTS]
+        parts = [
+            f"{a['rmse'][k]:.4f} ({pct(a['share'][k], signed=True)})"
+            for k in vplace.job.ATTRIBUTION_PARTS
+        ]
         body.append(
             [
                 f"{r.method}, N={r.n_vpls}",
@@ -550,13 +556,13 @@ def _stand_in_cell(a: dict[str, Any]) -> str:
     model = a.get("stand_in_share", math.nan)
     if not math.isfinite(model):
         return "-"
-    return f"{model:+.0%} / {a['share']['direct'] - model:+.0%}"
+    return f"{pct(model, signed=True)} / {pct(a['share']['direct'] - model, signed=True)}"
 
 
 def _seen_cell(a: dict[str, Any]) -> str:
     """The attribution table's "(a) where emitters are seen" cell ("-" without a mask)."""
     share, pixels = a.get("seen_share", math.nan), a.get("seen_pixels", math.nan)
-    return f"{share:+.0%} in {pixels:.1%}" if math.isfinite(share) else "-"
+    return f"{pct(share, signed=True)} in {pixels:.1%}" if math.isfinite(share) else "-"
 
 
 def _scene_lines(name: str, info: dict[str, Any], rows: Sequence[Row]) -> list[str]:

@@ -16,6 +16,15 @@ def test_table_lines():
     assert markdown.table(["only"], []) == ["| only |", "|---|"]
 
 
+def test_a_share_that_rounds_to_zero_has_no_minus_sign():
+    assert markdown.percent(-0.003, signed=True) == "+0%"
+    assert markdown.percent(-0.003) == "0%"
+    assert markdown.percent(-0.04, signed=True) == "-4%"
+    assert markdown.percent(0.456) == "46%"
+    assert markdown.percent(0.456, signed=True) == "+46%"
+    assert markdown.percent(float("nan")) == "-"
+
+
 def _report(**change) -> vjob.JobSummary:
     m = {"rmse": 0.1, "relative_mse": 0.2, "ssim": 0.9, "brightness": 1.0}
     metrics = {**m, **{f"{k}_direct_only": v / 2 for k, v in m.items()}}

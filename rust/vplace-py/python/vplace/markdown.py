@@ -1,4 +1,4 @@
-"""Markdown for the reports: the one table writer.
+"""Markdown for the reports: the one table writer, and shares written as percentages.
 
 The full report (the add-on's ``report`` package) writes its tables with :func:`table` too, so
 every Markdown table of vplace is written here.
@@ -6,6 +6,7 @@ every Markdown table of vplace is written here.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Sequence
 
 
@@ -15,3 +16,13 @@ def table(header: Sequence[str], rows: Iterable[Sequence[object]]) -> list[str]:
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
     return lines
+
+
+def percent(share: float, *, signed: bool = False) -> str:
+    """``share`` (a fraction) as a whole percentage: ``"12%"``, or ``"+12%"`` with ``signed``.
+    A share that rounds to zero is written ``"0%"`` (``"+0%"``), never ``"-0%"``; one that is
+    not finite is ``"-"``."""
+    if not math.isfinite(share):
+        return "-"
+    whole = round(100.0 * share)
+    return f"{whole:+d}%" if signed else f"{whole:d}%"
