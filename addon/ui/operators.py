@@ -21,6 +21,7 @@ from .. import animation
 from .. import job as pipeline
 from ..native import vplace
 from ..writeback import apply, eevee_setup, par2d_bake
+from ..writeback import stage as writeback_stage
 from .modal import BackgroundOperator
 
 
@@ -198,6 +199,8 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
             sun=self.prepared.stand_ins.sun,
         )
         summary = pipeline.summary(scene, self.job, self.prepared, computed, self.timer)
+        if scene.vplace.check_eevee:
+            summary.eevee = self._check_eevee(scene, computed)
         scene.vplace.last_report = json.dumps(summary.to_dict())
         if computed.fit is not None:
             _store_fit(scene, computed.fit, self.key)
@@ -212,6 +215,38 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
             self.report({"WARNING"}, f"EEVEE: {problem} (Set up EEVEE for vplace fixes it)")
         return {"FINISHED"}
 
+    def _check_eevee(
+        self, scene: bpy.types.Scene, computed: vplace.job.Computed
+    ) -> dict[str, float] | None:
+        """ "Check in EEVEE": the lights just written, rendered by EEVEE from the scene camera
+        and scored against the first view's capture, which the evaluator was scored on
+        (``writeback.stage.score_eevee``: the attribution of EEVEE's difference and its split
+        into vplace's stand-ins and EEVEE's rendering). Only where that view is the scene camera
+        at the current frame; a failed check is a warning, the written lights stay."""
+        first = self.prepared.capture
+        if scene.camera is None or not first.camera == first.view == scene.camera.name:
+            self.report(
+                {"WARNING"},
+                "Check in EEVEE: not done, the first view is not the scene camera at this frame",
+            )
+            return None
+        reference = pipeline.capture_reference(self.prepared, self.job)
+        try:
+            scores = writeback_stage.score_eevee(
+                scene,
+                reference,
+                cache_dir() / "eevee_check.png",
+                self.job.cache_dir,
+                computed.indirect,
+                self.prepared.exported.emissive_materials,
+            )
+        except vplace.VplaceError as exc:
+            self.report({"WARNING"}, f"Check in EEVEE failed: {exc}")
+            return None
+        for line in vplace.job.PanelReport(metrics=computed.metrics, eevee=scores).eevee_lines():
+            self.report({"INFO"}, line.strip())
+        return scores
+
     def _finish_animation(
         self, context: bpy.types.Context, vpl_sets: list[vplace.VplSet]
     ) -> set[str]:
@@ -219,6 +254,8 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
         scene = context.scene
         assert self.frames is not None
         tracked = animation.key_lights(scene, self.frames, self.frame_preps, vpl_sets, self.timer)
+        if scene.vplace.check_eevee:
+            self.report({"WARNING"}, "Check in EEVEE: not done for keyed lights (a still run is)")
         frames = f"{self.frames[0]}..{self.frames[-1]} ({len(self.frames)} captured)"
         self.report(
             {"INFO"},

@@ -66,6 +66,7 @@ class VPLACE_PT_main(_Panel, bpy.types.Panel):
         row = layout.row(align=True)
         row.operator("vplace.capture", icon="RENDER_STILL")
         row.operator("vplace.fit", icon="GRAPH")
+        layout.prop(settings, "check_eevee")
         row = layout.row(align=True)
         row.operator("vplace.apply", icon="LIGHT")
         row.operator("vplace.clear_vpls", icon="X")
@@ -98,6 +99,8 @@ class VPLACE_PT_main(_Panel, bpy.types.Panel):
             box.label(
                 text=f"RMSE vs Cycles GI: {m['rmse']:.4f} (direct only {m['rmse_direct_only']:.4f})"
             )
+        for line in report.eevee_lines():
+            box.label(text=line)
         fit = report.fit
         if fit:
             box.label(text=f"R² {fit.r2:.3f}, kept {len(fit.kept)} features")

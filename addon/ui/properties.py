@@ -171,6 +171,14 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
         default=True,
     )
     seed: IntProperty(name="Seed", default=0, min=0)  # type: ignore[valid-type]
+    check_eevee: BoolProperty(  # type: ignore[valid-type]
+        name="Check in EEVEE",
+        description="After Lay out and apply, render the lights with EEVEE from the scene camera "
+        "at the capture size and compare with the capture (its noise included): EEVEE's score, "
+        "and whose part its difference is (vplace's stand-ins, EEVEE's rendering of the lights, "
+        "the VPLs). Two EEVEE renders and a Cycles one: seconds on a GPU, minutes without",
+        default=False,
+    )
     # Results of the last run, as JSON (kept in the .blend).
     last_report: StringProperty(name="Last report", default="")  # type: ignore[valid-type]
     model_json: StringProperty(name="Fitted model", default="")  # type: ignore[valid-type]

@@ -3,6 +3,8 @@
 The bpy module has no window, so the panel cannot be shown; draw() runs here against a layout
 that records what it is asked to draw."""
 
+import json
+
 import bpy
 import pytest
 from blender_util import addon_cornell
@@ -119,3 +121,24 @@ def test_cancelled_compute_writes_nothing(scene):
     with pytest.raises(vplace.CancelledError):
         pipeline.compute(prepared, job, timer, progress)
     assert apply.find_collection() is None
+
+
+@pytest.mark.slow
+def test_check_in_eevee_shows_eevees_score_and_whose_part_its_difference_is():
+    with addon_cornell(capture_size=48, samples=64, vpl_budget=64, check_eevee=True) as scene:
+        scene.eevee.light_threshold = 1e-4
+        before = (scene.render.engine, scene.render.resolution_x, scene.render.film_transparent)
+        assert bpy.ops.vplace.apply() == {"FINISHED"}
+        assert (scene.render.engine, scene.render.resolution_x, scene.render.film_transparent) == (
+            before
+        )
+        e = json.loads(scene.vplace.last_report)["eevee"]
+        assert 0.5 < e["ssim"] <= 1.0
+        shares = [e[f"attribution_share_{p}"] for p in vplace.job.ATTRIBUTION_PARTS]
+        assert sum(shares) == pytest.approx(1.0, abs=1e-6)
+        # The box's lamp is the user's: vplace wrote no stand-in light, so the stand-ins' own
+        # light is Cycles' direct light again, and holds next to nothing of EEVEE's error.
+        assert abs(e["attribution_stand_in_share"]) < 0.05
+        labels = [t for kind, t in draw(scene) if kind == "label"]
+        assert any(t.startswith("EEVEE: SSIM ") for t in labels)
+        assert any(t.endswith("EEVEE's rendering (not vplace's)") for t in labels)

@@ -240,3 +240,28 @@ def test_the_panel_reads_a_stored_summary_by_attribute():
     assert (report.n_vpls, report.profile, report.metrics) == (8, "cosine", {"rmse": 0.5})
     assert vjob.PanelReport.from_json("") is None
     assert vjob.PanelReport.from_json(json.dumps({"fit": dataclasses.asdict(fit)})).n_vpls == 0
+    assert report.eevee == {} and report.eevee_lines() == []  # no "Check in EEVEE"
+
+
+def test_the_panel_says_whose_part_eevees_difference_is_after_a_check_in_eevee():
+    eevee = {
+        "ssim": 0.9612, "rmse": 0.0062, "direct_brightness": 0.9061,
+        "attribution_share_direct": 0.49, "attribution_share_vpl": -0.004,
+        "attribution_share_rest": 0.514, "attribution_stand_in_share": 0.03,
+    }  # fmt: skip
+    s = _summary(eevee=eevee)
+    assert s.to_dict()["eevee"] == eevee  # kept for the panel when a check made it
+    assert "eevee" not in _summary().to_dict()
+    report = vjob.PanelReport.from_json(json.dumps(s.to_dict()))
+    assert report is not None and report.eevee == eevee
+    assert report.eevee_lines() == [
+        "EEVEE: SSIM 0.961, RMSE 0.0062 (evaluator 0.5000)",
+        "EEVEE's direct light: 0.91x Cycles'",
+        "Of EEVEE's error, 49% is its direct light:",
+        "  3% vplace's stand-ins, 46% EEVEE's rendering (not vplace's)",
+        "0% its VPL light, 51% the evaluator's own",
+    ]
+    # Without Cycles' render of the stand-ins, (a) is not split.
+    del eevee["attribution_stand_in_share"]
+    lines = vjob.PanelReport(eevee=eevee).eevee_lines()
+    assert lines[0] == "EEVEE: SSIM 0.961, RMSE 0.0062" and len(lines) == 4

@@ -562,14 +562,9 @@ class JobSummary:
         out = asdict(self)
         out["evaluator"] = self.evaluator.to_dict()
         if not main_job:
-            for key in (
-                "reference",
-                "eevee",
-                "eevee_problems",
-                "eevee_lamp_notes",
-                "baselines",
-                "files",
-            ):
+            # The panel keeps EEVEE's scores when "Check in EEVEE" made them.
+            dropped = ["reference", "eevee_problems", "eevee_lamp_notes", "baselines", "files"]
+            for key in dropped + (["eevee"] if self.eevee is None else []):
                 del out[key]
         return out
 
@@ -584,6 +579,8 @@ class PanelReport:
     metrics: dict[str, float] = field(default_factory=dict)
     fit: FitSummary | None = None
     stage_seconds: dict[str, float] = field(default_factory=dict)
+    #: EEVEE's scores of the written lights ("Check in EEVEE"; ``JobSummary.eevee``).
+    eevee: dict[str, float] = field(default_factory=dict)
 
     @classmethod
     def from_json(cls, text: str) -> PanelReport | None:
@@ -598,7 +595,37 @@ class PanelReport:
             metrics=data.get("metrics") or {},
             fit=FitSummary(**fit) if fit else None,
             stage_seconds=data.get("stage_seconds") or {},
+            eevee=data.get("eevee") or {},
         )
+
+    def eevee_lines(self) -> list[str]:
+        """What "Check in EEVEE" found, in lines short enough for a panel row: EEVEE's score
+        against the capture beside the evaluator's, EEVEE's direct light against Cycles', and
+        whose part EEVEE's error is (``attribute``): its direct light, split into vplace's
+        stand-ins and EEVEE's rendering of the lights (not vplace's), its VPL light against
+        the evaluator's, and the evaluator's own. Empty without a check."""
+        e = self.eevee
+        if not e:
+            return []
+        rmse = self.metrics.get("rmse")
+        evaluator = f" (evaluator {rmse:.4f})" if rmse is not None else ""
+        lines = [f"EEVEE: SSIM {e['ssim']:.3f}, RMSE {e['rmse']:.4f}{evaluator}"]
+        if "direct_brightness" in e:
+            lines.append(f"EEVEE's direct light: {e['direct_brightness']:.2f}x Cycles'")
+        if "attribution_share_direct" in e:
+            direct = e["attribution_share_direct"]
+            lines.append(f"Of EEVEE's error, {markdown.percent(direct)} is its direct light:")
+            model = e.get("attribution_stand_in_share")
+            if model is not None and math.isfinite(model):
+                lines.append(
+                    f"  {markdown.percent(model)} vplace's stand-ins, "
+                    f"{markdown.percent(direct - model)} EEVEE's rendering (not vplace's)"
+                )
+            lines.append(
+                f"{markdown.percent(e['attribution_share_vpl'])} its VPL light, "
+                f"{markdown.percent(e['attribution_share_rest'])} the evaluator's own"
+            )
+        return lines
 
 
 def compute_with_baselines(
@@ -704,7 +731,8 @@ def eevee_notes(e: dict[str, float], stand_ins: int = 0) -> list[str]:
         lines.append(line + ".")
     if "attribution_share_vpl" in e:
         parts = ", ".join(
-            f"{name} {e[f'attribution_rmse_{key}']:.4f} ({e[f'attribution_share_{key}']:+.0%})"
+            f"{name} {e[f'attribution_rmse_{key}']:.4f} "
+            f"({markdown.percent(e[f'attribution_share_{key}'], signed=True)})"
             for key, name in (
                 ("direct", "EEVEE's direct light against Cycles'"),
                 ("vpl", "EEVEE's VPL light against the evaluator's"),
@@ -715,7 +743,7 @@ def eevee_notes(e: dict[str, float], stand_ins: int = 0) -> list[str]:
         seen = e.get("attribution_seen_share")
         if seen is not None and math.isfinite(seen) and e.get("attribution_seen_pixels", 0) > 0:
             line += (
-                f"; of EEVEE's squared error, {seen:.0%} is its direct light in the "
+                f"; of EEVEE's squared error, {markdown.percent(seen)} is its direct light in the "
                 f"{e['attribution_seen_pixels']:.1%} of pixels that see an emitter or the world "
                 "(their edges and patterns, anti-aliased EEVEE's way: not light on surfaces)"
             )
@@ -723,8 +751,9 @@ def eevee_notes(e: dict[str, float], stand_ins: int = 0) -> list[str]:
         if model is not None and math.isfinite(model):
             rendering = e["attribution_share_direct"] - model
             line += (
-                f"; {model:.0%} is vplace's stand-ins' own light against Cycles' direct light "
-                f"(Cycles rendering them), {rendering:.0%} EEVEE's rendering of the lights"
+                f"; {markdown.percent(model)} is vplace's stand-ins' own light against Cycles' "
+                f"direct light (Cycles rendering them), {markdown.percent(rendering)} EEVEE's "
+                "rendering of the lights"
             )
         lines.append(line + ".")
     return lines
