@@ -149,6 +149,11 @@ def _demo_options(sub: argparse._SubParsersAction) -> None:
     demo.add_argument(
         "--no-refit", action="store_true", help="vplace: keep the layout's VPL powers"
     )
+    demo.add_argument(
+        "--match-eevee", action="store_true",
+        help="refit the powers so that EEVEE's direct light plus the VPLs' light matches the "
+        "captures (an EEVEE render per captured view first; not with --animate)",
+    )  # fmt: skip
     demo.add_argument("--iterations", type=int, default=3, help="layout iterations (cap)")
     demo.add_argument(
         "--feature-mode",
@@ -339,6 +344,7 @@ def run(args: argparse.Namespace) -> None:
         alpha=args.alpha,
         iterations=args.iterations,
         feature_mode=args.feature_mode,
+        match_eevee=args.match_eevee,
     )
     extra = (
         args.score_between,
@@ -353,6 +359,13 @@ def run(args: argparse.Namespace) -> None:
         raise AddonError(
             "--score-between, --cycles-samples, --eevee-still, --volume-once and "
             "--volume-per-frame go with --animate"
+        )
+    if args.match_eevee and (args.animate or job.method != "vplace+refit"):
+        from .errors import AddonError
+
+        raise AddonError(
+            "--match-eevee refits a still layout's powers: leave out --animate, --no-refit "
+            "and --method uniform|rsm"
         )
     if args.animate:
         from .animation import run_animated_job

@@ -45,7 +45,7 @@ from .native import vplace
 from .scene import export
 from .scene.convert import export_native
 from .settings import override
-from .writeback import apply
+from .writeback import apply, match_eevee
 from .writeback import stage as writeback_stage
 from .writeback.stage import vpl_specular
 from .writeback.stand_ins import StandIns, stand_ins
@@ -80,6 +80,10 @@ class Job(vplace.job.LayoutSettings):
     #: The views the lights are laid out for.
     views: ViewSet = field(default_factory=ViewSet)
     cache_dir: Path | None = None
+    #: Refit the powers so that EEVEE's direct light plus the VPLs' light matches the captures
+    #: (``writeback.match_eevee``: an EEVEE render per captured view first). Off: it costs
+    #: those renders, and it only helps where EEVEE's direct light is off smoothly.
+    match_eevee: bool = False
 
     def validate(self) -> None:
         """Raises :class:`AddonError` for settings no stage can run with."""
@@ -119,6 +123,7 @@ class Job(vplace.job.LayoutSettings):
             feature_mode=settings.feature_mode,
             views=settings.view_set(),
             cache_dir=cache_dir,
+            match_eevee=settings.match_eevee,
         )
 
 
@@ -263,6 +268,28 @@ def lay_out(
     )
 
 
+def eevee_refit_views(
+    bl_scene: bpy.types.Scene, prepared: Prepared, job: Job, timer: StageTimer
+) -> tuple[list[vplace.View] | None, dict[str, float]]:
+    """With ``job.match_eevee`` and a method that refits: the views the refit fits instead of
+    the captures (``writeback.match_eevee``: EEVEE's direct-light deficit added to their
+    targets) and per matched view its share of Cycles' direct light; else (None, {}). Uses bpy:
+    call it on Blender's main thread, after :func:`prepare`."""
+    if not job.match_eevee or job.method != "vplace+refit":
+        return None, {}
+    return match_eevee.refit_views(
+        bl_scene,
+        prepared.captures,
+        prepared.views[: len(prepared.captures)],  # the coverage views follow the captures'
+        prepared.gloss,
+        prepared.stand_ins,
+        scene_diagonal=prepared.scene.diagonal,
+        cell_px=job.cell_px,
+        cache_dir=job.cache_dir,
+        stage=timer.stage,
+    )
+
+
 def capture_reference(prepared: Prepared, job: Job) -> Reference:
     """The first view's own capture: the reference of the panel's runs (no extra render)."""
     views = prepared.views[: len(prepared.captures)]
@@ -276,6 +303,7 @@ def compute(
     progress: vplace.Progress | None = None,
     fitted: vplace.Fit | None = None,
     reference: Reference | None = None,
+    refit_views: Sequence[vplace.View] | None = None,
 ) -> Computed:
     """``vplace.job.compute`` (fit, lay out, evaluate, score) on the prepared views against the
     reference (default: the first view's capture). No bpy: safe on a worker thread;
@@ -289,6 +317,7 @@ def compute(
         timer=timer,
         progress=progress,
         fitted=fitted,
+        refit_views=refit_views,
     )
 
 
@@ -438,8 +467,15 @@ def run_main_job(
     prepared = prepare(bl_scene, job, timer, reference=reference_render(job, truth_samples))
     reference = prepared.reference
     assert reference is not None  # prepare(reference=...) made it
+    refit_views, matched = eevee_refit_views(bl_scene, prepared, job, timer)
     computed, compared = vplace.job.compute_with_baselines(
-        prepared.scene, prepared.views, job, reference, baselines, timer=timer
+        prepared.scene,
+        prepared.views,
+        job,
+        reference,
+        baselines,
+        timer=timer,
+        refit_views=refit_views,
     )
     written = None
     if write_back:
@@ -474,5 +510,6 @@ def run_main_job(
     report.eevee_problems = written.problems if written else []
     report.eevee_lamp_notes = written.lamp_notes if written else []
     report.baselines = compared
+    report.eevee_matched = matched
     vplace.job.write_files(out_dir, report, reference, computed, job.cell_px, log)
     return report

@@ -40,11 +40,22 @@ def gloss_mask(scene: vplace.Scene, exported: ExportedScene, cap: Capture) -> np
 
 
 def view_of(
-    cap: Capture, *, held_out: bool = False, gloss: np.ndarray | None = None
+    cap: Capture,
+    *,
+    held_out: bool = False,
+    gloss: np.ndarray | None = None,
+    offset: np.ndarray | None = None,
 ) -> vplace.View:
     """The ``vplace.View`` of a capture; ``held_out`` leaves out its global-illumination passes
     (what a view the model has not seen provides). ``gloss`` (:func:`gloss_mask`) adds the
-    rough glossy layers to the receivers' reflectance and to the indirect light to match."""
+    rough glossy layers to the receivers' reflectance and to the indirect light to match.
+    ``offset`` ((H, W, 3)) is added to the indirect light the VPLs are fitted to (EEVEE's
+    direct-light deficit: ``writeback.match_eevee``)."""
+    indirect = None
+    if not held_out:
+        indirect = cap.modelled_indirect(gloss)
+        if offset is not None:
+            indirect = np.ascontiguousarray(indirect + offset, dtype=np.float32)
     return vplace.View(
         position=cap.position,
         normal=cap.normal,
@@ -54,7 +65,7 @@ def view_of(
         direct=cap.direct,
         diffuse_direct=cap.diffuse_direct,
         diffuse_indirect=None if held_out else cap.diffuse_indirect,
-        indirect=None if held_out else cap.modelled_indirect(gloss),
+        indirect=indirect,
         specular=cap.glossy_color,
         camera_position=cap.camera_position,
         world_to_clip=cap.world_to_clip,

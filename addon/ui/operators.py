@@ -180,11 +180,21 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
         self.prepared = pipeline.prepare(scene, self.job, self.timer)
         self.key = _model_key(self.job, self.prepared)
         self.fitted = _stored_fit(scene, self.key)
+        self.refit_views, self.matched = pipeline.eevee_refit_views(
+            scene, self.prepared, self.job, self.timer
+        )
 
     def work(self, progress: vplace.Progress | None) -> Any:
         if self.frames is not None:
             return animation.lay_out_frames(self.frame_preps, self.job, progress)
-        return pipeline.compute(self.prepared, self.job, self.timer, progress, self.fitted)
+        return pipeline.compute(
+            self.prepared,
+            self.job,
+            self.timer,
+            progress,
+            self.fitted,
+            refit_views=self.refit_views,
+        )
 
     def finish(self, context: bpy.types.Context, result: Any) -> set[str]:
         if self.frames is not None:
@@ -199,6 +209,7 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
             sun=self.prepared.stand_ins.sun,
         )
         summary = pipeline.summary(scene, self.job, self.prepared, computed, self.timer)
+        summary.eevee_matched = self.matched
         if scene.vplace.check_eevee:
             summary.eevee = self._check_eevee(scene, computed)
         scene.vplace.last_report = json.dumps(summary.to_dict())
@@ -254,8 +265,14 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
         scene = context.scene
         assert self.frames is not None
         tracked = animation.key_lights(scene, self.frames, self.frame_preps, vpl_sets, self.timer)
-        if scene.vplace.check_eevee:
-            self.report({"WARNING"}, "Check in EEVEE: not done for keyed lights (a still run is)")
+        for on, what in (
+            (scene.vplace.match_eevee, "Match"),
+            (scene.vplace.check_eevee, "Check in"),
+        ):
+            if on:
+                self.report(
+                    {"WARNING"}, f"{what} EEVEE: not done for keyed lights (a still run is)"
+                )
         frames = f"{self.frames[0]}..{self.frames[-1]} ({len(self.frames)} captured)"
         self.report(
             {"INFO"},

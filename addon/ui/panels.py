@@ -58,6 +58,9 @@ class VPLACE_PT_main(_Panel, bpy.types.Panel):
         col.prop(settings, "cell_px")
         col.prop(settings, "alpha")
         col.prop(settings, "refit")
+        sub = col.column(align=True)
+        sub.active = settings.refit and settings.method == "vplace"
+        sub.prop(settings, "match_eevee")
         col.prop(settings, "iterations")
         col.prop(settings, "feature_mode")
         col = layout.column(align=True)
@@ -98,6 +101,11 @@ class VPLACE_PT_main(_Panel, bpy.types.Panel):
         if m:
             box.label(
                 text=f"RMSE vs Cycles GI: {m['rmse']:.4f} (direct only {m['rmse_direct_only']:.4f})"
+            )
+        for name, share in report.eevee_matched.items():
+            box.label(
+                text=f"Matched EEVEE's direct light: {name} "
+                f"{vplace.markdown.percent(share, signed=True)}"
             )
         for line in report.eevee_lines():
             box.label(text=line)

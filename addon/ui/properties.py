@@ -171,6 +171,14 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
         default=True,
     )
     seed: IntProperty(name="Seed", default=0, min=0)  # type: ignore[valid-type]
+    match_eevee: BoolProperty(  # type: ignore[valid-type]
+        name="Match EEVEE's direct light",
+        description="Refit the VPL powers so that EEVEE's own direct light plus the VPLs' light "
+        "matches the captures: EEVEE renders each captured view's direct light first (seconds "
+        "on a GPU, about a minute a view without). Helps where EEVEE lights the scene's lamps "
+        "smoothly darker or brighter than Cycles; needs Refit powers",
+        default=False,
+    )
     check_eevee: BoolProperty(  # type: ignore[valid-type]
         name="Check in EEVEE",
         description="After Lay out and apply, render the lights with EEVEE from the scene camera "

@@ -109,6 +109,8 @@ CASES = [
     Case(["demo", "--alpha", "2"], "alpha = 2 is out of range", quick_demo=True),
     Case(["demo", "--radius", "-1"], "the near-field radius must be 0 or more metres, got -1"),
     Case(["demo", "--iterations", "-1"], "layout iterations must be 0", quick_demo=True),
+    Case(["demo", "--match-eevee", "--no-refit"], "--match-eevee refits a still layout's"),
+    Case(["demo", "--match-eevee", "--animate", "1", "2", "1"], "leave out --animate"),
     Case(["demo", "--truth-samples", "-1"], "truth samples must be at least 1", quick_demo=True),
     # demo: the output and the machine
     Case(["demo", "--out", "{file}/out"], "cannot write the output folder {file}/out: Not a dir"),

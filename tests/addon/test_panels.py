@@ -124,8 +124,10 @@ def test_cancelled_compute_writes_nothing(scene):
 
 
 @pytest.mark.slow
-def test_check_in_eevee_shows_eevees_score_and_whose_part_its_difference_is():
-    with addon_cornell(capture_size=48, samples=64, vpl_budget=64, check_eevee=True) as scene:
+def test_match_and_check_in_eevee_show_eevees_direct_light_and_whose_part_its_difference_is():
+    with addon_cornell(
+        capture_size=48, samples=64, vpl_budget=64, check_eevee=True, match_eevee=True
+    ) as scene:
         scene.eevee.light_threshold = 1e-4
         before = (scene.render.engine, scene.render.resolution_x, scene.render.film_transparent)
         assert bpy.ops.vplace.apply() == {"FINISHED"}
@@ -141,4 +143,6 @@ def test_check_in_eevee_shows_eevees_score_and_whose_part_its_difference_is():
         assert abs(e["attribution_stand_in_share"]) < 0.05
         labels = [t for kind, t in draw(scene) if kind == "label"]
         assert any(t.startswith("EEVEE: SSIM ") for t in labels)
+        # "Match EEVEE's direct light" rendered it first and says by how much it differs.
+        assert any(t.startswith("Matched EEVEE's direct light: Cornell camera ") for t in labels)
         assert any(t.endswith("EEVEE's rendering (not vplace's)") for t in labels)

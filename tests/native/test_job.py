@@ -69,6 +69,73 @@ def test_compute_scores_against_the_reference(room):
     )
 
 
+def test_the_refit_fits_the_views_it_is_given_for_eevees_direct_light(room):
+    scene, v, ref = room
+    cap = bench_layout.synthetic_capture(48, 32)
+    plain = vjob.lay_out(scene, [v], settings(method="vplace+refit"))
+    # The same targets give the same lights; a target raised where EEVEE's direct light falls
+    # short gives the VPLs more power (the layout itself, placed for Cycles' light, is kept).
+    same = vjob.lay_out(scene, [v], settings(method="vplace+refit"), refit_views=[v])
+    assert np.array_equal(same.vpls.flux, plain.vpls.flux)
+    short = 0.5 * ref.modelled_indirect
+    raised = view(cap, indirect=ref.modelled_indirect + short, diffuse_indirect=ref.gi)
+    more = vjob.lay_out(scene, [v], settings(method="vplace+refit"), refit_views=[raised])
+    assert np.array_equal(more.layout.vpls.position, plain.layout.vpls.position)
+    assert more.vpls.flux.sum() > 1.2 * plain.vpls.flux.sum()
+    out = vjob.compute(scene, [v], settings(method="vplace+refit"), ref, refit_views=[raised])
+    assert np.array_equal(out.vpls.flux, more.vpls.flux)
+
+
+def _box_mean_by_loops(diff, mask, size):
+    h, w = mask.shape
+    out = np.zeros((h, w, 3))
+    before = size // 2
+    for y in range(h):
+        for x in range(w):
+            ys = slice(max(0, y - before), min(h, y - before + size))
+            xs = slice(max(0, x - before), min(w, x - before + size))
+            m = mask[ys, xs]
+            if mask[y, x] and m.any():
+                out[y, x] = diff[ys, xs][m].mean(axis=0)
+    return out
+
+
+def test_eevees_deficit_is_the_smooth_part_of_its_direct_light_on_the_surfaces():
+    rng = np.random.default_rng(5)
+    cycles = rng.uniform(0.0, 2.0, (9, 14, 3))
+    eevee = rng.uniform(0.0, 2.0, (9, 14, 3))
+    mask = rng.uniform(size=(9, 14)) > 0.3
+    for size in (1, 4, 5, 20):
+        got = vjob.eevee_deficit(cycles, eevee, mask, size)
+        assert got.dtype == np.float32 and got.shape == (9, 14, 3)
+        np.testing.assert_allclose(got, _box_mean_by_loops(cycles - eevee, mask, size), atol=1e-5)
+    # A sharp edge (a sun patch's) is spread over the box; an emitter seen directly, masked
+    # out, counts for nothing, however bright.
+    edge = np.zeros((8, 16, 3))
+    edge[:, 8:] = 1.0
+    seen = np.ones((8, 16), bool)
+    seen[4, 2] = False
+    bright = edge.copy()
+    bright[4, 2] = 1e6
+    got = vjob.eevee_deficit(bright, np.zeros_like(edge), seen, 4)
+    assert got[4, 2].tolist() == [0.0, 0.0, 0.0]
+    assert got[0, 0, 0] == 0.0 and got[0, 15, 0] == pytest.approx(1.0)
+    assert 0.0 < got[0, 7, 0] < got[0, 8, 0] < 1.0
+    with pytest.raises(ValueError, match="one size"):
+        vjob.eevee_deficit(cycles, eevee[:-1], mask, 4)
+    with pytest.raises(ValueError, match="at least 1 pixel"):
+        vjob.eevee_deficit(cycles, eevee, mask, 0)
+    eevee[2, 3, 1] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        vjob.eevee_deficit(cycles, eevee, mask | True, 4)
+
+
+def test_the_note_says_where_the_powers_make_up_for_eevees_direct_light():
+    assert vjob.eevee_matched_notes({}) == []
+    (line,) = vjob.eevee_matched_notes({"Camera": 0.034, "Side": -0.002})
+    assert "Camera +3%, Side +0%" in line
+
+
 def test_score_of_the_truth_is_perfect_and_ssim_needs_11_pixels():
     rng = np.random.default_rng(0)
     img = rng.random((16, 16, 3)).astype(np.float32)

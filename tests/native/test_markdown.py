@@ -126,3 +126,12 @@ def test_job_report_splits_eevees_direct_light_into_the_stand_ins_and_eevees_ren
         "; 10% is vplace's stand-ins' own light against Cycles' direct light (Cycles rendering "
         "them), 40% EEVEE's rendering of the lights." in text
     )
+
+
+def test_job_report_says_where_the_vpl_powers_make_up_for_eevees_direct_light():
+    assert "Match EEVEE's direct light" not in vjob.job_report(_report())
+    text = vjob.job_report(_report(eevee_matched={"Camera": 0.034}))
+    assert (
+        "The VPL powers make up for EEVEE's direct light (Match EEVEE's direct light): its "
+        "smooth shortfall against Cycles' direct light, in the captured views: Camera +3%."
+    ) in text

@@ -124,10 +124,13 @@ def lay_out(
     fitted: vplace.Fit | None = None,
     timer: StageTimer | None = None,
     progress: vplace.Progress | None = None,
+    refit_views: Sequence[vplace.View] | None = None,
 ) -> Laid:
     """The VPLs of ``settings.method`` (the one method dispatch). ``views`` are what the
     regression-guided layout places for and iterates against (views without an indirect image
-    give a one-shot layout); ``fitted`` is the model (fitted here when None)."""
+    give a one-shot layout); ``fitted`` is the model (fitted here when None). The refit fits
+    ``refit_views`` when given (the captures with EEVEE's direct-light deficit added to their
+    targets: :func:`eevee_deficit`), else the captured views of ``views``."""
     timer = timer or quiet_timer()
     n = settings.n_vpls
     radius = settings.radius_in(scene)
@@ -178,6 +181,8 @@ def lay_out(
             # The captures only: a coverage view's target is itself light-path VPLs, and
             # fitting powers to it fits that estimate's noise (the layout uses it to place).
             captured = [v for v in views if not is_coverage(v)] or views
+            if refit_views is not None:
+                captured = list(refit_views)
             out.refit = vplace.refit(
                 scene, captured, laid.vpls, vplace.RefitParams(stride=stride), progress=progress
             )
@@ -280,6 +285,48 @@ def seen_directly(seen_light: np.ndarray, direct: np.ndarray) -> np.ndarray:
     lum = np.asarray(vplace.LUMINANCE, dtype=np.float64)
     la, lb = a[..., :3] @ lum, b[..., :3] @ lum
     return (la > 0.0) & (la >= SEEN_SHARE * lb)
+
+
+def _box_sums(a: np.ndarray, size: int) -> np.ndarray:
+    """The sum of ``a`` ((H, W) or (H, W, C)) over the ``size`` x ``size`` box around each
+    pixel, cut at the image's edges (a summed-area table)."""
+    h, w = a.shape[:2]
+    table = np.zeros((h + 1, w + 1, *a.shape[2:]), dtype=np.float64)
+    table[1:, 1:] = a.cumsum(axis=0).cumsum(axis=1)
+    before = size // 2
+    y, x = np.arange(h), np.arange(w)
+    y0, y1 = np.clip(y - before, 0, h), np.clip(y - before + size, 0, h)
+    x0, x1 = np.clip(x - before, 0, w), np.clip(x - before + size, 0, w)
+    return table[y1][:, x1] - table[y0][:, x1] - table[y1][:, x0] + table[y0][:, x0]
+
+
+def eevee_deficit(
+    cycles_direct: np.ndarray, eevee_direct: np.ndarray, mask: np.ndarray, size: int
+) -> np.ndarray:
+    """(H, W, 3) float32: what EEVEE's direct light lacks against Cycles' in one view (both
+    (H, W, 3)), the smooth part only: ``cycles_direct - eevee_direct`` averaged over the
+    ``mask``ed pixels (the surfaces, not the emitters or the world seen directly) of the
+    ``size`` x ``size`` box around each pixel; 0 outside the mask. Negative where EEVEE is the
+    brighter. The VPLs' light is smooth: the sharp rest (a sun patch's edge, a texture EEVEE
+    filters its own way) their powers cannot follow, and fitting it would only pull the refit
+    around (README, "Can the VPL powers make up for EEVEE's direct light?")."""
+    a = np.asarray(cycles_direct, dtype=np.float64)
+    b = np.asarray(eevee_direct, dtype=np.float64)
+    m = np.asarray(mask)
+    if a.shape != b.shape or a.ndim != 3 or a.shape[-1] < 3 or m.shape != a.shape[:2]:
+        raise ValueError(
+            "eevee_deficit needs two (H, W, 3) images and an (H, W) mask of one size, got "
+            f"{a.shape}, {b.shape}, {m.shape}"
+        )
+    if size < 1:
+        raise ValueError(f"eevee_deficit: the box's size must be at least 1 pixel, got {size}")
+    weight = m.astype(bool).astype(np.float64)
+    diff = (a[..., :3] - b[..., :3]) * weight[..., None]
+    if not np.isfinite(diff).all():
+        raise ValueError("eevee_deficit: the images hold NaN or infinite values")
+    count = _box_sums(weight, size)
+    mean = _box_sums(diff, size) / np.maximum(count, 1.0)[..., None]
+    return (mean * weight[..., None]).astype(np.float32)
 
 
 def attribute(
@@ -429,14 +476,23 @@ def compute(
     timer: StageTimer | None = None,
     progress: vplace.Progress | None = None,
     fitted: vplace.Fit | None = None,
+    refit_views: Sequence[vplace.View] | None = None,
 ) -> Computed:
-    """:func:`fit` (unless ``fitted``), :func:`lay_out`, the evaluator on the reference view and
-    the metrics against it."""
+    """:func:`fit` (unless ``fitted``), :func:`lay_out` (its refit on ``refit_views`` when
+    given), the evaluator on the reference view and the metrics against it."""
     timer = timer or quiet_timer()
     if fitted is None:
         with timer.stage("fit regression"):
             fitted = fit(scene, views, settings)
-    laid = lay_out(scene, views, settings, fitted=fitted, timer=timer, progress=progress)
+    laid = lay_out(
+        scene,
+        views,
+        settings,
+        fitted=fitted,
+        timer=timer,
+        progress=progress,
+        refit_views=refit_views,
+    )
     with timer.stage("evaluate VPLs"):
         indirect, stats = vplace.evaluate(scene, reference.view, laid.vpls, progress=progress)
     direct, gi = reference.direct, reference.gi
@@ -549,6 +605,10 @@ class JobSummary:
     #: Whether a SUN light stands in for the world's sun (``addon.writeback.stand_ins``).
     sun_written: bool = False
     fit: FitSummary | None = None
+    #: "Match EEVEE's direct light": per captured view the refit made up for, the mean of
+    #: :func:`eevee_deficit` over the mean of Cycles' direct light (luminance; negative where
+    #: EEVEE's direct light is the brighter). Empty when the job did not match.
+    eevee_matched: dict[str, float] = field(default_factory=dict)
     reference: ReferenceInfo | None = None
     eevee: dict[str, float] | None = None
     eevee_problems: list[str] = field(default_factory=list)
@@ -581,6 +641,8 @@ class PanelReport:
     stage_seconds: dict[str, float] = field(default_factory=dict)
     #: EEVEE's scores of the written lights ("Check in EEVEE"; ``JobSummary.eevee``).
     eevee: dict[str, float] = field(default_factory=dict)
+    #: "Match EEVEE's direct light" (``JobSummary.eevee_matched``).
+    eevee_matched: dict[str, float] = field(default_factory=dict)
 
     @classmethod
     def from_json(cls, text: str) -> PanelReport | None:
@@ -596,6 +658,7 @@ class PanelReport:
             fit=FitSummary(**fit) if fit else None,
             stage_seconds=data.get("stage_seconds") or {},
             eevee=data.get("eevee") or {},
+            eevee_matched=data.get("eevee_matched") or {},
         )
 
     def eevee_lines(self) -> list[str]:
@@ -636,10 +699,12 @@ def compute_with_baselines(
     baselines: Sequence[str],
     *,
     timer: StageTimer | None = None,
+    refit_views: Sequence[vplace.View] | None = None,
 ) -> tuple[Computed, dict[str, Baseline]]:
-    """:func:`compute` for the settings' method, then each other method of ``baselines`` at the
-    same budget, with the same fit and reference, timed apart and quietly."""
-    computed = compute(scene, views, settings, reference, timer=timer)
+    """:func:`compute` for the settings' method (its refit on ``refit_views`` when given), then
+    each other method of ``baselines`` at the same budget, with the same fit and reference,
+    timed apart and quietly."""
+    computed = compute(scene, views, settings, reference, timer=timer, refit_views=refit_views)
     compared = {}
     for method in (b for b in baselines if b != settings.method):
         quiet = quiet_timer()
@@ -799,6 +864,20 @@ def _unwritten(report: JobSummary) -> str:
     )
 
 
+def eevee_matched_notes(matched: dict[str, float]) -> list[str]:
+    """The main job's line on "Match EEVEE's direct light" (``JobSummary.eevee_matched``):
+    on which views the refit made up for EEVEE's direct light, and by how much (none without)."""
+    if not matched:
+        return []
+    views = ", ".join(
+        f"{name} {markdown.percent(share, signed=True)}" for name, share in matched.items()
+    )
+    return [
+        "The VPL powers make up for EEVEE's direct light (Match EEVEE's direct light): its "
+        f"smooth shortfall against Cycles' direct light, in the captured views: {views}."
+    ]
+
+
 def job_report(report: JobSummary) -> str:
     """The main job's short human-readable report."""
     m, s = report.metrics, report.evaluator
@@ -836,6 +915,7 @@ def job_report(report: JobSummary) -> str:
             for line in (note, "")
         ],
         *[line for note in report.eevee_lamp_notes for line in (note + ".", "")],
+        *[line for note in eevee_matched_notes(report.eevee_matched) for line in (note, "")],
         f"Evaluator: {s.shadow_rays} shadow rays in {s.seconds:.3f} s "
         f"= {s.rays_per_second / 1e6:.2f} M rays/s",
         "",

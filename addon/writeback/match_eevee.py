@@ -1,0 +1,114 @@
+"""Match EEVEE's direct light: VPL powers that make up for what EEVEE's own direct light lacks.
+
+EEVEE renders the scene's lamps and vplace's stand-ins differently from Cycles (its shadow maps,
+film and texture filtering; ``docs/EEVEE_NOTES.md``, Q9), and the refit fits the VPL powers to
+Cycles' indirect light, so the part of EEVEE's error that is its direct light stays. With
+``Job.match_eevee`` EEVEE renders that direct light first: on every captured view that is its
+camera at the current frame, with the scene's lamps and the stand-ins this job writes (the VPLs
+none), as the scored renders do. The refit then fits each such view's indirect light plus the
+smooth part of Cycles' direct light minus EEVEE's (``vplace.job.eevee_deficit``, averaged over
+boxes of the fit's cell size on the surfaces), so that EEVEE's direct light plus the VPLs' light
+matches the capture. Only the powers change: the layout places for Cycles' light as before.
+
+Measured (EEVEE on a GPU; README, "Can the VPL powers make up for EEVEE's direct light?"): on
+the Cornell box, whose lamp EEVEE renders 0.91-0.96x as bright as Cycles on two views, EEVEE's
+RMSE fell 6-28 % on every view, held-out ones included; in the panel and L-shaped rooms it moved
+by -4..+1 %; in the sky room -2..0 % on four views and +4 % on the held-out view of the ceiling,
+which no capture sees. It costs an EEVEE render per captured view at the capture size, seconds
+on a GPU and about a minute each on CPU-only machines, so it is off by default.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from contextlib import AbstractContextManager
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import bpy
+import numpy as np
+
+from ..capture.native_view import view_of
+from ..native import vplace
+from ..settings import override
+from . import apply, eevee_setup
+from . import eevee_render as eevee
+
+if TYPE_CHECKING:
+    from ..capture.passes import Capture
+    from .stand_ins import StandIns
+
+#: The collection the stand-ins live in while EEVEE renders the direct light (removed after).
+COLLECTION = apply.COLLECTION_NAME + " (matching EEVEE)"
+
+
+def refit_views(
+    bl_scene: bpy.types.Scene,
+    captures: Sequence[Capture],
+    views: Sequence[vplace.View],
+    gloss: Sequence[np.ndarray | None],
+    stand_ins: StandIns,
+    *,
+    scene_diagonal: float,
+    cell_px: int,
+    cache_dir: Path | None,
+    stage: Callable[[str], AbstractContextManager[None]],
+) -> tuple[list[vplace.View], dict[str, float]]:
+    """The views the refit fits (``vplace.job.lay_out(refit_views=...)``) in place of the
+    captured ``views`` (one per capture of ``captures``, ``gloss`` their glossy masks): each
+    view whose capture is its camera at the current frame with EEVEE's direct-light deficit
+    (boxes of ``cell_px``) added to its target, the others as they are; and per matched view,
+    the deficit's mean over Cycles' direct light's (luminance). EEVEE lights the scene with
+    ``stand_ins``, written into :data:`COLLECTION` and removed after; any vplace collection
+    already in the scene is hidden for the renders, and every setting is restored, even on
+    error."""
+    nothing = vplace.VplSet(
+        np.zeros((1, 3), np.float32),
+        np.array([[0.0, 0.0, 1.0]], np.float32),
+        np.zeros((1, 3), np.float32),
+        radius=0.01,
+    )
+    lum = np.asarray(vplace.LUMINANCE, dtype=np.float64)
+    views = list(views)
+    matched: dict[str, float] = {}
+    with override() as g:
+        old = apply.find_collection()
+        if old is not None:
+            for obj in list(old.all_objects):  # a list: hiding one rebuilds all_objects
+                g.set(obj, "hide_render", True)
+        apply.write_vpls(
+            bl_scene,
+            nothing,
+            scene_diagonal=scene_diagonal,
+            emitters=stand_ins.emitters,
+            sun=stand_ins.sun,
+            name=COLLECTION,
+        )
+        try:
+            with eevee_setup.world_for_render(bl_scene, portals=bool(stand_ins.portals)):
+                for i, cap in enumerate(captures):
+                    camera = bpy.data.objects.get(cap.camera)
+                    if camera is None or cap.view != cap.camera:  # another frame's view
+                        continue
+                    with stage(f"EEVEE's direct light {cap.view}"):
+                        img = eevee.render(
+                            bl_scene,
+                            resolution=(cap.width, cap.height),
+                            camera=camera,
+                            samples=eevee.EEVEE_SAMPLES,
+                            setup=eevee.SETUPS["vpl"],
+                            cache_dir=cache_dir,
+                        )
+                    seen = vplace.job.seen_directly(cap.emission + cap.environment, cap.direct)
+                    deficit = vplace.job.eevee_deficit(
+                        cap.direct, img.image, cap.covered & ~seen, cell_px
+                    )
+                    mask = gloss[i] if gloss else None
+                    views[i] = view_of(cap, gloss=mask, offset=deficit)
+                    direct = float((cap.direct[..., :3] @ lum).mean())
+                    matched[cap.view] = (
+                        float((deficit @ lum).mean()) / direct if direct > 0 else 0.0
+                    )
+        finally:
+            apply.clear_vpls(COLLECTION)
+    return views, matched
