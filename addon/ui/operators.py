@@ -216,8 +216,10 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
         if computed.fit is not None:
             _store_fit(scene, computed.fit, self.key)
         emitters, portals = summary.emitter_lights_written, summary.portals_written
-        extra = f" and {emitters} lights for emissive meshes" if emitters else ""
-        extra += f" and {portals} sky portals" if portals else ""
+        extra = (
+            f" and {emitters} light{'s' * (emitters != 1)} for emissive meshes" if emitters else ""
+        )
+        extra += f" and {portals} sky portal{'s' * (portals != 1)}" if portals else ""
         extra += " and a SUN light for the world's sun" if summary.sun_written else ""
         missing = vplace.job.unwritten_vpls(summary)
         note = f" ({missing} of {summary.n_vpls} carry no power)" if missing else ""
