@@ -10,12 +10,13 @@ smooth part of Cycles' direct light minus EEVEE's (``vplace.job.eevee_deficit``,
 boxes of the fit's cell size on the surfaces), so that EEVEE's direct light plus the VPLs' light
 matches the capture. Only the powers change: the layout places for Cycles' light as before.
 
-Measured (EEVEE on a GPU; README, "Can the VPL powers make up for EEVEE's direct light?"): on
-the Cornell box, whose lamp EEVEE renders 0.91-0.96x as bright as Cycles on two views, EEVEE's
-RMSE fell 6-28 % on every view, held-out ones included; in the panel and L-shaped rooms it moved
-by -4..+1 %; in the sky room -2..0 % on four views and +4 % on the held-out view of the ceiling,
-which no capture sees. It costs an EEVEE render per captured view at the capture size, seconds
-on a GPU and about a minute each on CPU-only machines, so it is off by default.
+Measured (EEVEE's own image of the refitted lights, on a GPU; README, "Can the VPL powers make
+up for EEVEE's direct light?"): on the Cornell box, whose lamp EEVEE renders 0.91-0.96x as bright
+as Cycles on two views, EEVEE's luminance RMSE fell 5-28 % on every view, held-out ones
+included; in the panel and L-shaped rooms it moved by -3.3..+0.5 %; in the sky room by
+-2.4..-0.1 % on four views and +4.3 % on the held-out view of the ceiling, which no capture
+sees. It costs an EEVEE render per captured view at the capture size, seconds on a GPU and
+7-16 s a view on these CPU-only machines (llvmpipe), so it is off by default.
 """
 
 from __future__ import annotations
