@@ -467,7 +467,10 @@ def run_main_job(
     prepared = prepare(bl_scene, job, timer, reference=reference_render(job, truth_samples))
     reference = prepared.reference
     assert reference is not None  # prepare(reference=...) made it
-    refit_views, matched = eevee_refit_views(bl_scene, prepared, job, timer)
+    refit_views: list[vplace.View] | None = None
+    matched: dict[str, float] = {}
+    if job.match_eevee:
+        refit_views, matched = eevee_refit_views(bl_scene, prepared, job, timer)
     computed, compared = vplace.job.compute_with_baselines(
         prepared.scene,
         prepared.views,
