@@ -156,6 +156,11 @@ class Prepared:
         return self.captures[0]
 
     @property
+    def captured_views(self) -> list[vplace.View]:
+        """The captures' own views: ``views`` without the coverage views that follow them."""
+        return self.views[: len(self.captures)]
+
+    @property
     def surfaces(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """Each capture's (position, normal, covered) arrays."""
         return [(c.position, c.normal, c.covered) for c in self.captures]
@@ -280,7 +285,7 @@ def eevee_refit_views(
     return match_eevee.refit_views(
         bl_scene,
         prepared.captures,
-        prepared.views[: len(prepared.captures)],  # the coverage views follow the captures'
+        prepared.captured_views,
         prepared.gloss,
         prepared.stand_ins,
         scene_diagonal=prepared.scene.diagonal,
@@ -292,8 +297,8 @@ def eevee_refit_views(
 
 def capture_reference(prepared: Prepared, job: Job) -> Reference:
     """The first view's own capture: the reference of the panel's runs (no extra render)."""
-    views = prepared.views[: len(prepared.captures)]
-    return own_reference(Captured(prepared.captures, views, prepared.gloss), job.samples)
+    captured = Captured(prepared.captures, prepared.captured_views, prepared.gloss)
+    return own_reference(captured, job.samples)
 
 
 def compute(

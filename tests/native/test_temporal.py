@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import vplace
-from vplace import temporal
+from views import view
+from vplace import bench_layout, temporal
 
 
 def _grey(value: float, shape: tuple[int, int] = (12, 16)) -> np.ndarray:
@@ -89,7 +90,7 @@ def test_track_keeps_a_vpl_that_moves_a_little_in_its_slot_and_is_deterministic(
 
 def test_a_vpl_that_jumps_gets_a_new_slot_and_the_old_one_goes_dark_where_it_stands():
     a = _set([[0, 0, 0]])
-    b = _set([[5, 0, 0]])  # half a diagonal away: dearer than MAX_MATCH_COST
+    b = _set([[5, 0, 0]])  # half a diagonal away: far beyond its patch
     k = temporal.track([a, b], diagonal=10.0)
     assert k.position.shape[1] == 2
     assert k.energy.tolist() == [[1.0, 0.0], [0.0, 1.0]]
@@ -97,6 +98,32 @@ def test_a_vpl_that_jumps_gets_a_new_slot_and_the_old_one_goes_dark_where_it_sta
     assert k.position[1, 0].tolist() == [0, 0, 0]
     assert k.position[0, 1].tolist() == [5, 0, 0]
     assert k.color[0, 1].tolist() == [1.0, 1.0, 1.0]
+
+
+def test_a_vpl_is_matched_only_within_the_patch_it_stands_for():
+    # A lone VPL's patch is the set's radius, here below MIN_PATCH_DIAGONALS of the diagonal:
+    # 0.1 m in a room of 10 m. 3 cm of the diagonal is 3 patch radii: its light would sweep
+    # over surfaces neither frame lights, so it fades out and another fades in.
+    a = _set([[0, 0, 0]])
+    assert temporal.track([a, _set([[0.3, 0, 0]])], diagonal=10.0).position.shape[1] == 2
+    assert temporal.track([a, _set([[0.09, 0, 0]])], diagonal=10.0).position.shape[1] == 1
+    # A VPL that stands for a larger patch (sparse neighbours) may move farther within it.
+    far = [[0, 0, 0], [0.8, 0, 0], [0, 0.8, 0]]  # patches of 0.8 / sqrt(2), capped at 10 radii
+    moved = [[0.3, 0, 0], [1.1, 0, 0], [0.3, 0.8, 0]]
+    big = temporal.track(
+        [vplace.VplSet(*_cols(far), radius=0.05), vplace.VplSet(*_cols(moved), radius=0.05)],
+        diagonal=10.0,
+    )
+    assert big.position.shape[1] == 3
+
+
+def _cols(pos) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    n = len(pos)
+    return (
+        np.asarray(pos, dtype=np.float32),
+        np.tile(np.float32([0, 0, 1]), (n, 1)),
+        np.ones((n, 3), dtype=np.float32),
+    )
 
 
 def test_a_turned_vpl_costs_its_normal_term():
@@ -112,13 +139,13 @@ def test_unlit_vpls_get_no_slot():
 
 def test_at_frame_gives_the_captured_sets_back_and_blends_between_them():
     a = _set([[0, 0, 0], [1, 0, 0]], flux=[[1, 0.5, 0.5], [2, 2, 2]])
-    b = _set([[0.2, 0, 0], [1, 0, 0.2]], flux=[[3, 1.5, 1.5], [2, 2, 2]])
+    b = _set([[0.06, 0, 0], [1, 0, 0.06]], flux=[[3, 1.5, 1.5], [2, 2, 2]])
     k = temporal.track([a, b], diagonal=10.0)
     at_a = temporal.at_frame(k, [1, 5], 1)
     assert np.allclose(at_a.position, a.position) and np.allclose(at_a.flux, a.flux)
     assert np.allclose(temporal.at_frame(k, [1, 5], 5).flux, b.flux)
     mid = temporal.at_frame(k, [1, 5], 3)
-    assert np.allclose(mid.position, [[0.1, 0, 0], [1, 0, 0.1]])
+    assert np.allclose(mid.position, [[0.03, 0, 0], [1, 0, 0.03]])
     # Energy and colour are keyed apart (as Blender's keys): energy 2 of colour (1, .5, .5).
     assert np.allclose(mid.flux[0], [2.0, 1.0, 1.0])
     # Held before the first and after the last frame.
@@ -134,3 +161,60 @@ def test_a_light_fading_out_is_half_as_bright_half_way():
     assert len(mid) == 2
     assert np.allclose(sorted(mid.flux[:, 0]), [0.5, 0.5])
     assert np.allclose(sorted(mid.position[:, 0]), [0.0, 9.0])  # each where it stands
+
+
+def test_between_frames_the_lights_keep_their_keyed_disks_so_a_cross_fade_is_linear():
+    """A light fading out beside one fading in keeps its own frame's disk, as Blender
+    interpolates the keyed sizes: the evaluator's image half way is then the mean of the two
+    frames' images. With the disks of the interpolated set's spacing it was not."""
+    scene, _ = bench_layout.build_scene(2)
+    cap = view(bench_layout.synthetic_capture(40, 28))
+    every = vplace.uniform_vpls(scene, 160, seed=1)
+    x = np.asarray(every.position)[:, 0]
+
+    def part(keep: np.ndarray) -> vplace.VplSet:
+        cols = (np.ascontiguousarray(np.asarray(c)[keep]) for c in (every.position, every.normal))
+        return vplace.VplSet(*cols, np.asarray(every.flux)[keep], radius=every.radius)
+
+    # The lights move from one half of the room to the other: more than a patch apart.
+    a, b = part(x < -0.2), part(x > 0.2)
+    k = temporal.track([a, b], diagonal=scene.diagonal)
+    assert len(a) >= 10 and len(b) >= 100
+    assert not (k.lit[0] & k.lit[1]).any()  # no light moves: each fades out or in
+    mid = temporal.at_frame(k, [0, 2], 1)
+    assert mid.radii_given
+    lit = k.energy[0] + k.energy[1] > 0
+    assert np.allclose(mid.radii, (0.5 * (k.radii[0] + k.radii[1]))[lit], rtol=1e-6)
+    ia, _ = vplace.evaluate(scene, cap, a)
+    ib, _ = vplace.evaluate(scene, cap, b)
+    im, _ = vplace.evaluate(scene, cap, mid)
+    blend = 0.5 * (ia + ib)
+    assert np.abs(im - blend).max() <= 1e-4 * blend.max()
+    # The spacing's disks instead (what the evaluator took before): 1.5 % of the peak off.
+    spaced = vplace.VplSet(mid.position, mid.normal, mid.flux, radius=mid.radius)
+    assert not spaced.radii_given
+    other, _ = vplace.evaluate(scene, cap, spaced)
+    assert np.abs(other - blend).max() > 100 * np.abs(im - blend).max()
+
+
+def test_a_set_with_radii_given_checks_them_and_keeps_them():
+    pos, nrm, flux = _cols([[0, 0, 0], [1, 0, 0]])
+    s = vplace.VplSet(pos, nrm, flux, radius=0.01, radii=np.float32([0.2, 0.3]))
+    assert s.radii.tolist() == pytest.approx([0.2, 0.3]) and s.radii_given
+    assert s.with_flux(flux * 2).radii.tolist() == pytest.approx([0.2, 0.3])
+    assert "radii given" in repr(s)
+    for bad, match in (
+        (np.float32([0.2]), "radii"),
+        (np.float64([0.2, 0.3]), "float32"),
+        (np.float32([0.2, -1.0]), "radii\\[1\\]"),
+        (np.float32([0.2, np.nan]), "radii\\[1\\]"),
+    ):
+        with pytest.raises(vplace.InputError, match=match):
+            vplace.VplSet(pos, nrm, flux, radius=0.01, radii=bad)
+    with pytest.raises(vplace.InputError, match="omni"):
+        vplace.VplSet(pos, nrm, flux, profile="omni", radii=np.float32([0.2, 0.3]))
+    # The refit computes the radii from the spacing itself: it refuses a set with radii given.
+    scene, _ = bench_layout.build_scene(2)
+    cap = view(bench_layout.synthetic_capture(8, 6))
+    with pytest.raises(vplace.InputError, match="radii given"):
+        vplace.refit(scene, [cap], s)

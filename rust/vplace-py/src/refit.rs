@@ -126,6 +126,7 @@ fn refit(
     if views.is_empty() {
         return Err(input_error("views: give at least one View"));
     }
+    vpls.check_no_given_radii("refit")?;
     let views = views_of(&views);
     let params = RefitParams {
         profile: vpls.profile,

@@ -41,6 +41,9 @@ pub struct PyVplSet {
     pub vpls: Arc<Vec<Vpl>>,
     pub profile: Profile,
     pub radius: f32,
+    /// Each VPL's near-field radius when given (`VplSet(..., radii=...)`), else `None`: those
+    /// of the set's spacing.
+    pub given_radii: Option<Arc<Vec<f32>>>,
 }
 
 impl PyVplSet {
@@ -56,7 +59,48 @@ impl PyVplSet {
             vpls: Arc::new(vpls),
             profile,
             radius,
+            given_radii: None,
         })
+    }
+
+    /// This set with each VPL's near-field radius given (cosine VPLs only; one finite radius
+    /// `>= 0` per VPL).
+    pub fn with_given_radii(mut self, radii: Vec<f32>) -> PyResult<Self> {
+        if self.profile != Profile::Cosine {
+            return Err(input_error(
+                "radii: only cosine VPLs (disks) have near-field radii; omni VPLs are points",
+            ));
+        }
+        if radii.len() != self.vpls.len() {
+            return Err(input_error(format!(
+                "radii: {} radii for {} VPLs",
+                radii.len(),
+                self.vpls.len()
+            )));
+        }
+        if let Some((j, r)) = radii
+            .iter()
+            .enumerate()
+            .find(|(_, r)| !(**r >= 0.0 && r.is_finite()))
+        {
+            return Err(input_error(format!(
+                "radii[{j}] must be finite and >= 0, got {r}"
+            )));
+        }
+        self.given_radii = Some(Arc::new(radii));
+        Ok(self)
+    }
+
+    /// An error for an operation that computes the radii from the set's spacing itself (the
+    /// refit, the layout): it would not shade the lights with the radii given.
+    pub fn check_no_given_radii(&self, what: &str) -> PyResult<()> {
+        match self.given_radii {
+            Some(_) => Err(input_error(format!(
+                "{what} takes a VplSet whose radii follow its spacing; this one has radii given \
+                 (VplSet(..., radii=...)): only evaluate() shades with them"
+            ))),
+            None => Ok(()),
+        }
     }
 
     /// The evaluator's settings for this set.
@@ -102,18 +146,29 @@ fn read_vpls(
 
 #[pymethods]
 impl PyVplSet {
-    /// VPLs from float32 (N, 3) arrays: positions, unit normals, reflected flux (RGB watts).
+    /// VPLs from float32 (N, 3) arrays: positions, unit normals, reflected flux (RGB watts);
+    /// `radii`, float32 (N,): each cosine VPL's near-field radius instead of its spacing's.
     #[new]
-    #[pyo3(signature = (position, normal, flux, *, profile = "cosine", radius = 0.0))]
+    #[pyo3(signature = (position, normal, flux, *, profile = "cosine", radius = 0.0, radii = None))]
     fn new(
         position: &Bound<'_, PyAny>,
         normal: &Bound<'_, PyAny>,
         flux: &Bound<'_, PyAny>,
         profile: &str,
         radius: f32,
+        radii: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let profile = parse_profile(profile)?;
-        Self::new_checked(read_vpls(position, normal, flux)?, profile, radius)
+        let set = Self::new_checked(read_vpls(position, normal, flux)?, profile, radius)?;
+        match radii {
+            None => Ok(set),
+            Some(r) => {
+                let n = set.vpls.len();
+                let r = array::<f32>(r, "radii", &[Dim::Is(n)], "float32")?;
+                let r = slice(&r, "radii")?.to_vec();
+                set.with_given_radii(r)
+            }
+        }
     }
 
     /// The same VPLs with another flux (float32 (N, 3)).
@@ -130,7 +185,11 @@ impl PyVplSet {
                 ..*v
             })
             .collect();
-        Self::new_checked(vpls, self.profile, self.radius)
+        let set = Self::new_checked(vpls, self.profile, self.radius)?;
+        match &self.given_radii {
+            Some(r) => set.with_given_radii(r.to_vec()),
+            None => Ok(set),
+        }
     }
 
     fn __len__(&self) -> usize {
@@ -185,24 +244,37 @@ impl PyVplSet {
 
     /// The near-field radius of each VPL (N,) float32, metres: the radius of the surface patch
     /// it stands for (from the spacing of its nearest VPLs), between `radius` and
-    /// `MAX_RADIUS_FACTOR * radius`. The evaluator and the refit shade a cosine VPL as a disk
-    /// of this radius, and the write-back writes it (AREA disk of diameter `2 R_j`). Omni VPLs
-    /// are points: all 0.
+    /// `MAX_RADIUS_FACTOR * radius`, or the radii given to the constructor. The evaluator and
+    /// the refit shade a cosine VPL as a disk of this radius, and the write-back writes it (AREA
+    /// disk of diameter `2 R_j`). Omni VPLs are points: all 0.
     #[getter]
     fn radii<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
-        let radii = match self.profile {
-            Profile::Cosine => near_field_radii(&self.vpls, self.radius),
-            Profile::Omni => vec![0.0; self.vpls.len()],
+        let radii = match (&self.given_radii, self.profile) {
+            (Some(r), _) => r.to_vec(),
+            (None, Profile::Cosine) => near_field_radii(&self.vpls, self.radius),
+            (None, Profile::Omni) => vec![0.0; self.vpls.len()],
         };
         PyArray1::from_vec(py, radii)
     }
 
+    /// Whether the radii were given (`VplSet(..., radii=...)`) rather than computed from the
+    /// set's spacing.
+    #[getter]
+    fn radii_given(&self) -> bool {
+        self.given_radii.is_some()
+    }
+
     fn __repr__(&self) -> String {
         format!(
-            "VplSet({} VPLs, profile={:?}, radius={})",
+            "VplSet({} VPLs, profile={:?}, radius={}{})",
             self.vpls.len(),
             profile_name(self.profile),
-            self.radius
+            self.radius,
+            if self.given_radii.is_some() {
+                ", radii given"
+            } else {
+                ""
+            }
         )
     }
 }
@@ -294,11 +366,22 @@ fn evaluate<'py>(
     let v = Arc::clone(&view.inner);
     let set = Arc::clone(&vpls.vpls);
     let params = vpls.eval_params(tile);
+    let given = vpls.given_radii.clone();
     let prog = progress.map(|p| Arc::clone(&p.inner));
     let (h, w) = (v.height, v.width);
     let (image, stats) = run(py, move || {
         let g = v.gbuffer();
-        if brute_force {
+        if let Some(radii) = given {
+            evaluator::evaluate_with_radii(
+                &s,
+                &g,
+                &set,
+                &radii,
+                &params,
+                prog.as_deref(),
+                brute_force,
+            )
+        } else if brute_force {
             evaluator::evaluate_brute_force(&s, &g, &set, &params, prog.as_deref())
         } else {
             evaluator::evaluate(&s, &g, &set, &params, prog.as_deref())

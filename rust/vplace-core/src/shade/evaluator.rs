@@ -121,11 +121,52 @@ pub fn evaluate(
         scene,
         gbuffer,
         vpls,
+        None,
         params,
         progress,
         None,
         |state, ray| scene.occluded_ray(state, ray),
     )
+}
+
+/// [`evaluate`] (or, with `brute_force`, [`evaluate_brute_force`]) with each VPL's near-field
+/// radius given, `radii[j]` for VPL `j` (finite, `>= 0`), instead of computed from the set's
+/// spacing ([`crate::vpl::near_field_radii`]). For lights whose disk sizes are not those of
+/// their own set: keyed lights between two captured frames, whose sizes Blender interpolates
+/// from each frame's set (`vplace.temporal.at_frame`). `params.radius` is still checked but
+/// not used.
+pub fn evaluate_with_radii(
+    scene: &Scene,
+    gbuffer: &GBuffer,
+    vpls: &[Vpl],
+    radii: &[f32],
+    params: &EvalParams,
+    progress: Option<&Progress>,
+    brute_force: bool,
+) -> Result<(Vec<f32>, EvalStats)> {
+    if brute_force {
+        evaluate_with(
+            scene,
+            gbuffer,
+            vpls,
+            Some(radii),
+            params,
+            progress,
+            None,
+            |_, ray| scene.occluded_ray_brute_force(ray),
+        )
+    } else {
+        evaluate_with(
+            scene,
+            gbuffer,
+            vpls,
+            Some(radii),
+            params,
+            progress,
+            None,
+            |state, ray| scene.occluded_ray(state, ray),
+        )
+    }
 }
 
 /// [`evaluate`] with shadow rays that test every triangle instead of the BVH
@@ -137,9 +178,16 @@ pub fn evaluate_brute_force(
     params: &EvalParams,
     progress: Option<&Progress>,
 ) -> Result<(Vec<f32>, EvalStats)> {
-    evaluate_with(scene, gbuffer, vpls, params, progress, None, |_, ray| {
-        scene.occluded_ray_brute_force(ray)
-    })
+    evaluate_with(
+        scene,
+        gbuffer,
+        vpls,
+        None,
+        params,
+        progress,
+        None,
+        |_, ray| scene.occluded_ray_brute_force(ray),
+    )
 }
 
 /// [`evaluate`] that answers the shadow rays of VPLs already evaluated at the same positions from
@@ -157,6 +205,7 @@ pub(crate) fn evaluate_cached(
         scene,
         gbuffer,
         vpls,
+        None,
         params,
         progress,
         Some(cache),
@@ -169,10 +218,34 @@ pub(crate) fn evaluate_cached(
 type Tile = (Vec<(usize, Vec3)>, Vec<u64>);
 
 /// The argument checks of [`evaluate_with`].
-fn check_eval_input(gbuffer: &GBuffer, vpls: &[Vpl], params: &EvalParams) -> Result<()> {
+fn check_eval_input(
+    gbuffer: &GBuffer,
+    vpls: &[Vpl],
+    radii: Option<&[f32]>,
+    params: &EvalParams,
+) -> Result<()> {
     gbuffer.validate()?;
     validate_vpls(vpls)?;
     check_radius(params.radius)?;
+    if let Some(radii) = radii {
+        if radii.len() != vpls.len() {
+            return Err(VplaceError::Invalid {
+                what: "radii".into(),
+                reason: format!("{} radii for {} VPLs", radii.len(), vpls.len()),
+            });
+        }
+        if let Some((j, r)) = radii
+            .iter()
+            .enumerate()
+            .find(|(_, r)| !(**r >= 0.0 && r.is_finite()))
+        {
+            return Err(VplaceError::OutOfRange {
+                what: format!("radii[{j}]"),
+                value: r.to_string(),
+                expected: ">= 0 and finite".into(),
+            });
+        }
+    }
     if params.tile == 0 {
         return Err(VplaceError::OutOfRange {
             what: "tile".into(),
@@ -207,16 +280,19 @@ fn assemble(
 
 /// The evaluation: tiles of pixels in parallel, each pixel shaded by every VPL through the
 /// shading module with one traversal state per tile; `occluded` answers a shadow ray with it.
+/// `radii`: each VPL's near-field radius, else those of the set's spacing.
+#[allow(clippy::too_many_arguments)]
 fn evaluate_with(
     scene: &Scene,
     gbuffer: &GBuffer,
     vpls: &[Vpl],
+    radii: Option<&[f32]>,
     params: &EvalParams,
     progress: Option<&Progress>,
     cache: Option<&mut ShadowCache>,
     occluded: impl Fn(&mut Traversal, &Ray) -> bool + Sync,
 ) -> Result<(Vec<f32>, EvalStats)> {
-    check_eval_input(gbuffer, vpls, params)?;
+    check_eval_input(gbuffer, vpls, radii, params)?;
     let start = Instant::now();
     let (w, h, t) = (gbuffer.width, gbuffer.height, params.tile);
     let tiles: Vec<(usize, usize)> = (0..h.div_ceil(t))
@@ -226,7 +302,10 @@ fn evaluate_with(
         p.total.store(tiles.len(), Ordering::Relaxed);
         p.done.store(0, Ordering::Relaxed);
     }
-    let soa = VplSoa::new(vpls, &near_field_radii(vpls, params.radius));
+    let soa = match radii {
+        Some(radii) => VplSoa::new(vpls, radii),
+        None => VplSoa::new(vpls, &near_field_radii(vpls, params.radius)),
+    };
     // With a cache: the answers it holds for these VPLs, and the size of this evaluation's bit
     // rows (per pixel, `known` then `visible`).
     let reuse = cache.as_deref().and_then(|c| c.reuse(vpls, w, h));
@@ -487,6 +566,47 @@ mod tests {
         let (img, _) = evaluate(&scene, &g, &vpls, &EvalParams::PREVIEW, None).unwrap();
         assert_eq!(&img[3 * 14..3 * 14 + 3], &[0.0; 3]);
         assert!(img[3 * 27] > 0.0 && img[3 * 40] > 0.0);
+    }
+
+    #[test]
+    fn given_radii_shade_each_vpl_with_its_own_disk() {
+        let (scene, arrays, vpls) = shading_cases();
+        let g = arrays.gbuffer();
+        let params = EvalParams {
+            radius: 0.05,
+            ..EvalParams::PREVIEW
+        };
+        // The spacing's own radii given: the same image, with the BVH and brute force.
+        let spacing = near_field_radii(&vpls, params.radius);
+        let (expect, _) = evaluate(&scene, &g, &vpls, &params, None).unwrap();
+        for brute in [false, true] {
+            let (img, _) =
+                evaluate_with_radii(&scene, &g, &vpls, &spacing, &params, None, brute).unwrap();
+            assert_eq!(img, expect, "brute force {brute}");
+        }
+        // Other radii: each VPL's disk as given, not `params.radius`'s (against the reference
+        // of the set at that radius).
+        for r in [0.0f32, 0.4] {
+            let radii = near_field_radii(&vpls, r);
+            let (img, _) =
+                evaluate_with_radii(&scene, &g, &vpls, &radii, &params, None, false).unwrap();
+            let (want, _) = reference_image(&scene, &g, &vpls, Profile::Cosine, r);
+            assert_eq!(img, want, "radius {r}");
+        }
+        // One radius per VPL, finite and >= 0.
+        let short = vec![0.1; vpls.len() - 1];
+        assert!(matches!(
+            evaluate_with_radii(&scene, &g, &vpls, &short, &params, None, false),
+            Err(VplaceError::Invalid { .. })
+        ));
+        for bad in [-0.1, f32::NAN, f32::INFINITY] {
+            let mut radii = spacing.clone();
+            radii[1] = bad;
+            assert!(matches!(
+                evaluate_with_radii(&scene, &g, &vpls, &radii, &params, None, false),
+                Err(VplaceError::OutOfRange { .. })
+            ));
+        }
     }
 
     #[test]

@@ -6,15 +6,21 @@ and the keyed lights at any frame between the captured ones, as Blender interpol
   ``|(E_t - E_{t-1}) - (T_t - T_{t-1})|`` (luminance of linear RGB), over the truth's mean
   luminance (all frames). A sequence that changes exactly as the truth does scores 0 whatever
   its per-frame error; a flicker the truth lacks scores its amplitude.
-- :func:`track`: frame ``t``'s lit VPLs are matched to the slots greedily by cost (position
-  distance in scene diagonals plus :data:`NORMAL_WEIGHT` times ``1 - cos`` of the normals'
-  angle), cheapest pair first, each slot's last lit position standing for it; a pair dearer
-  than :data:`MAX_MATCH_COST` is not matched: that VPL opens a new slot (0 W before) and the
-  slot goes dark (0 W) on that frame. A dark slot keeps the position, normal and colour of its
-  nearest lit frame, so it fades in or out where it stands.
+- :func:`track`: frame ``t``'s lit VPLs are matched to the slots greedily by cost: the
+  position's move plus :data:`NORMAL_WEIGHT` scene diagonals times ``1 - cos`` of the normals'
+  angle, in patch radii (the larger near-field radius of the pair, ``VplSet.radii``: the
+  surface patch each VPL stands for). Cheapest pair first, each slot's last lit VPL standing
+  for it; a pair dearer than :data:`MAX_MATCH_COST` (a move beyond the patch) is not matched:
+  that VPL opens a new slot (0 W before) and the slot goes dark (0 W) on that frame. A dark
+  slot keeps the position, normal, colour and disk of its nearest lit frame, so it fades in or
+  out where it stands. Why the patch: a light that moves within its patch keeps lighting what
+  it lit; one that moves farther sweeps its light, between the frames, over surfaces that
+  neither frame's layout lights (measured: README, "Animated lights").
 - :func:`at_frame`: the keyed lights at a frame, linear between the captured frames, as
-  Blender evaluates linear keys: position, energy and colour each interpolated, the rotation's
-  quaternion component by component (here its normal, interpolated and normalized).
+  Blender evaluates linear keys: position, energy, colour and disk size each interpolated, the
+  rotation's quaternion component by component (here its normal, interpolated and
+  normalized). So a light that fades out beside one that fades in give, half way, the mean of
+  the two frames' light.
 """
 
 from __future__ import annotations
@@ -29,9 +35,13 @@ import vplace
 #: The weight of ``1 - cos(angle between normals)`` in the matching cost, against the distance
 #: in scene diagonals: a VPL turned by 90 degrees costs what one moved by half a diagonal does.
 NORMAL_WEIGHT = 0.5
-#: The dearest pair that is still matched (distance in diagonals + normal term): farther, a
-#: light would sweep through the room between two frames; it fades out and another fades in.
-MAX_MATCH_COST = 0.15
+#: The dearest pair that is still matched, in patch radii (the move plus the normal term, over
+#: the larger near-field radius of the two, ``VplSet.radii``): a VPL that moves within the patch
+#: it stands for keeps its light where it was; one that moves farther would sweep its light
+#: over surfaces that neither frame lights, so it fades out where it stands and another fades in.
+MAX_MATCH_COST = 1.0
+#: The smallest patch radius of the matching cost, in scene diagonals (omni VPLs are points).
+MIN_PATCH_DIAGONALS = 0.01
 
 
 def _luminance(image: np.ndarray) -> np.ndarray:
@@ -106,11 +116,20 @@ class Keyed:
 
 
 def _cost(
-    pos_a: np.ndarray, nrm_a: np.ndarray, pos_b: np.ndarray, nrm_b: np.ndarray, diagonal: float
+    pos_a: np.ndarray,
+    nrm_a: np.ndarray,
+    rad_a: np.ndarray,
+    pos_b: np.ndarray,
+    nrm_b: np.ndarray,
+    rad_b: np.ndarray,
+    diagonal: float,
 ) -> np.ndarray:
-    """(A, B) matching costs (see the module docs)."""
-    d = np.linalg.norm(pos_a[:, None, :] - pos_b[None, :, :], axis=2) / max(diagonal, 1e-12)
-    return d + NORMAL_WEIGHT * (1.0 - nrm_a @ nrm_b.T)
+    """(A, B) matching costs (see the module docs): the move plus the normal term, in patch
+    radii (the larger of the pair's, at least :data:`MIN_PATCH_DIAGONALS` of the diagonal)."""
+    d = np.linalg.norm(pos_a[:, None, :] - pos_b[None, :, :], axis=2)
+    turn = NORMAL_WEIGHT * diagonal * (1.0 - nrm_a @ nrm_b.T)
+    patch = np.maximum(np.maximum(rad_a[:, None], rad_b[None, :]), MIN_PATCH_DIAGONALS * diagonal)
+    return (d + turn) / np.maximum(patch, 1e-12)
 
 
 def greedy_match(cost: np.ndarray, max_cost: float = MAX_MATCH_COST) -> np.ndarray:
@@ -146,15 +165,21 @@ def track(sets: Sequence[vplace.VplSet], diagonal: float) -> Keyed:
     # Per slot: list of (frame, vpl index).
     slot_pos: list[np.ndarray] = []
     slot_nrm: list[np.ndarray] = []
+    slot_rad: list[float] = []
     members: list[dict[int, int]] = []
+    own = [np.asarray(v.radii, dtype=np.float64) for v in sets]
     for f, vpls in enumerate(sets):
         if vpls.profile != profile:
             raise ValueError(f"frame {f}'s VPLs are {vpls.profile}, the first frame's {profile}")
         lit = np.flatnonzero(np.asarray(vpls.blender_power).max(axis=1) > 0)
         pos = np.asarray(vpls.position, dtype=np.float64)[lit]
         nrm = np.asarray(vpls.normal, dtype=np.float64)[lit]
+        rad = own[f][lit]
         if slot_pos:
-            match = greedy_match(_cost(np.array(slot_pos), np.array(slot_nrm), pos, nrm, diagonal))
+            cost = _cost(
+                np.array(slot_pos), np.array(slot_nrm), np.array(slot_rad), pos, nrm, rad, diagonal
+            )
+            match = greedy_match(cost)
         else:
             match = np.full(len(lit), -1, dtype=np.int64)
         for j, i in enumerate(lit):
@@ -164,8 +189,9 @@ def track(sets: Sequence[vplace.VplSet], diagonal: float) -> Keyed:
                 members.append({})
                 slot_pos.append(pos[j])
                 slot_nrm.append(nrm[j])
+                slot_rad.append(float(rad[j]))
             members[s][f] = int(i)
-            slot_pos[s], slot_nrm[s] = pos[j], nrm[j]
+            slot_pos[s], slot_nrm[s], slot_rad[s] = pos[j], nrm[j], float(rad[j])
     frames, slots = len(sets), len(members)
     position = np.zeros((frames, slots, 3))
     normal = np.zeros((frames, slots, 3))
@@ -175,7 +201,6 @@ def track(sets: Sequence[vplace.VplSet], diagonal: float) -> Keyed:
     index = np.full((frames, slots), -1, dtype=np.int64)
     held = np.ones((frames, slots, 3))
     radii = np.zeros((frames, slots))
-    own = [np.asarray(v.radii, dtype=np.float64) for v in sets]
     for s, got in enumerate(members):
         lit_frames = sorted(got)
         for f in range(frames):
@@ -197,9 +222,10 @@ def track(sets: Sequence[vplace.VplSet], diagonal: float) -> Keyed:
 def at_frame(keyed: Keyed, frames: Sequence[float], frame: float) -> vplace.VplSet:
     """The keyed lights at ``frame`` (linear between the captured ``frames``, held before the
     first and after the last) as a ``VplSet`` for the evaluator; dark slots are left out. At a
-    captured frame it is that frame's own set. Between captured frames the evaluator takes each
-    light's near-field radius from the interpolated set's spacing (``VplSet.radii``), where
-    Blender interpolates the keyed disk sizes: the one approximation of the keyed lights."""
+    captured frame it is that frame's own set. Between captured frames each light's near-field
+    radius is its keyed disk size interpolated, as Blender interpolates it (``VplSet(...,
+    radii=...)``), not the interpolated set's spacing: a light fading out beside one fading in
+    keeps its own frame's disk."""
     f = np.asarray(frames, dtype=np.float64)
     if len(f) != keyed.position.shape[0]:
         raise ValueError(f"{len(f)} frames for {keyed.position.shape[0]} keyed frames")
@@ -220,10 +246,14 @@ def at_frame(keyed: Keyed, frames: Sequence[float], frame: float) -> vplace.VplS
     if w == 0.0 and frame == f[k]:
         return keyed.sets[k]
     keep = energy > 0
+    radii = None
+    if keyed.profile == "cosine":  # the disk sizes as keyed: Blender interpolates them too
+        radii = np.ascontiguousarray(lerp(keyed.radii)[keep], dtype=np.float32)
     return vplace.VplSet(
         np.ascontiguousarray(lerp(keyed.position)[keep], dtype=np.float32),
         np.ascontiguousarray(normal[keep], dtype=np.float32),
         np.ascontiguousarray(flux[keep], dtype=np.float32),
         profile=keyed.profile,
         radius=keyed.radius,
+        radii=radii,
     )
