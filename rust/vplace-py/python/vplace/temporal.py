@@ -15,12 +15,12 @@ and the keyed lights at any frame between the captured ones, as Blender interpol
   slot keeps the position, normal, colour and disk of its nearest lit frame, so it fades in or
   out where it stands. Why the patch: a light that moves within its patch keeps lighting what
   it lit; one that moves farther sweeps its light, between the frames, over surfaces that
-  neither frame's layout lights (measured: README, "Animated lights").
+  neither frame's layout lights (measured: README, "Keyed lights that do not sweep").
 - :func:`at_frame`: the keyed lights at a frame, linear between the captured frames, as
   Blender evaluates linear keys: position, energy, colour and disk size each interpolated, the
   rotation's quaternion component by component (here its normal, interpolated and
-  normalized). So a light that fades out beside one that fades in give, half way, the mean of
-  the two frames' light.
+  normalized). So a light that fades out beside one that fades in gives, half way, the mean
+  of the two frames' light.
 """
 
 from __future__ import annotations
