@@ -6,12 +6,12 @@ use pyo3::prelude::*;
 use std::sync::Arc;
 use vplace_core::{
     layout::rsm,
-    shade::evaluator::{self, validate_vpls, EvalParams, EvalStats},
+    shade::evaluator::{self, check_radii, validate_vpls, EvalParams, EvalStats},
     vpl::{self, near_field_radii, Profile, Vpl},
 };
 
 use crate::arrays::{array, slice, Dim};
-use crate::errors::{input_error, run};
+use crate::errors::{input_error, run, to_py};
 use crate::scene::{PyProgress, PyScene};
 use crate::view::PyView;
 
@@ -71,22 +71,7 @@ impl PyVplSet {
                 "radii: only cosine VPLs (disks) have near-field radii; omni VPLs are points",
             ));
         }
-        if radii.len() != self.vpls.len() {
-            return Err(input_error(format!(
-                "radii: {} radii for {} VPLs",
-                radii.len(),
-                self.vpls.len()
-            )));
-        }
-        if let Some((j, r)) = radii
-            .iter()
-            .enumerate()
-            .find(|(_, r)| !(**r >= 0.0 && r.is_finite()))
-        {
-            return Err(input_error(format!(
-                "radii[{j}] must be finite and >= 0, got {r}"
-            )));
-        }
+        check_radii(&radii, self.vpls.len()).map_err(to_py)?;
         self.given_radii = Some(Arc::new(radii));
         Ok(self)
     }

@@ -109,6 +109,25 @@ pub(crate) fn check_radius(radius: f32) -> Result<()> {
     }
 }
 
+/// Checks near-field radii given per VPL ([`evaluate_with_radii`]): one for each of `n` VPLs,
+/// each finite and `>= 0`.
+pub fn check_radii(radii: &[f32], n: usize) -> Result<()> {
+    if radii.len() != n {
+        return Err(VplaceError::Invalid {
+            what: "radii".into(),
+            reason: format!("{} radii for {n} VPLs", radii.len()),
+        });
+    }
+    match radii.iter().position(|r| !(*r >= 0.0 && r.is_finite())) {
+        Some(j) => Err(VplaceError::OutOfRange {
+            what: format!("radii[{j}]"),
+            value: radii[j].to_string(),
+            expected: ">= 0 and finite".into(),
+        }),
+        None => Ok(()),
+    }
+}
+
 /// Renders the indirect radiance of `vpls` at every covered pixel of `gbuffer` (`H x W x 3`).
 pub fn evaluate(
     scene: &Scene,
@@ -144,29 +163,22 @@ pub fn evaluate_with_radii(
     progress: Option<&Progress>,
     brute_force: bool,
 ) -> Result<(Vec<f32>, EvalStats)> {
-    if brute_force {
-        evaluate_with(
-            scene,
-            gbuffer,
-            vpls,
-            Some(radii),
-            params,
-            progress,
-            None,
-            |_, ray| scene.occluded_ray_brute_force(ray),
-        )
-    } else {
-        evaluate_with(
-            scene,
-            gbuffer,
-            vpls,
-            Some(radii),
-            params,
-            progress,
-            None,
-            |state, ray| scene.occluded_ray(state, ray),
-        )
-    }
+    evaluate_with(
+        scene,
+        gbuffer,
+        vpls,
+        Some(radii),
+        params,
+        progress,
+        None,
+        |state, ray| {
+            if brute_force {
+                scene.occluded_ray_brute_force(ray)
+            } else {
+                scene.occluded_ray(state, ray)
+            }
+        },
+    )
 }
 
 /// [`evaluate`] with shadow rays that test every triangle instead of the BVH
@@ -228,23 +240,7 @@ fn check_eval_input(
     validate_vpls(vpls)?;
     check_radius(params.radius)?;
     if let Some(radii) = radii {
-        if radii.len() != vpls.len() {
-            return Err(VplaceError::Invalid {
-                what: "radii".into(),
-                reason: format!("{} radii for {} VPLs", radii.len(), vpls.len()),
-            });
-        }
-        if let Some((j, r)) = radii
-            .iter()
-            .enumerate()
-            .find(|(_, r)| !(**r >= 0.0 && r.is_finite()))
-        {
-            return Err(VplaceError::OutOfRange {
-                what: format!("radii[{j}]"),
-                value: r.to_string(),
-                expected: ">= 0 and finite".into(),
-            });
-        }
+        check_radii(radii, vpls.len())?;
     }
     if params.tile == 0 {
         return Err(VplaceError::OutOfRange {
