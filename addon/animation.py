@@ -381,10 +381,12 @@ def run_animated_job(
                 [runs[f].computed.vpls for f in frames],
                 timer,
             )
-        if volume_once:
-            _score_volume(bl_scene, scored, truths, add, timer, per_frame=False)
-        if volume_per_frame:
-            _score_volume(bl_scene, scored, truths, add, timer, per_frame=True)
+        suns = [runs[f].prepared.stand_ins.sun for f in frames]
+        for per_frame, on in ((False, volume_once), (True, volume_per_frame)):
+            if not on:
+                continue
+            with eevee_setup.users_sun(bl_scene, suns, frames):
+                _score_volume(bl_scene, scored, truths, add, timer, per_frame=per_frame)
     finally:
         bl_scene.frame_set(original)
     if len(truths) >= 2:
@@ -505,7 +507,8 @@ def _score_volume(
     *,
     per_frame: bool,
 ) -> None:
-    """EEVEE ray tracing with a light probe volume (vplace's lights hidden) rendered at every
+    """EEVEE ray tracing with a light probe volume (vplace's lights hidden; the world's sun as
+    the user's lamp, ``eevee_setup.users_sun``) rendered at every
     scored frame: baked once, at the first scored frame (what a user gets from one bake), or
     ``per_frame`` baked again at each (its seconds then the bake's and the render's). The
     probe is removed after. Not cached: a render's key does not say when its volume was baked."""

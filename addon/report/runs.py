@@ -635,7 +635,22 @@ class _EeveeRun:
 
     def alternatives(self) -> None:
         """What a Blender user would pick instead: EEVEE plain, with ray tracing, with a baked
-        probe volume, and Cycles + OpenImageDenoise."""
+        probe volume (each with the world's sun as a lamp where the world has one:
+        ``eevee_setup.users_sun``), and Cycles + OpenImageDenoise."""
+        sun = self.data.prepared.stand_ins.sun
+        with eevee_setup.users_sun(self.bl_scene, [sun]) as lamp:
+            if lamp:
+                self.log("[vplace] EEVEE's own GI is scored with the world's sun as a lamp")
+            self.eevee_alternatives()
+        if "cycles+oidn" in self.config.alternatives:
+            for spp in self.config.cycles_samples:
+                for view, img in self.each_view(eevee.SETUPS["cycles+oidn"], spp):
+                    self.add(view, "cycles+oidn", "cycles+oidn", img, 0.0, spp)
+                    if spp == max(self.config.cycles_samples):
+                        self.images[view.name][f"cycles+oidn {spp}"] = img.image
+
+    def eevee_alternatives(self) -> None:
+        """EEVEE plain, with ray tracing, and with a probe volume baked for them."""
         config, images = self.config, self.images
         for name in ("plain", "rt"):
             if name in config.alternatives:
@@ -659,12 +674,6 @@ class _EeveeRun:
                         bake_seconds=bake,
                     )
                     images[view.name]["eevee rt + volume"] = img.image
-        if "cycles+oidn" in config.alternatives:
-            for spp in config.cycles_samples:
-                for view, img in self.each_view(eevee.SETUPS["cycles+oidn"], spp):
-                    self.add(view, "cycles+oidn", "cycles+oidn", img, 0.0, spp)
-                    if spp == max(config.cycles_samples):
-                        images[view.name][f"cycles+oidn {spp}"] = img.image
 
 
 def eevee_rows(

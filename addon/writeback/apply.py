@@ -128,10 +128,10 @@ def clear_vpls(name: str = COLLECTION_NAME) -> int:
     coll = find_collection(name)
     if coll is None:
         return 0
-    return _remove_collection(coll)
+    return remove_collection(coll)
 
 
-def _remove_collection(coll: bpy.types.Collection) -> int:
+def remove_collection(coll: bpy.types.Collection) -> int:
     """Removes a vplace collection with the objects and lights vplace made in it."""
     count = 0
     for obj in list(coll.objects):
@@ -256,7 +256,7 @@ def _new_emitter_object(
 SUN_NAME = "vplace sun (world)"
 
 
-def _new_sun_object(coll: bpy.types.Collection, sun: SunLight) -> bpy.types.Object:
+def new_sun_object(coll: bpy.types.Collection, sun: SunLight) -> bpy.types.Object:
     """The world's sun as a SUN light in ``coll``, shining along ``-sun.direction``."""
     strength = max(sun.irradiance)
     light = bpy.data.lights.new(SUN_NAME, "SUN")
@@ -338,9 +338,9 @@ def write_vpls(
         for j, e in enumerate(emitters):
             _new_emitter_object(coll, j, e, CUTOFF_DIAGONALS * scene_diagonal, shadows)
         if sun is not None:
-            _new_sun_object(coll, sun)
+            new_sun_object(coll, sun)
     except BaseException:
-        _remove_collection(coll)
+        remove_collection(coll)
         raise
     clear_vpls(name)
     coll.name = name

@@ -23,9 +23,11 @@ The ways to render a view, each a :class:`Setup` (what a user would set up):
   cost);
 - ``cycles+oidn``: Cycles at a few samples denoised with OpenImageDenoise.
 
-A set-up without VPLs hides vplace's lights for its render. Every set-up filters its pixels as
-the truth does (:data:`FILM_FILTER_SIZE`; Cycles' set-up with the truth's one-pixel box), so the
-scores compare light, not anti-aliasing.
+A set-up without VPLs hides vplace's lights for its render. Where the world has a sun, the
+report and the animation score ``plain``, ``rt`` and ``rt+volume`` with the sun lamp a user
+would add (:func:`eevee_setup.users_sun`): EEVEE extracts next to nothing from such a sky.
+Every set-up filters its pixels as the truth does (:data:`FILM_FILTER_SIZE`; Cycles' set-up
+with the truth's one-pixel box), so the scores compare light, not anti-aliasing.
 """
 
 from __future__ import annotations

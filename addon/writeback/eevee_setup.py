@@ -57,7 +57,8 @@ from ..compat import eevee_engine, uses_nodes
 from ..errors import AddonError
 from ..scene.export import VPL_MARKER
 from ..settings import SettingsGuard, override
-from . import apply
+from . import apply, keyed
+from .stand_ins import SunLight
 
 #: EEVEE's hard limit on lights in a scene (measured: 65,536; the excess is dropped).
 MAX_LIGHTS = 65536
@@ -73,6 +74,9 @@ VOLUME_PROBES = 12
 LAMP_REACH_DIAGONALS = 4.0
 #: The collection of the probes vplace adds (replaced on each set-up).
 PROBE_COLLECTION = "vplace probes"
+#: The collection of the sun lamp that EEVEE's own GI gets while it is scored
+#: (:func:`users_sun`; removed after).
+USERS_SUN_COLLECTION = "vplace: the user's sun (scoring EEVEE's GI)"
 
 
 @dataclass(frozen=True)
@@ -556,6 +560,45 @@ def temporary_volume(
         bpy.data.objects.remove(obj)
         if data.users == 0:
             bpy.data.lightprobes.remove(data)
+
+
+@contextmanager
+def users_sun(
+    scene: bpy.types.Scene,
+    suns: Sequence[SunLight | None],
+    frames: Sequence[int] | None = None,
+) -> Iterator[bool]:
+    """For a render of EEVEE's own GI, the alternative a user would pick instead of vplace's
+    lights: where the world has a sun (vplace's ``SunLight``, found in the world image), the SUN
+    lamp a user adds, because EEVEE extracts next to nothing from such a sky (the sky-lit room,
+    EEVEE ray tracing + volume: 0.035x Cycles' light at its default sun threshold, 0.063x at a
+    threshold of 1, whose extracted sun peaks at 1.4 where Cycles' patches reach 7.2). The lamp
+    is vplace's sun stand-in (its direction, irradiance and angle; with ``frames``, one sun per
+    frame keyed over them as the keyed write-back keys it), written unmarked so the render and
+    its cache key count it as the user's, with EEVEE's own extraction off, for the block; it is
+    removed after. Bake a volume inside the block so it captures the sun's bounce. Yields
+    whether a lamp was written (no sun: nothing changes)."""
+    lit = [s for s in suns if s is not None]
+    world = scene.world
+    if not lit or world is None:
+        yield False
+        return
+    coll = bpy.data.collections.new(USERS_SUN_COLLECTION)
+    scene.collection.children.link(coll)
+    try:
+        if frames is None:
+            apply.new_sun_object(coll, lit[0])
+        else:
+            keyed.write_keyed_sun(coll, frames, suns, lit[0])
+        for obj in coll.objects:
+            del obj[VPL_MARKER], obj["vplace_world_sun"]
+        with override() as g:
+            g.set(world, "sun_threshold", 0.0)
+            yield True
+    finally:
+        for obj in coll.objects:
+            obj[VPL_MARKER] = True  # what apply removes
+        apply.remove_collection(coll)
 
 
 @contextmanager

@@ -157,9 +157,9 @@ def write_keyed(
             _write_keyed_portals(coll, frames, portals, cutoff, shadows)
         lit_suns = [s for s in suns if s is not None]
         if lit_suns:
-            _write_keyed_sun(coll, frames, suns, lit_suns[0])
+            write_keyed_sun(coll, frames, suns, lit_suns[0])
     except BaseException:
-        apply._remove_collection(coll)
+        apply.remove_collection(coll)
         raise
     finally:
         if scene.frame_current != current:
@@ -218,14 +218,14 @@ def _write_keyed_portals(
         _key_light(obj, frames, None, quats, energy, color)
 
 
-def _write_keyed_sun(
+def write_keyed_sun(
     coll: bpy.types.Collection,
     frames: Sequence[int],
     suns: Sequence[SunLight | None],
     first: SunLight,
 ) -> None:
     """The world's sun as one SUN light keyed over ``frames`` (0 W where ``suns`` has none)."""
-    obj = apply._new_sun_object(coll, first)
+    obj = apply.new_sun_object(coll, first)
     up = Vector((0.0, 0.0, 1.0))
     quats: list[Quaternion] = []
     energy = np.zeros(len(frames))

@@ -377,3 +377,41 @@ def test_report_animate_scores_every_frame_and_plots_them(tmp_path):
     rows = (out / "results.csv").read_text().splitlines()[1:]
     assert sorted({int(r.split(",")[0]) for r in rows}) == [1, 2, 3]
     assert (out / "animation.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_eevees_own_gi_is_scored_with_the_worlds_sun_as_the_users_lamp():
+    """``users_sun``: EEVEE extracts next to nothing from a sky (the sky-lit room's ray tracing +
+    volume got 0.035x Cycles' light), so the alternatives get the lamp a user adds: a SUN lamp
+    of each frame's sun, keyed, counted as the user's (unmarked: a set-up without VPLs renders
+    it and its cache key holds it), EEVEE's extraction off; all of it gone after the block."""
+    from addon.capture.passes import hide_vpls, vpl_objects
+    from addon.settings import override
+    from addon.writeback import eevee_setup
+    from addon.writeback.stand_ins import SunLight
+
+    scene, tracked = _one_vpl_on_two_frames()
+    scene.world = bpy.data.worlds.new("sky")
+    keyed.write_keyed(scene, [1, 5], tracked)  # vplace's own lights, hidden by the set-ups
+    sun = SunLight((0.0, 0.6, 0.8), (2.0, 2.0, 1.0), 0.01)
+    before = data_snapshot()
+    counts = [len(c) for c in (bpy.data.objects, bpy.data.lights, bpy.data.actions)]
+    with eevee_setup.users_sun(scene, [None], [1]) as lamp:  # no sun: nothing changes
+        assert not lamp and diff(before, data_snapshot()) == []
+    with eevee_setup.users_sun(scene, [sun, None], [1, 5]) as lamp, override() as g:
+        assert lamp
+        hide_vpls(g)
+        (obj,) = [o for o in scene.objects if o.type == "LIGHT" and o.data.type == "SUN"]
+        assert obj not in vpl_objects(scene)
+        assert not any(c.hide_render for c in obj.users_collection)
+        assert scene.world.sun_threshold == 0.0
+        assert _keys(obj.data)[("energy", 0)] == [(1.0, 2.0), (5.0, 0.0)]
+        scene.frame_set(1)
+        facing = obj.matrix_world.to_3x3() @ Vector((0.0, 0.0, 1.0))
+        assert tuple(facing) == pytest.approx((0.0, 0.6, 0.8), abs=1e-4)
+    with eevee_setup.users_sun(scene, [sun]) as lamp:  # a still: one unkeyed lamp
+        (obj,) = [o for o in scene.objects if o.type == "LIGHT" and o.data.type == "SUN"]
+        assert lamp and obj.data.animation_data is None and obj.data.energy == 2.0
+    assert scene.world.sun_threshold == 10.0
+    assert [len(c) for c in (bpy.data.objects, bpy.data.lights, bpy.data.actions)] == counts
+    assert eevee_setup.USERS_SUN_COLLECTION not in bpy.data.collections
+    assert diff(before, data_snapshot()) == []
