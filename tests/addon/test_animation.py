@@ -138,6 +138,11 @@ def _animate(tmp_path, name: str) -> animation.AnimationSummary:
     )
 
 
+def _stands_still(keys: dict) -> bool:
+    """Whether a light's location keys hold one value on every frame."""
+    return all(len({v for _, v in keys[("location", axis)]}) == 1 for axis in range(3))
+
+
 def _written_keys() -> dict[str, dict]:
     coll = bpy.data.collections[apply.COLLECTION_NAME]
     return {
@@ -159,7 +164,10 @@ def test_the_animated_job_keys_one_set_of_lights_the_same_on_a_rerun(tmp_path):
     assert scene.frame_current == 7
     assert diff(before, data_snapshot()) == []  # only the VPL collection is new
     first = _written_keys()
-    assert 16 <= len(first) == done.slots
+    # One shared set of positions (vplace.temporal.shared_layout): at most the budget of 16
+    # lights, each standing where it stands on both frames; only the powers change.
+    assert 0 < len(first) == done.slots <= 16
+    assert all(_stands_still(keys) for keys in first.values())
     for keys in first.values():
         # Location, rotation, energy, colour and the disk's size (the patch the VPL stands
         # for) keyed on both captured frames, linearly.
@@ -203,13 +211,14 @@ def test_the_animated_job_keys_one_set_of_lights_the_same_on_a_rerun(tmp_path):
     assert csv[0].startswith("frame,captured,image,ssim")
     assert {line.split(",")[0] for line in csv[1:]} == {"1", "24"}
     assert set(done.temporal_error) == {animation.KEYED, animation.STILL, animation.DIRECT}
-    # At the captured frames the keyed lights are the still layouts' lights.
+    # At the captured frames the keyed lights are the shared set refitted to that frame: they
+    # carry its bounce light (the truth's brightness within 15 %; direct light alone: 0.5).
     for f in (1, 24):
-        k, s = (
+        k, d = (
             next(r for r in done.rows if r["frame"] == f and r["image"] == kind)
-            for kind in (animation.KEYED, animation.STILL)
+            for kind in (animation.KEYED, animation.DIRECT)
         )
-        assert k["rmse"] == pytest.approx(s["rmse"], rel=1e-4, abs=1e-7)
+        assert abs(k["brightness"] - 1.0) < 0.15 and k["brightness"] - d["brightness"] > 0.3
 
 
 def _one_vpl_on_two_frames():
@@ -299,8 +308,9 @@ def test_eevee_renders_the_keyed_lights_at_each_frame(tmp_path):
     # Each frame's still layout rendered too, then the keyed lights written back, the same.
     still = {r["frame"]: r for r in done.rows if r["image"] == animation.EEVEE_STILL}
     assert sorted(still) == [1, 24]
-    for f in (1, 24):  # at a captured frame the keyed lights are that frame's still lights
-        assert still[f]["ssim"] == pytest.approx(rows[f]["ssim"], abs=0.01)
+    for f in (1, 24):  # at a captured frame the shared set stands in for the frame's own layout
+        assert 0.8 < still[f]["brightness"] < 1.2
+        assert rows[f]["ssim"] > still[f]["ssim"] - 0.05  # 0.025 and 0.006 below, 16 VPLs a frame
     assert len(keys_after) == done.slots and all(keys_after.values())
     # The volume baked once, at frame 1: rendered at both frames, and removed after.
     once = [r["frame"] for r in done.rows if r["image"] == animation.VOLUME_ONCE]
@@ -338,9 +348,10 @@ def test_the_panel_animates_the_lights_undoably(tmp_path, monkeypatch):
         lights = [
             o for o in apply.find_collection().objects if o.get(keyed.SLOT_PROPERTY) is not None
         ]
-        assert len(lights) >= 16
+        assert 0 < len(lights) <= 16  # one shared set of positions, within the budget
         for o in lights:
             assert [k[0] for k in _keys(o.data)[("energy", 0)]] == [1.0, 24.0]
+            assert _stands_still(_keys(o))
         assert scene.frame_current == 1
         s.frame_step = 1
         s.frame_end = 500

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import vplace
+import vplace.job
 from views import view
 from vplace import bench_layout, temporal
 
@@ -218,3 +219,34 @@ def test_a_set_with_radii_given_checks_them_and_keeps_them():
     cap = view(bench_layout.synthetic_capture(8, 6))
     with pytest.raises(vplace.InputError, match="radii given"):
         vplace.refit(scene, [cap], s)
+
+
+def _frame(monkeypatch, power_scale: float):
+    """The bench room with its lamp at ``power_scale`` times its power, and two captures."""
+    monkeypatch.setattr(bench_layout, "POWER", bench_layout.POWER * power_scale)
+    scene, _ = bench_layout.build_scene(4)
+    cams = bench_layout.cameras(2)
+    caps = [bench_layout.synthetic_capture(32, 24, c, t) for c, t in cams]
+    return scene, bench_layout.views_of(scene, caps)
+
+
+def test_a_shared_layout_keeps_its_positions_and_refits_each_frames_powers(monkeypatch):
+    """Two frames, the second with its lamp 3x as bright: one set of positions (each frame adds
+    n // 2 VPLs), the second frame's refitted light about 3x the first's."""
+    (s1, v1), (s3, v3) = _frame(monkeypatch, 1.0), _frame(monkeypatch, 3.0)
+    settings = vplace.job.LayoutSettings(n_vpls=32, iterations=1)
+    a, b = temporal.shared_layout([s1, s3], [v1, v3], settings)
+    assert 16 < len(a) == len(b) <= 32
+    assert np.array_equal(a.position, b.position) and np.array_equal(a.normal, b.normal)
+    ratio = float(np.asarray(b.flux).sum() / np.asarray(a.flux).sum())
+    assert 2.4 < ratio < 3.6
+    # Tracked, every VPL keeps its own slot: nothing fades, nothing sweeps.
+    keyed = temporal.track([a, b], diagonal=s1.diagonal)
+    assert keyed.position.shape[1] == int(keyed.lit.any(axis=0).sum()) <= len(a)
+    assert np.array_equal(keyed.position[0], keyed.position[1])
+    with pytest.raises(ValueError, match="2 scenes for 1"):
+        temporal.shared_layout([s1, s3], [v1], settings)
+    with pytest.raises(ValueError, match="no frames"):
+        temporal.shared_layout([], [], settings)
+    with pytest.raises(ValueError, match="'vplace' does not"):
+        temporal.shared_layout([s1], [v1], vplace.job.LayoutSettings(method="vplace"))

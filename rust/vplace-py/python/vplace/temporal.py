@@ -16,6 +16,17 @@ and the keyed lights at any frame between the captured ones, as Blender interpol
   out where it stands. Why the patch: a light that moves within its patch keeps lighting what
   it lit; one that moves farther sweeps its light, between the frames, over surfaces that
   neither frame's layout lights (measured: README, "Keyed lights that do not sweep").
+- :func:`shared_layout`: one set of VPL *positions* for every captured frame, with each frame's
+  *powers* refitted on that frame's captures. Each frame lays out ``n // F`` VPLs for its own
+  light (``vplace.job.lay_out``: fit, layout, refit); the union of the F layouts is the set (so
+  every frame's lit places have VPLs), each flux over F as the refit's prior (F layouts carry F
+  times the light); then each frame refits every power on its own captures. The keyed lights
+  then stand still and only their powers change. Why: a frame's own layout differs from the
+  next frame's in the places it picks, and that change is what flickers. Capturing more frames
+  made the keyed lights flicker more, not less (evaluator temporal error, step 4 -> 2 -> 1:
+  ``cornell_moving`` .0105 -> .0159 -> .0299, ``skyroom_afternoon`` .0332 -> .0440 -> .0664),
+  while positions shared over the captured frames gave .0060 and .0230 at step 4 (README,
+  "Keyed lights that stand still").
 - :func:`at_frame`: the keyed lights at a frame, linear between the captured frames, as
   Blender evaluates linear keys: position, energy, colour and disk size each interpolated, the
   rotation's quaternion component by component (here its normal, interpolated and
@@ -26,11 +37,13 @@ and the keyed lights at any frame between the captured ones, as Blender interpol
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 import vplace
+import vplace.job
+from vplace.coverage import is_coverage
 
 #: The weight of ``1 - cos(angle between normals)`` in the matching cost, against the distance
 #: in scene diagonals: a VPL turned by 90 degrees costs what one moved by half a diagonal does.
@@ -217,6 +230,47 @@ def track(sets: Sequence[vplace.VplSet], diagonal: float) -> Keyed:
                 flux[f, s] = vpls.flux[i]
                 index[f, s] = i
     return Keyed(position, normal, power, flux, index, held, profile, radius, radii, list(sets))
+
+
+def shared_layout(
+    scenes: Sequence[vplace.Scene],
+    views: Sequence[Sequence[vplace.View]],
+    settings: vplace.job.LayoutSettings,
+    *,
+    progress: vplace.Progress | None = None,
+) -> list[vplace.VplSet]:
+    """One VPL set per captured frame, all at the same positions with each frame's powers (see
+    the module docs): ``scenes[f]`` and ``views[f]`` are frame ``f``'s export and views (its
+    captures, and coverage views the layout places for; the refit fits the captures).
+    ``settings.method`` must refit (``vplace+refit``). Each frame adds ``n_vpls // F`` VPLs,
+    at least one, so with more frames than ``n_vpls`` the set holds one VPL per frame."""
+    if len(scenes) != len(views):
+        raise ValueError(f"{len(scenes)} scenes for {len(views)} frames of views")
+    if not scenes:
+        raise ValueError("no frames to lay out")
+    if settings.method != "vplace+refit":
+        raise ValueError(
+            f"a shared layout refits each frame's powers; {settings.method!r} does not"
+        )
+    frames = len(scenes)
+    per_frame = replace(settings, n_vpls=max(settings.n_vpls // frames, 1))
+    parts = [
+        vplace.job.lay_out(scene, frame_views, per_frame, progress=progress).vpls
+        for scene, frame_views in zip(scenes, views, strict=True)
+    ]
+    union = vplace.VplSet(
+        np.concatenate([np.asarray(p.position) for p in parts]),
+        np.concatenate([np.asarray(p.normal) for p in parts]),
+        np.concatenate([np.asarray(p.flux) for p in parts]) / np.float32(frames),
+        profile=parts[0].profile,
+        radius=parts[0].radius,
+    )
+    out = []
+    for scene, frame_views in zip(scenes, views, strict=True):
+        captured = [v for v in frame_views if not is_coverage(v)] or list(frame_views)
+        params = vplace.RefitParams(stride=vplace.stride_for(frame_views))
+        out.append(vplace.refit(scene, captured, union, params, progress=progress).vpls)
+    return out
 
 
 def at_frame(keyed: Keyed, frames: Sequence[float], frame: float) -> vplace.VplSet:
