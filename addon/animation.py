@@ -293,14 +293,14 @@ def run_animated_job(
             runs[f], cost = _run_frame(bl_scene, f, job, truth_samples, timer)
             costs.append(cost)
         first = runs[frames[0]]
-        start = time.perf_counter()
-        with timer.stage(f"lay out the keyed lights over {len(frames)} frames"):
-            keyed_sets = lay_out_frames([runs[f].prepared for f in frames], job)
-        keyed_seconds = time.perf_counter() - start
+        preps = [runs[f].prepared for f in frames]
+        stage = f"lay out the keyed lights over {len(frames)} frames"
+        with timer.stage(stage):
+            keyed_sets = lay_out_frames(preps, job)
         tracked = key_lights(
             bl_scene,
             frames,
-            [runs[f].prepared for f in frames],
+            preps,
             keyed_sets,
             timer,
             write_back=write_back,
@@ -325,7 +325,7 @@ def run_animated_job(
             slots=int(tracked.position.shape[1]),
             truth=first.reference.label,
             costs=costs,
-            keyed_layout_seconds=keyed_seconds,
+            keyed_layout_seconds=timer.seconds[stage],
         )
         images: dict[str, list[np.ndarray]] = {}
         truths: list[np.ndarray] = []
@@ -391,14 +391,9 @@ def run_animated_job(
         if eevee_still and eevee and write_back:
             for f in scored:
                 _score_eevee_still(bl_scene, scored_runs[f], job, add, timer)
-            key_lights(  # the keyed lights back (the same keys: the same frames and sets)
-                bl_scene,
-                frames,
-                [runs[f].prepared for f in frames],
-                keyed_sets,
-                timer,
-            )
-        suns = [runs[f].prepared.stand_ins.sun for f in frames]
+            # The keyed lights back (the same keys: the same frames and sets).
+            key_lights(bl_scene, frames, preps, keyed_sets, timer)
+        suns = [p.stand_ins.sun for p in preps]
         for per_frame, on in ((False, volume_once), (True, volume_per_frame)):
             if not on:
                 continue

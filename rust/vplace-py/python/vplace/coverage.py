@@ -66,6 +66,12 @@ def is_coverage(view: View) -> bool:
     return view.name.startswith(PREFIX)
 
 
+def captures_of(views: Sequence[View]) -> list[View]:
+    """The captured views of ``views`` (coverage views left out: their indirect image is itself
+    an estimate, for placing, not a target to fit), or all of them when none is captured."""
+    return [v for v in views if not is_coverage(v)] or list(views)
+
+
 #: The six view directions of a cube (forward, up).
 FACES: tuple[tuple[tuple[float, float, float], tuple[float, float, float]], ...] = (
     ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),

@@ -22,7 +22,7 @@ import numpy as np
 
 import vplace
 from vplace import images, markdown
-from vplace.coverage import is_coverage
+from vplace.coverage import captures_of
 
 #: The layout methods, in the report's order: Keller's light paths, reflective shadow maps, the
 #: regression-guided layout, and the same with its VPL powers refitted to the captured light.
@@ -91,10 +91,9 @@ class LayoutSettings:
 def fit(scene: vplace.Scene, views: Sequence[vplace.View], settings: LayoutSettings) -> vplace.Fit:
     """The regression on ``views`` with the settings' cells and feature mode. Coverage views
     (``vplace.coverage``) are left out: the model learns from the captures only."""
-    captured = [v for v in views if not is_coverage(v)] or list(views)
     return vplace.fit(
         scene,
-        captured,
+        captures_of(views),
         vplace.FitParams(
             cell_px=settings.cell_px,
             surface_only=settings.feature_mode == "auto",
@@ -180,9 +179,7 @@ def lay_out(
             start = time.perf_counter()
             # The captures only: a coverage view's target is itself light-path VPLs, and
             # fitting powers to it fits that estimate's noise (the layout uses it to place).
-            captured = [v for v in views if not is_coverage(v)] or views
-            if refit_views is not None:
-                captured = list(refit_views)
+            captured = captures_of(views) if refit_views is None else list(refit_views)
             out.refit = vplace.refit(
                 scene, captured, laid.vpls, vplace.RefitParams(stride=stride), progress=progress
             )

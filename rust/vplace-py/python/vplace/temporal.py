@@ -43,7 +43,7 @@ import numpy as np
 
 import vplace
 import vplace.job
-from vplace.coverage import is_coverage
+from vplace.coverage import captures_of
 
 #: The weight of ``1 - cos(angle between normals)`` in the matching cost, against the distance
 #: in scene diagonals: a VPL turned by 90 degrees costs what one moved by half a diagonal does.
@@ -267,9 +267,9 @@ def shared_layout(
     )
     out = []
     for scene, frame_views in zip(scenes, views, strict=True):
-        captured = [v for v in frame_views if not is_coverage(v)] or list(frame_views)
         params = vplace.RefitParams(stride=vplace.stride_for(frame_views))
-        out.append(vplace.refit(scene, captured, union, params, progress=progress).vpls)
+        refit = vplace.refit(scene, captures_of(frame_views), union, params, progress=progress)
+        out.append(refit.vpls)
     return out
 
 
