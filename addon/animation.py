@@ -21,7 +21,10 @@ Blender's linear keys give there), the evaluator's image of a still layout laid 
 frame alone, the direct light alone, and, when asked, Cycles + OpenImageDenoise at a few
 samples (its seed the frame's, as Cycles' animated seed), EEVEE with the keyed lights, and
 EEVEE's ray tracing with a light probe volume baked once at the first scored frame or baked
-again on every scored frame (its seconds then the bake's and the render's). Per
+again on every scored frame (its seconds then the bake's and the render's), and the truth
+rendered again with another seed (``truth_noise``: its own noise, what any image's SSIM and
+temporal error carry from the truth; a noise-free image would have about 1 / sqrt(2) of its
+temporal error, and each image's SSIM against the noise-free truth is scored too). Per
 image and frame: SSIM, RMSE, brightness; per image: the temporal error
 (``vplace.temporal.temporal_error``) over the scored frames. Files: ``results.csv`` (a
 ``frame`` column), ``animation.json``, ``animation.md``, ``scene.blend`` (a copy with the
@@ -41,7 +44,7 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from .capture.passes import hide_vpls
+from .capture.passes import capture, hide_vpls
 from .capture.stage import Captured, render_reference
 from .errors import AddonError, WriteBackError, output_folder, run_operator
 from .job import Job, Prepared, StageTimer, prepare, reference_render
@@ -60,6 +63,9 @@ EEVEE = "EEVEE + keyed VPLs"
 EEVEE_STILL = "EEVEE + still VPLs of the frame"
 VOLUME_ONCE = "EEVEE RT + volume baked once"
 VOLUME_PER_FRAME = "EEVEE RT + volume baked per frame"
+TRUTH_AGAIN = "the truth, another seed"
+#: The seed of the truth's second render (``truth_noise``); the first's is ``job.REFERENCE_SEED``.
+OTHER_TRUTH_SEED = 7927
 
 
 def cycles_kind(samples: int) -> str:
@@ -137,7 +143,7 @@ class AnimationSummary:
 
     def mean(self, image: str, metric: str) -> float:
         """The mean of ``metric`` of ``image`` over the scored frames."""
-        vals = [float(r[metric]) for r in self.rows if r["image"] == image]
+        vals = [float(r[metric]) for r in self.rows if r["image"] == image and metric in r]
         return float(np.mean(vals)) if vals else float("nan")
 
 
@@ -268,6 +274,7 @@ def run_animated_job(
     eevee_still: bool = False,
     volume_once: bool = False,
     volume_per_frame: bool = False,
+    truth_noise: bool = False,
     write_back: bool = True,
     log: Callable[[str], None] = print,
 ) -> AnimationSummary:
@@ -276,6 +283,8 @@ def run_animated_job(
     frames = check_animation(job, frame_range)
     if truth_samples is not None and truth_samples < 1:
         raise AddonError(f"truth samples must be at least 1, got {truth_samples}")
+    if truth_noise and not truth_samples:
+        raise AddonError("the truth's noise needs a truth: give truth samples")
     for n in cycles_samples:
         if n < 1:
             raise AddonError(f"Cycles sample counts must be at least 1, got {n}")
@@ -334,6 +343,8 @@ def run_animated_job(
         # the evaluator's light of the keyed VPLs
         parts: dict[str, list[np.ndarray]] = {"eevee_direct": [], "direct": [], "vpl": []}
 
+        others: dict[int, np.ndarray] = {}  # the truth's second render, per scored frame
+
         def add(frame: int, kind: str, image: np.ndarray, truth: np.ndarray, s: float) -> None:
             images.setdefault(kind, []).append(image)
             seconds.setdefault(kind, []).append(s)
@@ -341,7 +352,7 @@ def run_animated_job(
                 "frame": frame,
                 "captured": frame in runs,
                 "image": kind,
-                **vplace.job.score(image, truth),
+                **vplace.job.score(image, truth, other=others.get(frame)),
                 "seconds": s,
             }
             summary.rows.append(row)
@@ -356,6 +367,18 @@ def run_animated_job(
             scored_runs[f] = run
             ref = run.reference
             truths.append(ref.gi)
+            height, width = ref.gi.shape[:2]
+            if truth_noise:
+                with timer.stage(f"the truth again (seed {OTHER_TRUTH_SEED}), frame {f}"):
+                    again = capture(
+                        bl_scene,
+                        resolution=(width, height),
+                        samples=truth_samples or 1,
+                        seed=OTHER_TRUTH_SEED,
+                        cache_dir=job.cache_dir,
+                    )
+                add(f, TRUTH_AGAIN, again.gi, ref.gi, again.render_seconds)
+                others[f] = again.gi  # the images below: also against the noise-free truth
             start = time.perf_counter()
             lights = vplace.temporal.at_frame(tracked, frames, f)
             indirect, _ = vplace.evaluate(run.prepared.scene, ref.view, lights)
@@ -364,7 +387,6 @@ def run_animated_job(
             parts["vpl"].append(indirect)
             add(f, STILL, ref.direct + run.computed.indirect, ref.gi, run.computed.stats.seconds)
             add(f, DIRECT, ref.direct, ref.gi, 0.0)
-            height, width = ref.gi.shape[:2]
             for n in cycles_samples:
                 with timer.stage(f"Cycles + OIDN {n} spp, frame {f}"):
                     img = eevee_render.render(
@@ -552,6 +574,8 @@ def _score_volume(
 def write_files(out_dir: Path, summary: AnimationSummary) -> None:
     """``results.csv`` (one row per frame and image), ``animation.json`` and ``animation.md``."""
     columns = ["frame", "captured", "image", "ssim", "rmse", "relative_mse", "brightness"]
+    if any("ssim_noise_free" in r for r in summary.rows):
+        columns.append("ssim_noise_free")
     columns.append("seconds")
     with (out_dir / "results.csv").open("w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=columns, extrasaction="ignore")
@@ -584,21 +608,33 @@ def animation_report(summary: AnimationSummary) -> str:
         rows.append(cells)
     lines += vplace.markdown.table(["frame", *kinds], rows)
     lines += ["", "## Over the frames", ""]
+    noise = TRUTH_AGAIN in kinds
+    if noise:
+        lines += [
+            f"'{TRUTH_AGAIN}' is the truth rendered again with another seed: its SSIM and "
+            "temporal error are the truth's own noise. Every image carries that noise in its "
+            "scores; an image without error would score about 1 / sqrt(2) of that temporal "
+            f"error ({summary.temporal_error.get(TRUTH_AGAIN, float('nan')) / 2**0.5:.4f}). The "
+            "noise-free SSIM is against the noise-free truth, estimated from the two renders "
+            "(`vplace.ssim_noise_free`).",
+            "",
+        ]
     rows = []
     for k in kinds:
         te = summary.temporal_error.get(k, float("nan"))
+        free = [f"{summary.mean(k, 'ssim_noise_free'):.3f}"] if noise else []
         rows.append(
             [
                 k,
                 f"{summary.mean(k, 'ssim'):.3f}",
+                *free,
                 f"{summary.mean(k, 'rmse'):.4f}",
                 f"{te:.4f}",
                 f"{summary.seconds_per_frame.get(k, float('nan')):.2f}",
             ]
         )
-    lines += vplace.markdown.table(
-        ["image", "mean SSIM", "mean RMSE", "temporal error", "s per frame"], rows
-    )
+    header = ["image", "mean SSIM", *(["mean SSIM, noise-free truth"] if noise else [])]
+    lines += vplace.markdown.table([*header, "mean RMSE", "temporal error", "s per frame"], rows)
     if summary.flicker:
         lines += [
             "",

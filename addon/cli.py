@@ -134,6 +134,11 @@ def _demo_options(sub: argparse._SubParsersAction) -> None:
         "at every scored frame",
     )  # fmt: skip
     demo.add_argument(
+        "--truth-noise", action="store_true",
+        help="with --animate: render every scored frame's truth again with another seed, to "
+        "score the truth's own noise and each image against the noise-free truth",
+    )  # fmt: skip
+    demo.add_argument(
         "--samples", type=int, default=Job.samples, help="Cycles samples of each capture"
     )
     add_region_arguments(demo)
@@ -223,6 +228,11 @@ def _report_options(sub: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     rep.add_argument("--cache", type=Path, default=None, help="render cache (default OUT/cache)")
     rep.add_argument("--no-eevee", action="store_true", help="score with the evaluator only")
+    rep.add_argument(
+        "--single-truth", action="store_true",
+        help="render each view's truth once: no second render with another seed, so no SSIM "
+        "against the noise-free truth and no ceiling from the truth's noise",
+    )  # fmt: skip
     rep.add_argument(
         "--eevee-methods", nargs="+", default=["uniform", "rsm", "vplace+refit"],
         help="methods whose lights EEVEE renders on every view",
@@ -318,6 +328,7 @@ def run(args: argparse.Namespace) -> None:
             coverage=args.coverage,
             region_radius=args.region_radius,
             generated_views=args.generated_views,
+            truth_noise=not args.single_truth,
         )
         if args.eevee_samples is not None:
             config.eevee_samples = args.eevee_samples
@@ -352,13 +363,14 @@ def run(args: argparse.Namespace) -> None:
         args.volume_once,
         args.volume_per_frame,
         args.eevee_still,
+        args.truth_noise,
     )
     if not args.animate and any(extra):
         from .errors import AddonError
 
         raise AddonError(
-            "--score-between, --cycles-samples, --eevee-still, --volume-once and "
-            "--volume-per-frame go with --animate"
+            "--score-between, --cycles-samples, --eevee-still, --volume-once, "
+            "--volume-per-frame and --truth-noise go with --animate"
         )
     if args.match_eevee and (args.animate or job.method != "vplace+refit"):
         from .errors import AddonError
@@ -382,6 +394,7 @@ def run(args: argparse.Namespace) -> None:
             eevee_still=args.eevee_still,
             volume_once=args.volume_once,
             volume_per_frame=args.volume_per_frame,
+            truth_noise=args.truth_noise,
         )
         print(vplace_md(args.out))
         print(f"[vplace] {done.slots} keyed lights; results in {args.out}")
@@ -442,6 +455,7 @@ def run_animated_report(args: argparse.Namespace) -> None:
         eevee=not args.no_eevee,
         volume_once=not args.no_eevee and "rt+volume" in args.alternatives,
         volume_per_frame=not args.no_eevee and args.volume_per_frame,
+        truth_noise=not args.single_truth,
     )
     plot_animation(done, args.out / "animation.png")
     print(vplace_md(args.out))

@@ -22,6 +22,9 @@ from ..writeback import eevee_render as eevee
 #: Seeds of the renders: the user's capture, the ground truth, Cycles' curve.
 CAPTURE_SEED = 0
 TRUTH_SEED = 7919
+#: The second render of every view's truth (``ReportConfig.truth_noise``): its noise is
+#: independent of the first's, which is what the noise-free SSIM estimate needs.
+OTHER_TRUTH_SEED = 7927
 CURVE_SEED = 104729
 
 METHODS = pipeline.METHODS
@@ -160,6 +163,10 @@ class ReportConfig:
     #: held_out_poses``): None, :data:`GENERATED_VIEWS` where the scene names no held-out
     #: camera (so every run scores views the lights were not laid out for), else none.
     generated_views: int | None = None
+    #: Render every view's truth a second time with another seed (:data:`OTHER_TRUTH_SEED`), so
+    #: that each row also has its SSIM against the noise-free truth, and each view the ceiling
+    #: the truth's own noise puts on SSIM (``vplace.ssim_noise_free``, ``vplace.ssim_ceiling``).
+    truth_noise: bool = True
 
     def generated_for(self, preset: ScenePreset) -> int:
         """How many held-out views the report makes for ``preset``."""
@@ -309,6 +316,9 @@ class Row:
     shadow_rays: int = 0
     seed: int | None = None
     details: RowDetails = field(default_factory=lambda: RowDetails())
+    #: SSIM against the noise-free truth, estimated from the view's two truth renders
+    #: (``vplace.ssim_noise_free``); NaN without the second (``ReportConfig.truth_noise``).
+    ssim_noise_free: float = math.nan
 
     @property
     def one_minus_ssim(self) -> float:
@@ -336,6 +346,7 @@ CSV_FIELDS = (
     "relative_mse",
     "ssim",
     "one_minus_ssim",
+    "ssim_noise_free",
     "brightness",
     "hot_pixels",
     "worst_share",

@@ -38,6 +38,7 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, replace
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -60,6 +61,7 @@ from .config import (
     CAPTURE_SEED,
     CURVE_SEED,
     GENERATED_PREFIX,
+    OTHER_TRUTH_SEED,
     RELAYOUT,
     TRUTH_SEED,
     WITH_RT,
@@ -94,6 +96,27 @@ class ViewData:
     camera: bpy.types.Object
     truth: capture.Capture
     view: vplace.View
+    #: The truth rendered again with another seed (``ReportConfig.truth_noise``): its global
+    #: illumination, for the noise-free SSIM; None without.
+    other: np.ndarray | None = None
+
+    def score(self, image: np.ndarray) -> dict[str, float]:
+        """``image`` scored against the view's truth (``vplace.job.score``), with its SSIM
+        against the noise-free truth where the view has the second render."""
+        return pipeline.score(image, self.truth.gi, other=self.other)
+
+    def truth_noise(self) -> dict[str, float]:
+        """What the truth's own noise does to SSIM: the two renders' SSIM against each other,
+        and the ceiling (``vplace.ssim_ceiling``: what the noise-free image scores against the
+        truth); empty without the second render or below 11 x 11 pixels."""
+        truth = np.ascontiguousarray(self.truth.gi, dtype=np.float32)
+        if self.other is None or min(truth.shape[:2]) < 11:
+            return {}
+        other = np.ascontiguousarray(self.other, dtype=np.float32)
+        return {
+            "truths_ssim": vplace.ssim(other, truth),
+            "ceiling": vplace.ssim_ceiling(truth, other),
+        }
 
 
 @dataclass
@@ -191,19 +214,23 @@ def load_scene(
     views = []
     for name in (*preset.fit_views, *held_out):
         role = "fit" if name in preset.fit_views else "held-out"
-        with timer.stage(f"ground truth {name} ({truth_samples} spp, cached)"):
-            truth = capture.capture(
-                bl_scene,
-                camera=cams[name],
-                resolution=resolution,
-                samples=truth_samples,
-                seed=TRUTH_SEED,
-                cache_dir=cache_dir,
-            )
-        gloss = gloss_mask(prepared.scene, prepared.exported, truth)
-        views.append(
-            ViewData(name, role, cams[name], truth, view_of(truth, held_out=True, gloss=gloss))
+        truth_of = partial(
+            capture.capture,
+            bl_scene,
+            camera=cams[name],
+            resolution=resolution,
+            samples=truth_samples,
+            cache_dir=cache_dir,
         )
+        with timer.stage(f"ground truth {name} ({truth_samples} spp, cached)"):
+            truth = truth_of(seed=TRUTH_SEED)
+        other = None
+        if config.truth_noise:
+            with timer.stage(f"second truth {name} (seed {OTHER_TRUTH_SEED}, cached)"):
+                other = truth_of(seed=OTHER_TRUTH_SEED).gi
+        gloss = gloss_mask(prepared.scene, prepared.exported, truth)
+        view = view_of(truth, held_out=True, gloss=gloss)
+        views.append(ViewData(name, role, cams[name], truth, view, other))
     seconds = sum(c.render_seconds for c in prepared.captures)
     if prepared.coverage is not None:
         seconds += prepared.coverage.seconds
@@ -323,7 +350,7 @@ def evaluator_rows(
                 shadow_rays=stats.shadow_rays,
                 seed=s.seed,
                 details=replace(s.details),
-                **pipeline.score(estimate, truth.gi),
+                **view.score(estimate),
             )
             rows.append(row)
             if s.n_vpls == grid_n and s.seed in (config.seeds[0], None):
@@ -352,7 +379,7 @@ def evaluator_rows(
                             shadow_rays=stats.shadow_rays,
                             seed=seed,
                             details=RowDetails(out_of_range=outside),
-                            **pipeline.score(estimate, truth.gi),
+                            **view.score(estimate),
                         )
                     )
                     if n == grid_n and seed == config.seeds[0]:
@@ -408,7 +435,7 @@ def capture_curve_rows(
                         shadow_rays=stats.shadow_rays,
                         seed=seed,
                         details=RowDetails(capture_seconds=capture_seconds),
-                        **pipeline.score(view.truth.direct + indirect, view.truth.gi),
+                        **view.score(view.truth.direct + indirect),
                     )
                 )
         mine = [r for r in rows if r.samples == spp and r.role == "fit"]
@@ -432,7 +459,7 @@ def reference_rows(view: ViewData, scene_name: str) -> list[Row]:
             None,
             one_time_seconds=0.0,
             frame_seconds=0.0,
-            **pipeline.score(view.truth.direct, view.truth.gi),
+            **view.score(view.truth.direct),
         )
     ]
 
@@ -491,7 +518,7 @@ class _EeveeRun:
                 bake_seconds=bake_seconds,
                 attribution=attribution.to_dict() if attribution is not None else None,
             ),
-            **pipeline.score(img.image, view.truth.gi),
+            **view.score(img.image),
         )
         self.rows.append(row)
         self.log(
@@ -771,6 +798,7 @@ def _run_scene(
             "capture_samples": data.job.samples if view.role == "fit" else None,
             "truth_samples": cap.samples,
             "truth_seconds": cap.render_seconds,
+            "truth_noise": view.truth_noise(),
             "triangles": data.prepared.scene.triangle_count,
         }
         stem = f"{preset.name}_{report_plots.slug(view.name)}"

@@ -22,12 +22,17 @@ from .config import (
     FIT_VIEW_SSIM,
     HELD_OUT_SPREAD,
     HOT_SHARE,
+    RELAYOUT,
     SSIM_MARGIN,
     WITH_RT,
     Row,
     RowDetails,
     grid_budget,
 )
+
+#: What a target check says when it is scored against the noise-free truth (estimated from the
+#: view's two truth renders, ``vplace.ssim_noise_free``), not against the truth itself.
+NOISE_FREE = "(noise-free truth)"
 
 #: A share as a whole percentage, never "-0%" (``vplace.markdown.percent``).
 pct = vplace.markdown.percent
@@ -46,6 +51,7 @@ def aggregate(rows: Sequence[Row]) -> list[Row]:
         "rmse",
         "relative_mse",
         "ssim",
+        "ssim_noise_free",
         "brightness",
         "hot_pixels",
         "worst_share",
@@ -68,6 +74,7 @@ def aggregate(rows: Sequence[Row]) -> list[Row]:
                     "rmse": r.rmse,
                     "brightness": r.brightness,
                     "hot_pixels": r.hot_pixels,
+                    **_noise_free(r),
                 }
                 for r in members
                 if r.seed is not None
@@ -93,6 +100,11 @@ def aggregate(rows: Sequence[Row]) -> list[Row]:
     return out
 
 
+def _noise_free(row: Row) -> dict[str, float]:
+    """The row's SSIM against the noise-free truth, where it has one (JSON has no NaN)."""
+    return {"ssim_noise_free": row.ssim_noise_free} if math.isfinite(row.ssim_noise_free) else {}
+
+
 def same_lights(evaluator: Row, shown: Row) -> dict[str, float]:
     """The evaluator's scores for the very lights ``shown`` (an EEVEE row) rendered: the seed's
     run of an aggregated row, or the row itself for a deterministic method."""
@@ -101,6 +113,7 @@ def same_lights(evaluator: Row, shown: Row) -> dict[str, float]:
         return dict(by_seed[str(shown.seed)])
     return {
         "ssim": evaluator.ssim,
+        "ssim_noise_free": evaluator.ssim_noise_free,
         "rmse": evaluator.rmse,
         "brightness": evaluator.brightness,
         "hot_pixels": evaluator.hot_pixels,
@@ -184,6 +197,27 @@ def targets(rows: list[Row]) -> list[dict[str, Any]]:
                     gap <= HELD_OUT_SPREAD,
                     f"{ours[v].ssim:.4f} against {fit_mean:.4f}: {gap:+.4f}",
                 )
+            free = {v: r.ssim_noise_free for v, r in ours.items()}
+            if all(math.isfinite(x) for x in free.values()):
+                # The same checks against the noise-free truth: a view whose truth is noisier
+                # (a dim one lit by bounce light alone) scores lower against it whatever the
+                # lights.
+                free_mean = float(np.mean([free[v] for v in fit_views]))
+                check(
+                    f"{scene} N={n}: the fit views reach SSIM {FIT_VIEW_SSIM} {NOISE_FREE}",
+                    free_mean,
+                    free_mean >= FIT_VIEW_SSIM,
+                    f"fit views' mean {free_mean:.4f} (against the truth {fit_mean:.4f})",
+                )
+                for v in held:
+                    gap = free_mean - free[v]
+                    check(
+                        f"{scene} {v} (held out) N={n}: within {HELD_OUT_SPREAD} SSIM of the "
+                        f"fit views' mean {NOISE_FREE}",
+                        gap,
+                        gap <= HELD_OUT_SPREAD,
+                        f"{free[v]:.4f} against {free_mean:.4f}: {gap:+.4f}",
+                    )
         for v, role in views:
             us = ours.get(v)
             if us is None:
@@ -206,6 +240,14 @@ def targets(rows: list[Row]) -> list[dict[str, Any]]:
                     us.ssim >= uniform.ssim,
                     f"{us.ssim:.4f} against {uniform.ssim:.4f}",
                 )
+                gap = us.ssim_noise_free - uniform.ssim_noise_free
+                if math.isfinite(gap):
+                    check(
+                        f"{scene} {v} ({role}) N={n}: not below uniform {NOISE_FREE}",
+                        gap,
+                        gap >= 0,
+                        f"{us.ssim_noise_free:.4f} against {uniform.ssim_noise_free:.4f}",
+                    )
             direct = _at(mine, scene, v, "direct", "reference", None)
             if role == "held-out" and direct is not None:
                 check(
@@ -242,6 +284,16 @@ def targets(rows: list[Row]) -> list[dict[str, Any]]:
                     abs(gap) <= EEVEE_SPREAD,
                     f"EEVEE {shown.ssim:.4f}, evaluator {evaluated:.4f}{parts['ssim']}",
                 )
+                evaluated = lights.get("ssim_noise_free", math.nan)
+                if math.isfinite(evaluated) and math.isfinite(shown.ssim_noise_free):
+                    gap = evaluated - shown.ssim_noise_free
+                    check(
+                        f"{scene} {v} ({role}): EEVEE with the VPLs within {EEVEE_SPREAD} SSIM "
+                        f"of the evaluator (the same lights) {NOISE_FREE}",
+                        gap,
+                        abs(gap) <= EEVEE_SPREAD,
+                        f"EEVEE {shown.ssim_noise_free:.4f}, evaluator {evaluated:.4f}",
+                    )
                 off = shown.brightness - 1
                 detail = f"{shown.brightness:.4f}x"
                 plain = _at(mine, scene, v, "eevee", "eevee", None)
@@ -273,6 +325,16 @@ def targets(rows: list[Row]) -> list[dict[str, Any]]:
                         gap >= SSIM_MARGIN,
                         f"{shown.ssim:.4f} against {volume.ssim:.4f}: {gap:+.4f}",
                     )
+                    gap = shown.ssim_noise_free - volume.ssim_noise_free
+                    if math.isfinite(gap):
+                        check(
+                            f"{scene} {v} ({role}): EEVEE with the VPLs >= EEVEE ray tracing + "
+                            f"volume + {SSIM_MARGIN} {NOISE_FREE}",
+                            gap,
+                            gap >= SSIM_MARGIN,
+                            f"{shown.ssim_noise_free:.4f} against "
+                            f"{volume.ssim_noise_free:.4f}: {gap:+.4f}",
+                        )
         once = [ours[v] for v in fit_views if ours.get(v) is not None]
         cycles = [
             r
@@ -422,7 +484,9 @@ def _intro(result: dict[str, Any]) -> list[str]:
         "pick instead (EEVEE's own GI with the world's sun as a lamp where the world has one: "
         "EEVEE extracts next to nothing from a sky); Cycles + OIDN rows: Cycles at that many "
         "samples, denoised. Every image is scored against a high-sample Cycles render of the "
-        "view. SSIM on display luminance (DESIGN: Metrics); RMSE and relative MSE on linear "
+        "view, and, where the truth was rendered twice (two seeds), against the noise-free "
+        "truth estimated from both: the truth's own noise caps SSIM, by as much as each view "
+        "states. SSIM on display luminance (DESIGN: Metrics); RMSE and relative MSE on linear "
         "HDR; brightness is the mean luminance over the truth's. One-time seconds: the captures "
         "of the fit views, the fit, the layout and refit, or a volume's bake, paid once for "
         "every view and frame; frame seconds: one image. Stochastic layouts run with seeds "
@@ -490,6 +554,35 @@ def _shown_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
         "What a user sees (the grid budget's lights in EEVEE) and the alternatives:",
         "",
         *vplace.markdown.table(header, body),
+    ]
+
+
+def _noise_lines(mine: Sequence[Row], noise: dict[str, float], budgets: Sequence[int]) -> list[str]:
+    """The truth's own noise (a second render with another seed), and every image at the grid
+    budget scored against the noise-free truth as well (``vplace.ssim_noise_free``)."""
+    if not noise:
+        return []
+    n = grid_budget(budgets) if budgets else None
+    body = []
+    for r in mine:
+        if not math.isfinite(r.ssim_noise_free) or (r.n_vpls and r.n_vpls != n):
+            continue
+        if r.method in (CAPTURE_CURVE, RELAYOUT):
+            continue
+        label = f"{r.renderer}: {r.method}"
+        if r.renderer == "cycles":
+            label += f", {r.samples} spp"
+        body.append([label, f"{r.ssim:.3f}", f"{r.ssim_noise_free:.3f}"])
+    return [
+        "",
+        f"The truth's own noise: a second render of it (another seed) scores SSIM "
+        f"{noise['truths_ssim']:.3f} against it, and the noise-free image would score "
+        f"{noise['ceiling']:.3f} (`vplace.ssim_ceiling`): no image scores higher against this "
+        "truth. Against the noise-free truth, estimated from the two renders "
+        "(`vplace.ssim_noise_free`; within about .01 of SSIM against an 8192 spp render where "
+        "measured):",
+        "",
+        *vplace.markdown.table(["image", "SSIM", "SSIM, noise-free truth"], body),
     ]
 
 
@@ -599,6 +692,7 @@ def _scene_lines(name: str, info: dict[str, Any], rows: Sequence[Row]) -> list[s
         if direct:
             lines += ["", f"Direct light only: SSIM {direct.ssim:.3f}, RMSE {direct.rmse:.4f}."]
         lines += _shown_table(mine, name, view)
+        lines += _noise_lines(mine, v.get("truth_noise") or {}, budgets)
         lines += _attribution_table(mine, name, view)
         lines.append("")
     return lines + _capture_curve_lines([r for r in rows if r.scene == name])

@@ -381,12 +381,21 @@ def test_report_animate_scores_every_frame_and_plots_them(tmp_path):
     assert summary["frames"] == [1, 3] and summary["scored_frames"] == [1, 2, 3]
     assert summary["n_vpls"] == 16
     images = {animation.KEYED, animation.STILL, animation.DIRECT, animation.cycles_kind(1)}
+    # The report renders each frame's truth twice: the truth's own noise is a row, and every
+    # other image is also scored against the noise-free truth.
+    images.add(animation.TRUTH_AGAIN)
     assert set(summary["temporal_steps"]) == images
     for kind, steps in summary["temporal_steps"].items():
         assert len(steps) == 2
         assert np.mean(steps) == pytest.approx(summary["temporal_error"][kind])
-    rows = (out / "results.csv").read_text().splitlines()[1:]
-    assert sorted({int(r.split(",")[0]) for r in rows}) == [1, 2, 3]
+    for r in summary["rows"]:
+        assert ("ssim_noise_free" in r) == (r["image"] != animation.TRUTH_AGAIN)
+    again = [r for r in summary["rows"] if r["image"] == animation.TRUTH_AGAIN]
+    assert [r["frame"] for r in again] == [1, 2, 3] and all(r["ssim"] < 1.0 for r in again)
+    lines = (out / "results.csv").read_text().splitlines()
+    assert "ssim_noise_free" in lines[0].split(",")
+    assert sorted({int(r.split(",")[0]) for r in lines[1:]}) == [1, 2, 3]
+    assert "the truth, another seed" in (out / "animation.md").read_text()
     assert (out / "animation.png").read_bytes()[:4] == b"\x89PNG"
 
 

@@ -95,12 +95,23 @@ CASES = [
     ),
     Case(
         ["demo", "--score-between"],
-        "--cycles-samples, --eevee-still, --volume-once and --volume-per-frame go with --animate",
+        "--cycles-samples, --eevee-still, --volume-once, --volume-per-frame and --truth-noise go "
+        "with --animate",
         quick_demo=True,
     ),
     Case(
         ["demo", "--volume-per-frame"],
-        "--volume-per-frame go with --animate",
+        "--volume-per-frame and --truth-noise go with --animate",
+        quick_demo=True,
+    ),
+    Case(
+        ["demo", "--truth-noise"],
+        "--truth-noise go with --animate",
+        quick_demo=True,
+    ),
+    Case(
+        ["demo", "--animate", "1", "2", "1", "--truth-noise", "--truth-samples", "0"],
+        "the truth's noise needs a truth: give truth samples",
         quick_demo=True,
     ),
     Case(["demo", "--cell-px", "0"], "cell_px = 0 is out of range", quick_demo=True),

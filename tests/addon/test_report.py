@@ -4,6 +4,8 @@ arithmetic, and configuration errors."""
 
 import csv
 import json
+import math
+from dataclasses import replace
 
 import bpy
 import mathutils
@@ -167,6 +169,15 @@ def test_tiny_report_writes_csv_json_plots_and_markdown(tiny_report):
     assert f"| {RELAYOUT} |" in md and "## Break-even" in md and "## Targets" in md
     assert "evaluator, same lights" in md and "Capture samples against layout quality" in md
     assert "(b) VPL light" in md and "vpl_difference_cornell_" in md
+    # Every view's truth was rendered twice: each image is also scored against the noise-free
+    # truth, and each view states the ceiling its truth's noise puts on SSIM.
+    assert all(np.isfinite(float(r["ssim_noise_free"])) for r in table)
+    (scene,) = result["scenes"].values()
+    for view, info in scene["views"].items():
+        noise = info["truth_noise"]
+        assert 0.0 < noise["truths_ssim"] < noise["ceiling"] <= 1.0, view
+    assert md.count("The truth's own noise") == 3 and "SSIM, noise-free truth" in md
+    assert any("(noise-free truth)" in c["check"] for c in result["targets"])
 
 
 @pytest.mark.slow
@@ -206,6 +217,30 @@ def _row(view, method, n, ssim, rmse=0.1, renderer="evaluator", role="fit", samp
         **kw,
     }
     return Row("s", view, role, method, renderer, n, samples, rmse=rmse, ssim=ssim, **fields)
+
+
+def test_targets_are_checked_against_the_noise_free_truth_as_well():
+    # The held-out view's truth is noisier: against it, the view misses the spread; against
+    # the noise-free truth (both views' images scored without the truths' noise) it holds.
+    rows = [
+        _row("A", "uniform", 256, 0.70, ssim_noise_free=0.85),
+        _row("A", "vplace+refit", 256, 0.78, ssim_noise_free=0.95),
+        _row("H", "uniform", 256, 0.50, role="held-out", ssim_noise_free=0.78),
+        _row("H", "vplace+refit", 256, 0.58, role="held-out", ssim_noise_free=0.93),
+    ]
+    checks = {c["check"]: c for c in summary.targets(rows)}
+    plain = checks["s H (held out) N=256: within 0.03 SSIM of the fit views' mean"]
+    assert not plain["met"] and plain["value"] == pytest.approx(0.20)
+    free = checks[
+        "s H (held out) N=256: within 0.03 SSIM of the fit views' mean (noise-free truth)"
+    ]
+    assert free["met"] and free["value"] == pytest.approx(0.02)
+    fit = checks["s N=256: the fit views reach SSIM 0.9 (noise-free truth)"]
+    assert fit["met"] and fit["value"] == pytest.approx(0.95)
+    assert checks["s H (held-out) N=256: not below uniform (noise-free truth)"]["met"]
+    # Rows without a second truth render get no such check.
+    bare = summary.targets([replace(r, ssim_noise_free=math.nan) for r in rows])
+    assert not any("noise-free" in c["check"] for c in bare)
 
 
 def test_targets_compare_held_out_views_with_the_fit_mean_and_eevee_with_the_same_lights():

@@ -144,6 +144,12 @@ def test_score_of_the_truth_is_perfect_and_ssim_needs_11_pixels():
     assert np.isnan(vjob.score(img[:10, :10], img[:10, :10])["ssim"])
     assert vjob.score(2 * img, img)["brightness"] == pytest.approx(2, rel=1e-5)
     assert (s["hot_pixels"], s["worst_share"]) == (0.0, 0.0)
+    # A second render of the truth adds the SSIM against the noise-free truth; none without.
+    assert "ssim_noise_free" not in s
+    assert vjob.score(img, img, other=img)["ssim_noise_free"] == pytest.approx(1)
+    assert np.isnan(
+        vjob.score(img[:10, :10], img[:10, :10], other=img[:10, :10])["ssim_noise_free"]
+    )
 
 
 def test_outliers_find_hot_spots_and_where_the_error_sits():

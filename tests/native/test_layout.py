@@ -289,6 +289,62 @@ def test_ssim_input_errors():
         vplace.ssim(b.astype(np.float64), b)
 
 
+def _noisy_truths(sigma, seed=3):
+    """A smooth, textured linear image in the display range and two renders of it with
+    independent noise (as two seeds of a path tracer give)."""
+    h, w = 72, 96
+    y, x = np.mgrid[0:h, 0:w].astype(np.float32)
+    clean = 0.25 + 0.12 * np.sin(x / 6) * np.cos(y / 9) + 0.1 * ((x // 16) % 2)
+    clean = np.repeat(clean[..., None], 3, axis=2).astype(np.float32)
+    rng = np.random.default_rng(seed)
+    a, b = (clean * (1 + rng.normal(0, sigma, clean.shape)) for _ in range(2))
+    return clean, a.astype(np.float32), b.astype(np.float32)
+
+
+def test_noise_free_ssim_scores_against_the_truth_without_its_noise():
+    clean, a, b = _noisy_truths(0.12)
+    estimates = {
+        "close": (clean * 0.96 + 0.005).astype(np.float32),
+        "flat": np.full_like(clean, float(clean.mean())),
+        "half": (clean * 0.5).astype(np.float32),
+    }
+    assert vplace.ssim(b, a) < 0.8  # the two truths disagree: the noise is not small
+    for name, img in estimates.items():
+        exact = vplace.ssim(img, clean)
+        plain = vplace.ssim(img, a)
+        free = vplace.ssim_noise_free(img, a, b)
+        assert free == pytest.approx(exact, abs=0.02), name
+        if name == "close":
+            assert exact - plain > 0.1  # what the truth's noise costs a good image
+    # The order of the estimates is the order against the clean image.
+    scores = {k: vplace.ssim_noise_free(v, a, b) for k, v in estimates.items()}
+    assert scores["close"] > scores["half"] and scores["close"] > scores["flat"]
+    # The ceiling: what the clean image itself scores against the noisy truth.
+    assert vplace.ssim_ceiling(a, b) == pytest.approx(vplace.ssim(clean, a), abs=0.02)
+    # One render twice: plain SSIM, and a ceiling of 1.
+    img = estimates["close"]
+    assert vplace.ssim_noise_free(img, a, a) == pytest.approx(vplace.ssim(img, a), abs=1e-12)
+    assert vplace.ssim_ceiling(a, a) == pytest.approx(1.0, abs=1e-12)
+
+
+def test_noise_free_ssim_input_errors():
+    _, a, b = _noisy_truths(0.05)
+    with pytest.raises(vplace.InputError, match="other"):
+        vplace.ssim_noise_free(a, a, b[:-1])
+    with pytest.raises(vplace.InputError, match="float32"):
+        vplace.ssim_noise_free(a, a, b.astype(np.float64))
+    with pytest.raises(vplace.InputError, match="at least 11"):
+        vplace.ssim_ceiling(a[:10], b[:10])
+    bad = b.copy()
+    bad[4, 5, 1] = np.nan
+    with pytest.raises(vplace.InputError, match="other holds a non-finite value"):
+        vplace.ssim_ceiling(a, bad)
+    with pytest.raises(vplace.InputError, match="truth holds a non-finite value"):
+        vplace.ssim_noise_free(a, bad, b)
+    with pytest.raises(vplace.InputError, match="image"):
+        vplace.ssim_noise_free(a[:, :-1], a, b)
+
+
 def test_layout_with_a_fit_on_the_benchmark_room():
     from vplace import bench_layout
 

@@ -8,21 +8,26 @@ use crate::error::{check_finite, Result, VplaceError};
 pub const RELATIVE_MSE_EPSILON: f64 = 1e-2;
 
 fn check_pair(image: &[f32], reference: &[f32]) -> Result<()> {
+    check_named("image", image, "reference", reference)
+}
+
+/// [`check_pair`] with the two images' names, as the caller calls them.
+fn check_named(what: &str, image: &[f32], like: &str, reference: &[f32]) -> Result<()> {
     if image.len() != reference.len() {
         return Err(VplaceError::Shape {
-            what: "image".into(),
-            expected: format!("{} values, like the reference", reference.len()),
+            what: what.into(),
+            expected: format!("{} values, like the {like}", reference.len()),
             got: format!("{} values", image.len()),
         });
     }
     if image.is_empty() {
         return Err(VplaceError::Empty {
-            what: "image".into(),
+            what: what.into(),
             hint: "compare at least one pixel".into(),
         });
     }
-    check_finite("image", image)?;
-    check_finite("reference", reference)
+    check_finite(what, image)?;
+    check_finite(like, reference)
 }
 
 /// Root mean squared error over every value, in the images' own units.
@@ -146,24 +151,9 @@ fn gaussian(img: &[f64], w: usize, h: usize, kernel: &[f64]) -> Vec<f64> {
     out
 }
 
-/// Mean SSIM of two single-channel images `x`, `y` (`height x width`, values in `[0, 1]`,
-/// `data_range` 1). The SSIM map is averaged over the pixels at least `radius` from the border,
-/// as scikit-image does. Both sides must be at least `2 * radius + 1` pixels.
-pub fn ssim_gray(
-    x: &[f64],
-    y: &[f64],
-    width: usize,
-    height: usize,
-    params: &SsimParams,
-) -> Result<f64> {
-    let n = width * height;
-    if x.len() != n || y.len() != n {
-        return Err(VplaceError::Shape {
-            what: "ssim images".into(),
-            expected: format!("{n} values each ({height} x {width})"),
-            got: format!("{} and {}", x.len(), y.len()),
-        });
-    }
+/// The Gaussian window of `params` for a `width x height` image: its normalized 1D kernel and
+/// half width, once the settings and the size are checked.
+fn window(params: &SsimParams, width: usize, height: usize) -> Result<(Vec<f64>, usize)> {
     if !(params.sigma > 0.0 && params.sigma.is_finite() && params.truncate >= 0.0) {
         return Err(VplaceError::OutOfRange {
             what: "sigma".into(),
@@ -180,12 +170,6 @@ pub fn ssim_gray(
             expected: format!("at least {win} x {win} (the SSIM window)"),
         });
     }
-    if let Some(index) = x.iter().chain(y).position(|v| !v.is_finite()) {
-        return Err(VplaceError::NonFinite {
-            what: "ssim images".into(),
-            index,
-        });
-    }
     let mut kernel: Vec<f64> = (0..win)
         .map(|i| {
             let d = i as f64 - r as f64;
@@ -194,42 +178,218 @@ pub fn ssim_gray(
         .collect();
     let ks: f64 = kernel.iter().sum();
     kernel.iter_mut().for_each(|k| *k /= ks);
-    let prod = |a: &[f64], b: &[f64]| -> Vec<f64> { a.iter().zip(b).map(|(p, q)| p * q).collect() };
-    let ux = gaussian(x, width, height, &kernel);
-    let uy = gaussian(y, width, height, &kernel);
-    let uxx = gaussian(&prod(x, x), width, height, &kernel);
-    let uyy = gaussian(&prod(y, y), width, height, &kernel);
-    let uxy = gaussian(&prod(x, y), width, height, &kernel);
-    let (c1, c2) = (params.k1 * params.k1, params.k2 * params.k2);
-    let mut sum = 0.0;
-    for yy in r..height - r {
-        for xx in r..width - r {
-            let i = yy * width + xx;
-            let (mx, my) = (ux[i], uy[i]);
-            let vx = uxx[i] - mx * mx;
-            let vy = uyy[i] - my * my;
-            let vxy = uxy[i] - mx * my;
-            sum += (2.0 * mx * my + c1) * (2.0 * vxy + c2)
-                / ((mx * mx + my * my + c1) * (vx + vy + c2));
+    Ok((kernel, r))
+}
+
+/// Checks that every one of `images` holds `width * height` finite values.
+fn check_gray(images: &[&[f64]], width: usize, height: usize) -> Result<()> {
+    let n = width * height;
+    if let Some(bad) = images.iter().find(|x| x.len() != n) {
+        return Err(VplaceError::Shape {
+            what: "ssim images".into(),
+            expected: format!("{n} values each ({height} x {width})"),
+            got: format!("{} values", bad.len()),
+        });
+    }
+    for x in images {
+        if let Some(index) = x.iter().position(|v| !v.is_finite()) {
+            return Err(VplaceError::NonFinite {
+                what: "ssim images".into(),
+                index,
+            });
         }
     }
-    Ok(sum / ((width - 2 * r) * (height - 2 * r)) as f64)
+    Ok(())
+}
+
+/// The SSIM windows over checked gray images: Gaussian window means, and SSIM's formula averaged
+/// over the pixels at least the window's half width from the border (scikit-image's crop).
+struct Windows {
+    kernel: Vec<f64>,
+    r: usize,
+    width: usize,
+    height: usize,
+    c1: f64,
+    c2: f64,
+}
+
+impl Windows {
+    /// Checks `images` (each `width * height` finite values) and the settings.
+    fn new(images: &[&[f64]], width: usize, height: usize, params: &SsimParams) -> Result<Self> {
+        check_gray(images, width, height)?;
+        let (kernel, r) = window(params, width, height)?;
+        let (c1, c2) = (params.k1 * params.k1, params.k2 * params.k2);
+        Ok(Self {
+            kernel,
+            r,
+            width,
+            height,
+            c1,
+            c2,
+        })
+    }
+
+    /// Every window's weighted mean of `img`.
+    fn mean(&self, img: &[f64]) -> Vec<f64> {
+        gaussian(img, self.width, self.height, &self.kernel)
+    }
+
+    /// Mean SSIM from each window's `[mean x, mean y, var x, var y, cov xy]`.
+    fn ssim(&self, stats: impl Fn(usize) -> [f64; 5]) -> f64 {
+        let (w, h, r) = (self.width, self.height, self.r);
+        let mut sum = 0.0;
+        for yy in r..h - r {
+            for xx in r..w - r {
+                let [mx, my, vx, vy, vxy] = stats(yy * w + xx);
+                sum += (2.0 * mx * my + self.c1) * (2.0 * vxy + self.c2)
+                    / ((mx * mx + my * my + self.c1) * (vx + vy + self.c2));
+            }
+        }
+        sum / ((w - 2 * r) * (h - 2 * r)) as f64
+    }
+}
+
+fn product(a: &[f64], b: &[f64]) -> Vec<f64> {
+    a.iter().zip(b).map(|(p, q)| p * q).collect()
+}
+
+/// Mean SSIM of two single-channel images `x`, `y` (`height x width`, values in `[0, 1]`,
+/// `data_range` 1). The SSIM map is averaged over the pixels at least `radius` from the border,
+/// as scikit-image does. Both sides must be at least `2 * radius + 1` pixels.
+pub fn ssim_gray(
+    x: &[f64],
+    y: &[f64],
+    width: usize,
+    height: usize,
+    params: &SsimParams,
+) -> Result<f64> {
+    let w = Windows::new(&[x, y], width, height, params)?;
+    let (ux, uy) = (w.mean(x), w.mean(y));
+    let (uxx, uyy, uxy) = (
+        w.mean(&product(x, x)),
+        w.mean(&product(y, y)),
+        w.mean(&product(x, y)),
+    );
+    Ok(w.ssim(|i| {
+        let (mx, my) = (ux[i], uy[i]);
+        [mx, my, uxx[i] - mx * mx, uyy[i] - my * my, uxy[i] - mx * my]
+    }))
+}
+
+/// Mean SSIM of `x` against the noise-free image of which `a` and `b` are two independent noisy
+/// renders (two seeds of one path tracer), estimated without that image: each window's
+/// statistics of the noise-free image come from products *across* the two renders, whose noise
+/// averages out. Its mean is `sqrt(mean(a) mean(b))`, its covariance with `x` that of `x` with
+/// `(a + b) / 2`, and its variance `cov(a, b)` (clamped at 0). With `a == b` it is [`ssim_gray`]
+/// of `x` against `a`. It holds while the noise is moderate: where the two renders scored .46
+/// to .67 against each other (a sky-lit room at 512 spp), it came within .007 of the SSIM
+/// against an 8192 spp render (ARCHITECTURE, "SSIM against the noise-free truth"); at .3 it
+/// overshoots by .04-.06, since each window's variance is then estimated from noise. Noise
+/// that `x` shares with one render (an image built on its passes) counts half as signal.
+pub fn ssim_gray_noise_free(
+    x: &[f64],
+    a: &[f64],
+    b: &[f64],
+    width: usize,
+    height: usize,
+    params: &SsimParams,
+) -> Result<f64> {
+    let w = Windows::new(&[x, a, b], width, height, params)?;
+    let (ux, ua, ub) = (w.mean(x), w.mean(a), w.mean(b));
+    let mean_ab: Vec<f64> = a.iter().zip(b).map(|(p, q)| 0.5 * (p + q)).collect();
+    let (uxx, uab) = (w.mean(&product(x, x)), w.mean(&product(a, b)));
+    let uxt = w.mean(&product(x, &mean_ab));
+    Ok(w.ssim(|i| {
+        let mx = ux[i];
+        let vxt = uxt[i] - mx * 0.5 * (ua[i] + ub[i]);
+        let vt = (uab[i] - ua[i] * ub[i]).max(0.0);
+        let mt = (ua[i] * ub[i]).max(0.0).sqrt();
+        [mx, mt, uxx[i] - mx * mx, vt, vxt]
+    }))
+}
+
+/// Mean SSIM that the noise-free image would score against the noisy render `a`, estimated
+/// from `b`, an independent render of the same image: the ceiling that `a`'s noise puts on
+/// any image scored against it. The noise-free image's mean is estimated by
+/// `sqrt(mean(a) mean(b))`, its variance and its covariance with `a` by `cov(a, b)`, clamped to
+/// `[0, var(a)]` (Cauchy-Schwarz). 1 when `a == b`.
+pub fn ssim_gray_ceiling(
+    a: &[f64],
+    b: &[f64],
+    width: usize,
+    height: usize,
+    params: &SsimParams,
+) -> Result<f64> {
+    let w = Windows::new(&[a, b], width, height, params)?;
+    let (ua, ub) = (w.mean(a), w.mean(b));
+    let (uaa, uab) = (w.mean(&product(a, a)), w.mean(&product(a, b)));
+    Ok(w.ssim(|i| {
+        let ma = ua[i];
+        let va = uaa[i] - ma * ma;
+        // Cauchy-Schwarz: cov(s, a)^2 <= var(s) var(a) with cov(s, a) = var(s).
+        let vs = (uab[i] - ua[i] * ub[i]).clamp(0.0, va.max(0.0));
+        let ms = (ua[i] * ub[i]).max(0.0).sqrt();
+        [ms, ma, vs, va, vs]
+    }))
 }
 
 /// SSIM of two linear HDR images (`height x width x 3`) on their display luminance
 /// ([`display_luminance`]) with [`SsimParams::WANG_2004`] (DESIGN, Metrics).
 pub fn ssim(image: &[f32], reference: &[f32], width: usize, height: usize) -> Result<f64> {
     check_pair(image, reference)?;
+    check_rgb("image", image, width, height)?;
+    ssim_gray(
+        &display_luminance(image),
+        &display_luminance(reference),
+        width,
+        height,
+        &SsimParams::WANG_2004,
+    )
+}
+
+/// Checks an `H x W x 3` image of `width * height` pixels.
+fn check_rgb(what: &str, image: &[f32], width: usize, height: usize) -> Result<()> {
     if image.len() != 3 * width * height {
         return Err(VplaceError::Shape {
-            what: "image".into(),
+            what: what.into(),
             expected: format!("({height}, {width}, 3)"),
             got: format!("{} values", image.len()),
         });
     }
-    ssim_gray(
+    Ok(())
+}
+
+/// [`ssim_gray_noise_free`] of the linear HDR `image` against the noise-free image of which
+/// `truth` and `other` are two independent renders (`height x width x 3` each), on their
+/// display luminance with [`SsimParams::WANG_2004`].
+pub fn ssim_noise_free(
+    image: &[f32],
+    truth: &[f32],
+    other: &[f32],
+    width: usize,
+    height: usize,
+) -> Result<f64> {
+    check_named("image", image, "truth", truth)?;
+    check_named("other", other, "truth", truth)?;
+    check_rgb("image", image, width, height)?;
+    ssim_gray_noise_free(
         &display_luminance(image),
-        &display_luminance(reference),
+        &display_luminance(truth),
+        &display_luminance(other),
+        width,
+        height,
+        &SsimParams::WANG_2004,
+    )
+}
+
+/// [`ssim_gray_ceiling`] of the linear HDR render `truth` (`other`: an independent render of
+/// the same image), on their display luminance with [`SsimParams::WANG_2004`].
+pub fn ssim_ceiling(truth: &[f32], other: &[f32], width: usize, height: usize) -> Result<f64> {
+    check_named("other", other, "truth", truth)?;
+    check_rgb("truth", truth, width, height)?;
+    ssim_gray_ceiling(
+        &display_luminance(truth),
+        &display_luminance(other),
         width,
         height,
         &SsimParams::WANG_2004,
@@ -269,6 +429,94 @@ mod tests {
         assert!(ssim(&a, &b, w + 1, h).is_err());
         assert!((srgb_encode(1.0) - 1.0).abs() < 1e-12);
         assert!((srgb_encode(0.001) - 0.01292).abs() < 1e-12);
+    }
+
+    /// A textured gray image in `[0.1, 0.9]`, and two independent noisy renders of it
+    /// (uniform noise of standard deviation `sigma`, from a fixed LCG).
+    fn noisy_pair(w: usize, h: usize, sigma: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let clean: Vec<f64> = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f64, (i / w) as f64);
+                0.5 + 0.25 * (x / 5.0).sin() * (y / 7.0).cos() + 0.15 * ((i % w) / 16 % 2) as f64
+            })
+            .collect();
+        let mut state = 12_345u64;
+        let mut noise = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * sigma * 12f64.sqrt()
+        };
+        let a = clean.iter().map(|v| v + noise()).collect();
+        let b = clean.iter().map(|v| v + noise()).collect();
+        (clean, a, b)
+    }
+
+    #[test]
+    fn noise_free_ssim_sees_through_the_truths_noise() {
+        let (w, h) = (96, 64);
+        let p = SsimParams::WANG_2004;
+        let (clean, a, b) = noisy_pair(w, h, 0.04);
+        // An image a little off the clean one: what a good estimate looks like.
+        let x: Vec<f64> = clean.iter().map(|v| 0.95 * v + 0.02).collect();
+        let exact = ssim_gray(&x, &clean, w, h, &p).unwrap();
+        let plain = ssim_gray(&x, &a, w, h, &p).unwrap();
+        let free = ssim_gray_noise_free(&x, &a, &b, w, h, &p).unwrap();
+        assert!(
+            exact - plain > 0.2,
+            "the noise costs plain SSIM: {exact} {plain}"
+        );
+        assert!((free - exact).abs() < 0.01, "{free} {exact}");
+        // A blurred, darker image: the estimate follows the exact score down.
+        let mut blur = vec![0.0; w * h];
+        for (i, v) in blur.iter_mut().enumerate() {
+            let (cx, cy) = (i % w, i / w);
+            let mut acc = (0.0, 0.0);
+            for y in cy.saturating_sub(1)..(cy + 2).min(h) {
+                for x in cx.saturating_sub(1)..(cx + 2).min(w) {
+                    acc = (acc.0 + clean[y * w + x], acc.1 + 1.0);
+                }
+            }
+            *v = 0.9 * acc.0 / acc.1 + 0.03;
+        }
+        let exact_blur = ssim_gray(&blur, &clean, w, h, &p).unwrap();
+        let free_blur = ssim_gray_noise_free(&blur, &a, &b, w, h, &p).unwrap();
+        assert!(exact - exact_blur > 0.03, "{exact} {exact_blur}");
+        assert!(
+            (free_blur - exact_blur).abs() < 0.01,
+            "{free_blur} {exact_blur}"
+        );
+        // The ceiling: what the clean image itself scores against the noisy render.
+        let ceiling = ssim_gray_ceiling(&a, &b, w, h, &p).unwrap();
+        let truly = ssim_gray(&clean, &a, w, h, &p).unwrap();
+        assert!((ceiling - truly).abs() < 0.02, "{ceiling} {truly}");
+        assert!(ceiling < 0.9, "{ceiling}");
+        assert!(
+            ssim_gray(&a, &b, w, h, &p).unwrap() > 0.6,
+            "moderate noise, as documented"
+        );
+        // One render twice: plain SSIM, and a ceiling of 1.
+        let same = ssim_gray_noise_free(&x, &a, &a, w, h, &p).unwrap();
+        assert!((same - plain).abs() < 1e-12, "{same} {plain}");
+        assert!((ssim_gray_ceiling(&a, &a, w, h, &p).unwrap() - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn noise_free_ssim_checks_its_input() {
+        let (w, h) = (20, 14);
+        let img: Vec<f32> = (0..w * h * 3).map(|i| (i % 7) as f32 / 7.0).collect();
+        let mut nan = img.clone();
+        nan[5] = f32::NAN;
+        assert!(ssim_noise_free(&img, &img, &img, w, h).is_ok());
+        assert!(ssim_noise_free(&img, &img, &img[3..], w, h).is_err());
+        assert!(ssim_noise_free(&img, &img, &nan, w, h).is_err());
+        assert!(ssim_noise_free(&img, &img, &img, w + 1, h).is_err());
+        assert!(ssim_ceiling(&img, &nan, w, h).is_err());
+        assert!(ssim_ceiling(&img[..30], &img[..30], 10, 1).is_err());
+        let gray = vec![0.5; w * h];
+        assert!(
+            ssim_gray_noise_free(&gray, &gray, &gray[1..], w, h, &SsimParams::WANG_2004).is_err()
+        );
     }
 
     #[test]

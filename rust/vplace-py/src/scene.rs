@@ -614,26 +614,73 @@ fn relative_mse(
     run(py, move || metrics::relative_mse(&a, &b))
 }
 
+/// Checks a float32 (H, W, 3) image of any size; returns it with its H and W.
+fn rgb<'a>(
+    image: &'a Bound<'_, PyAny>,
+    what: &str,
+) -> PyResult<(numpy::PyReadonlyArrayDyn<'a, f32>, usize, usize)> {
+    let a = array::<f32>(image, what, &[Dim::Any, Dim::Any, Dim::Is(3)], "float32")?;
+    let (h, w) = (a.shape()[0], a.shape()[1]);
+    Ok((a, h, w))
+}
+
+/// Checks a float32 (H, W, 3) image of the reference's shape and returns its values.
+fn like<'a>(
+    image: &'a Bound<'_, PyAny>,
+    what: &str,
+    h: usize,
+    w: usize,
+) -> PyResult<numpy::PyReadonlyArrayDyn<'a, f32>> {
+    let dims = [Dim::Is(h), Dim::Is(w), Dim::Is(3)];
+    array::<f32>(image, what, &dims, "float32")
+}
+
 /// SSIM of `image` against `reference`, both float32 (H, W, 3) linear HDR, on the display
 /// luminance (exposure 1, clamp to [0, 1], sRGB), Gaussian window 11, sigma 1.5, K1 0.01,
 /// K2 0.03. H and W must be at least 11.
 #[pyfunction]
 fn ssim(py: Python<'_>, image: &Bound<'_, PyAny>, reference: &Bound<'_, PyAny>) -> PyResult<f64> {
-    let r = array::<f32>(
-        reference,
-        "reference",
-        &[Dim::Any, Dim::Any, Dim::Is(3)],
-        "float32",
-    )?;
-    let (h, w) = (r.shape()[0], r.shape()[1]);
-    let i = array::<f32>(
-        image,
-        "image",
-        &[Dim::Is(h), Dim::Is(w), Dim::Is(3)],
-        "float32",
-    )?;
+    let (r, h, w) = rgb(reference, "reference")?;
+    let i = like(image, "image", h, w)?;
     let (a, b) = (slice(&i, "image")?, slice(&r, "reference")?);
     run(py, move || metrics::ssim(a, b, w, h))
+}
+
+/// SSIM of `image` against the noise-free image of which `truth` and `other` are two
+/// independent renders (two seeds), estimated from products across the two renders (as
+/// `ssim`'s settings; all float32 (H, W, 3), H and W at least 11). Reliable while the two
+/// renders score at least about 0.45 against each other (ARCHITECTURE, "SSIM against the
+/// noise-free truth").
+#[pyfunction]
+fn ssim_noise_free(
+    py: Python<'_>,
+    image: &Bound<'_, PyAny>,
+    truth: &Bound<'_, PyAny>,
+    other: &Bound<'_, PyAny>,
+) -> PyResult<f64> {
+    let (t, h, w) = rgb(truth, "truth")?;
+    let (i, o) = (like(image, "image", h, w)?, like(other, "other", h, w)?);
+    let (i, t, o) = (
+        slice(&i, "image")?,
+        slice(&t, "truth")?,
+        slice(&o, "other")?,
+    );
+    run(py, move || metrics::ssim_noise_free(i, t, o, w, h))
+}
+
+/// The SSIM that the noise-free image would score against the render `truth`, estimated with
+/// `other`, an independent render of it: the ceiling `truth`'s noise puts on every score
+/// against it (float32 (H, W, 3) each).
+#[pyfunction]
+fn ssim_ceiling(
+    py: Python<'_>,
+    truth: &Bound<'_, PyAny>,
+    other: &Bound<'_, PyAny>,
+) -> PyResult<f64> {
+    let (t, h, w) = rgb(truth, "truth")?;
+    let o = like(other, "other", h, w)?;
+    let (t, o) = (slice(&t, "truth")?, slice(&o, "other")?);
+    run(py, move || metrics::ssim_ceiling(t, o, w, h))
 }
 
 /// Registers this file's classes and functions.
@@ -644,6 +691,8 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(rmse, m)?)?;
     m.add_function(wrap_pyfunction!(relative_mse, m)?)?;
     m.add_function(wrap_pyfunction!(ssim, m)?)?;
+    m.add_function(wrap_pyfunction!(ssim_noise_free, m)?)?;
+    m.add_function(wrap_pyfunction!(ssim_ceiling, m)?)?;
     m.add("LUMINANCE", LUMINANCE.to_array())?;
     m.add(
         "NEAR_FIELD_FRACTION",

@@ -34,7 +34,9 @@ The pieces, in pipeline order:
 - :func:`evaluate` renders a VPL set's indirect light over a view's G-buffer with shadow rays.
   A :class:`VplSet` carries its ``profile`` (``"cosine"``: AREA disk lights, ``"omni"``: POINT
   lights) and near-field ``radius``: exactly the lights the add-on writes.
-- :func:`rmse`, :func:`relative_mse`, :func:`ssim`: the metrics of DESIGN.md.
+- :func:`rmse`, :func:`relative_mse`, :func:`ssim`: the metrics of DESIGN.md;
+  :func:`ssim_noise_free` and :func:`ssim_ceiling`: SSIM seen through the truth's own noise, from
+  two renders of the truth with different seeds.
 
 Long calls release the GIL, report progress and cancel through a :class:`Progress`; a Rust
 panic surfaces as :class:`InternalError`, never as a crash.
@@ -82,6 +84,8 @@ from vplace._native import (
     rmse,
     rsm_vpls,
     ssim,
+    ssim_ceiling,
+    ssim_noise_free,
     uniform_vpls,
 )
 from vplace.budget import PIXEL_BUDGET, stride_for
@@ -127,6 +131,8 @@ __all__ = [
     "rmse",
     "rsm_vpls",
     "ssim",
+    "ssim_ceiling",
+    "ssim_noise_free",
     "stride_for",
     "uniform_vpls",
 ]

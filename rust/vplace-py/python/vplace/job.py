@@ -409,22 +409,33 @@ def attribute(
     )
 
 
-def score(image: np.ndarray, truth: np.ndarray) -> dict[str, float]:
+def score(
+    image: np.ndarray, truth: np.ndarray, *, other: np.ndarray | None = None
+) -> dict[str, float]:
     """RMSE, relative MSE (linear HDR), SSIM (display luminance) of ``image`` against ``truth``,
     its brightness (mean luminance over the truth's) and its :func:`outliers`; SSIM is NaN
-    below 11 x 11 pixels."""
+    below 11 x 11 pixels. ``other``, a second render of the truth with another seed, adds
+    ``ssim_noise_free``: the SSIM against the noise-free truth (:func:`vplace.ssim_noise_free`;
+    NaN below 11 x 11 pixels)."""
     image = np.ascontiguousarray(image, dtype=np.float32)
     truth = np.ascontiguousarray(truth, dtype=np.float32)
-    ssim = vplace.ssim(image, truth) if min(truth.shape[:2]) >= 11 else float("nan")
+    sized = min(truth.shape[:2]) >= 11
+    ssim = vplace.ssim(image, truth) if sized else float("nan")
     lum = np.asarray(vplace.LUMINANCE)
     mean_truth = max(float((truth[..., :3] @ lum).mean()), 1e-12)
-    return {
+    out = {
         "rmse": vplace.rmse(image, truth),
         "relative_mse": vplace.relative_mse(image, truth),
         "ssim": ssim,
         "brightness": float((image[..., :3] @ lum).mean()) / mean_truth,
         **outliers(image, truth),
     }
+    if other is not None:
+        other = np.ascontiguousarray(other, dtype=np.float32)
+        out["ssim_noise_free"] = (
+            vplace.ssim_noise_free(image, truth, other) if sized else float("nan")
+        )
+    return out
 
 
 @dataclass
