@@ -47,7 +47,7 @@ import numpy as np
 from .capture.passes import capture, hide_vpls
 from .capture.stage import Captured, render_reference
 from .errors import AddonError, WriteBackError, output_folder, run_operator
-from .job import Job, Prepared, StageTimer, prepare, reference_render
+from .job import OTHER_REFERENCE_SEED, Job, Prepared, StageTimer, prepare, reference_render
 from .native import vplace
 from .settings import override
 from .writeback import apply, eevee_render, eevee_setup, keyed
@@ -64,8 +64,6 @@ EEVEE_STILL = "EEVEE + still VPLs of the frame"
 VOLUME_ONCE = "EEVEE RT + volume baked once"
 VOLUME_PER_FRAME = "EEVEE RT + volume baked per frame"
 TRUTH_AGAIN = "the truth, another seed"
-#: The seed of the truth's second render (``truth_noise``); the first's is ``job.REFERENCE_SEED``.
-OTHER_TRUTH_SEED = 7927
 
 
 def cycles_kind(samples: int) -> str:
@@ -369,12 +367,12 @@ def run_animated_job(
             truths.append(ref.gi)
             height, width = ref.gi.shape[:2]
             if truth_noise:
-                with timer.stage(f"the truth again (seed {OTHER_TRUTH_SEED}), frame {f}"):
+                with timer.stage(f"the truth again (seed {OTHER_REFERENCE_SEED}), frame {f}"):
                     again = capture(
                         bl_scene,
                         resolution=(width, height),
                         samples=truth_samples or 1,
-                        seed=OTHER_TRUTH_SEED,
+                        seed=OTHER_REFERENCE_SEED,
                         cache_dir=job.cache_dir,
                     )
                 add(f, TRUTH_AGAIN, again.gi, ref.gi, again.render_seconds)
@@ -622,7 +620,8 @@ def animation_report(summary: AnimationSummary) -> str:
     rows = []
     for k in kinds:
         te = summary.temporal_error.get(k, float("nan"))
-        free = [f"{summary.mean(k, 'ssim_noise_free'):.3f}"] if noise else []
+        free_ssim = summary.mean(k, "ssim_noise_free")  # none for the truth's second render
+        free = [f"{free_ssim:.3f}" if np.isfinite(free_ssim) else "-"] if noise else []
         rows.append(
             [
                 k,

@@ -422,6 +422,9 @@ def summary(
 
 #: The Cycles seed of the main job's reference renders (another noise than the capture's).
 REFERENCE_SEED = 7919
+#: The truth's second render (the report, ``demo --animate --truth-noise``): its noise is
+#: independent of the first's, as the noise-free SSIM (``vplace.ssim_noise_free``) needs.
+OTHER_REFERENCE_SEED = 7927
 
 
 def reference_render(job: Job, truth_samples: int | None) -> ReferenceRender:

@@ -22,9 +22,8 @@ from ..writeback import eevee_render as eevee
 #: Seeds of the renders: the user's capture, the ground truth, Cycles' curve.
 CAPTURE_SEED = 0
 TRUTH_SEED = 7919
-#: The second render of every view's truth (``ReportConfig.truth_noise``): its noise is
-#: independent of the first's, which is what the noise-free SSIM estimate needs.
-OTHER_TRUTH_SEED = 7927
+#: The second render of every view's truth (``ReportConfig.truth_noise``).
+OTHER_TRUTH_SEED = pipeline.OTHER_REFERENCE_SEED
 CURVE_SEED = 104729
 
 METHODS = pipeline.METHODS

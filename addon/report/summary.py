@@ -22,7 +22,6 @@ from .config import (
     FIT_VIEW_SSIM,
     HELD_OUT_SPREAD,
     HOT_SHARE,
-    RELAYOUT,
     SSIM_MARGIN,
     WITH_RT,
     Row,
@@ -567,7 +566,7 @@ def _noise_lines(mine: Sequence[Row], noise: dict[str, float], budgets: Sequence
     for r in mine:
         if not math.isfinite(r.ssim_noise_free) or (r.n_vpls and r.n_vpls != n):
             continue
-        if r.method in (CAPTURE_CURVE, RELAYOUT):
+        if r.method == CAPTURE_CURVE:
             continue
         label = f"{r.renderer}: {r.method}"
         if r.renderer == "cycles":
