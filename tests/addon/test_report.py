@@ -243,6 +243,25 @@ def test_targets_are_checked_against_the_noise_free_truth_as_well():
     assert not any("noise-free" in c["check"] for c in bare)
 
 
+def test_break_even_compares_against_the_noise_free_truth_where_it_can():
+    # Against the noisy truth 4 spp seems to reach EEVEE's SSIM; against the noise-free truth
+    # it takes 16 spp, a dearer frame.
+    def cycles(spp, ssim, free, seconds):
+        return _row("A", "cycles+oidn", None, ssim, renderer="cycles", samples=spp,
+                    ssim_noise_free=free, frame_seconds=seconds)  # fmt: skip
+
+    eevee = _row("A", "vplace+refit", 16, 0.75, renderer="eevee", ssim_noise_free=0.95,
+                 one_time_seconds=10.0, frame_seconds=1.0)  # fmt: skip
+    rows = [eevee, cycles(4, 0.76, 0.93, 2.0), cycles(16, 0.77, 0.96, 3.0)]
+    (found,) = summary.break_even(rows)
+    assert found["noise_free"] and found["cycles_samples"] == 16
+    assert found["eevee_ssim"] == 0.95 and found["frames"] == 5
+    # Without the second truth render: against the truth, as before.
+    bare = [replace(r, ssim_noise_free=math.nan) for r in rows]
+    (found,) = summary.break_even(bare)
+    assert not found["noise_free"] and found["cycles_samples"] == 4 and found["frames"] == 10
+
+
 def test_targets_compare_held_out_views_with_the_fit_mean_and_eevee_with_the_same_lights():
     rows = [
         _row("A", "uniform", 256, 0.80),
