@@ -44,7 +44,7 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from .capture.passes import capture, hide_vpls
+from .capture.passes import Capture, capture, hide_vpls
 from .capture.stage import Captured, render_reference
 from .errors import AddonError, WriteBackError, output_folder, run_operator
 from .job import OTHER_REFERENCE_SEED, Job, Prepared, StageTimer, prepare, reference_render
@@ -341,16 +341,32 @@ def run_animated_job(
         # the evaluator's light of the keyed VPLs
         parts: dict[str, list[np.ndarray]] = {"eevee_direct": [], "direct": [], "vpl": []}
 
-        others: dict[int, np.ndarray] = {}  # the truth's second render, per scored frame
+        others: dict[int, Capture] = {}  # the truth's second render, per scored frame
 
-        def add(frame: int, kind: str, image: np.ndarray, truth: np.ndarray, s: float) -> None:
+        def add(
+            frame: int,
+            kind: str,
+            image: np.ndarray,
+            truth: np.ndarray,
+            s: float,
+            over_direct: np.ndarray | None = None,
+        ) -> None:
+            """Scores one image; ``over_direct``: the light it adds to the truth's direct light
+            (the evaluator's images), for its noise-free RMSE (``vplace.rmse_noise_free``)."""
             images.setdefault(kind, []).append(image)
             seconds.setdefault(kind, []).append(s)
+            again = others.get(frame)
+            twin = None
+            if again is not None and over_direct is not None:
+                twin = again.direct + over_direct
+            scores = vplace.job.score(
+                image, truth, other=None if again is None else again.gi, image_other=twin
+            )
             row: dict[str, float | int | str | bool] = {
                 "frame": frame,
                 "captured": frame in runs,
                 "image": kind,
-                **vplace.job.score(image, truth, other=others.get(frame)),
+                **scores,
                 "seconds": s,
             }
             summary.rows.append(row)
@@ -376,15 +392,17 @@ def run_animated_job(
                         cache_dir=job.cache_dir,
                     )
                 add(f, TRUTH_AGAIN, again.gi, ref.gi, again.render_seconds)
-                others[f] = again.gi  # the images below: also against the noise-free truth
+                others[f] = again  # the images below: also against the noise-free truth
             start = time.perf_counter()
             lights = vplace.temporal.at_frame(tracked, frames, f)
             indirect, _ = vplace.evaluate(run.prepared.scene, ref.view, lights)
-            add(f, KEYED, ref.direct + indirect, ref.gi, time.perf_counter() - start)
+            seconds_keyed = time.perf_counter() - start
+            add(f, KEYED, ref.direct + indirect, ref.gi, seconds_keyed, over_direct=indirect)
             parts["direct"].append(ref.direct)
             parts["vpl"].append(indirect)
-            add(f, STILL, ref.direct + run.computed.indirect, ref.gi, run.computed.stats.seconds)
-            add(f, DIRECT, ref.direct, ref.gi, 0.0)
+            still = run.computed.indirect
+            add(f, STILL, ref.direct + still, ref.gi, run.computed.stats.seconds, over_direct=still)
+            add(f, DIRECT, ref.direct, ref.gi, 0.0, over_direct=np.zeros_like(ref.direct))
             for n in cycles_samples:
                 with timer.stage(f"Cycles + OIDN {n} spp, frame {f}"):
                     img = eevee_render.render(

@@ -318,6 +318,8 @@ class Row:
     #: SSIM against the noise-free truth, estimated from the view's two truth renders
     #: (``vplace.ssim_noise_free``); NaN without the second (``ReportConfig.truth_noise``).
     ssim_noise_free: float = math.nan
+    #: RMSE against the noise-free truth (``vplace.rmse_noise_free``); NaN without the second.
+    rmse_noise_free: float = math.nan
 
     @property
     def one_minus_ssim(self) -> float:
@@ -346,6 +348,7 @@ CSV_FIELDS = (
     "ssim",
     "one_minus_ssim",
     "ssim_noise_free",
+    "rmse_noise_free",
     "brightness",
     "hot_pixels",
     "worst_share",

@@ -96,14 +96,26 @@ class ViewData:
     camera: bpy.types.Object
     truth: capture.Capture
     view: vplace.View
-    #: The truth rendered again with another seed (``ReportConfig.truth_noise``): its global
-    #: illumination, for the noise-free SSIM; None without.
-    other: np.ndarray | None = None
+    #: The truth rendered again with another seed (``ReportConfig.truth_noise``), for the
+    #: scores against the noise-free truth; None without.
+    other: capture.Capture | None = None
 
     def score(self, image: np.ndarray) -> dict[str, float]:
-        """``image`` scored against the view's truth (``vplace.job.score``), with its SSIM
-        against the noise-free truth where the view has the second render."""
-        return pipeline.score(image, self.truth.gi, other=self.other)
+        """``image`` (independent of the truth's renders: EEVEE, Cycles) scored against the
+        view's truth (``vplace.job.score``), and against the noise-free truth where the view has
+        the second render."""
+        other = None if self.other is None else self.other.gi
+        return pipeline.score(image, self.truth.gi, other=other)
+
+    def score_over_direct(self, indirect: np.ndarray) -> dict[str, float]:
+        """The truth's direct light plus ``indirect`` (the evaluator's image) scored as
+        :meth:`score` does; its noise-free RMSE pairs it with the second render's direct light
+        plus ``indirect`` (``vplace.rmse_noise_free``)."""
+        image = self.truth.direct + indirect
+        if self.other is None:
+            return pipeline.score(image, self.truth.gi)
+        twin = self.other.direct + indirect
+        return pipeline.score(image, self.truth.gi, other=self.other.gi, image_other=twin)
 
     def truth_noise(self) -> dict[str, float]:
         """What the truth's own noise does to SSIM: the two renders' SSIM against each other,
@@ -112,7 +124,7 @@ class ViewData:
         truth = np.ascontiguousarray(self.truth.gi, dtype=np.float32)
         if self.other is None or min(truth.shape[:2]) < 11:
             return {}
-        other = np.ascontiguousarray(self.other, dtype=np.float32)
+        other = np.ascontiguousarray(self.other.gi, dtype=np.float32)
         return {
             "truths_ssim": vplace.ssim(other, truth),
             "ceiling": vplace.ssim_ceiling(truth, other),
@@ -227,7 +239,7 @@ def load_scene(
         other = None
         if config.truth_noise:
             with timer.stage(f"second truth {name} (seed {OTHER_TRUTH_SEED}, cached)"):
-                other = truth_of(seed=OTHER_TRUTH_SEED).gi
+                other = truth_of(seed=OTHER_TRUTH_SEED)
         gloss = gloss_mask(prepared.scene, prepared.exported, truth)
         view = view_of(truth, held_out=True, gloss=gloss)
         views.append(ViewData(name, role, cams[name], truth, view, other))
@@ -350,7 +362,7 @@ def evaluator_rows(
                 shadow_rays=stats.shadow_rays,
                 seed=s.seed,
                 details=replace(s.details),
-                **view.score(estimate),
+                **view.score_over_direct(indirect),
             )
             rows.append(row)
             if s.n_vpls == grid_n and s.seed in (config.seeds[0], None):
@@ -379,7 +391,7 @@ def evaluator_rows(
                             shadow_rays=stats.shadow_rays,
                             seed=seed,
                             details=RowDetails(out_of_range=outside),
-                            **view.score(estimate),
+                            **view.score_over_direct(indirect),
                         )
                     )
                     if n == grid_n and seed == config.seeds[0]:
@@ -435,7 +447,7 @@ def capture_curve_rows(
                         shadow_rays=stats.shadow_rays,
                         seed=seed,
                         details=RowDetails(capture_seconds=capture_seconds),
-                        **view.score(view.truth.direct + indirect),
+                        **view.score_over_direct(indirect),
                     )
                 )
         mine = [r for r in rows if r.samples == spp and r.role == "fit"]
@@ -459,7 +471,7 @@ def reference_rows(view: ViewData, scene_name: str) -> list[Row]:
             None,
             one_time_seconds=0.0,
             frame_seconds=0.0,
-            **view.score(view.truth.direct),
+            **view.score_over_direct(np.zeros_like(view.truth.direct)),
         )
     ]
 

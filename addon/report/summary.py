@@ -51,6 +51,7 @@ def aggregate(rows: Sequence[Row]) -> list[Row]:
         "relative_mse",
         "ssim",
         "ssim_noise_free",
+        "rmse_noise_free",
         "brightness",
         "hot_pixels",
         "worst_share",
@@ -100,8 +101,10 @@ def aggregate(rows: Sequence[Row]) -> list[Row]:
 
 
 def _noise_free(row: Row) -> dict[str, float]:
-    """The row's SSIM against the noise-free truth, where it has one (JSON has no NaN)."""
-    return {"ssim_noise_free": row.ssim_noise_free} if math.isfinite(row.ssim_noise_free) else {}
+    """The row's SSIM and RMSE against the noise-free truth, where it has them (JSON has no
+    NaN)."""
+    scores = {"ssim_noise_free": row.ssim_noise_free, "rmse_noise_free": row.rmse_noise_free}
+    return {k: v for k, v in scores.items() if math.isfinite(v)}
 
 
 def same_lights(evaluator: Row, shown: Row) -> dict[str, float]:
@@ -113,6 +116,7 @@ def same_lights(evaluator: Row, shown: Row) -> dict[str, float]:
     return {
         "ssim": evaluator.ssim,
         "ssim_noise_free": evaluator.ssim_noise_free,
+        "rmse_noise_free": evaluator.rmse_noise_free,
         "rmse": evaluator.rmse,
         "brightness": evaluator.brightness,
         "hot_pixels": evaluator.hot_pixels,
@@ -267,6 +271,16 @@ def targets(rows: list[Row]) -> list[dict[str, Any]]:
                     ratio <= EEVEE_RMSE_RATIO,
                     f"EEVEE {shown.rmse:.4f}, evaluator {lights['rmse']:.4f}{parts['rmse']}",
                 )
+                free_rmse = lights.get("rmse_noise_free", math.nan)
+                if math.isfinite(free_rmse) and math.isfinite(shown.rmse_noise_free):
+                    ratio = shown.rmse_noise_free / max(free_rmse, 1e-12)
+                    check(
+                        f"{scene} {v} ({role}): EEVEE's RMSE at most {EEVEE_RMSE_RATIO}x the "
+                        f"evaluator's (the same lights) {NOISE_FREE}",
+                        ratio,
+                        ratio <= EEVEE_RMSE_RATIO,
+                        f"EEVEE {shown.rmse_noise_free:.4f}, evaluator {free_rmse:.4f}",
+                    )
                 check(
                     f"{scene} {v} ({role}): EEVEE's hot-spot pixels at most {HOT_SHARE:.1%}",
                     shown.hot_pixels,
@@ -582,17 +596,28 @@ def _noise_lines(mine: Sequence[Row], noise: dict[str, float], budgets: Sequence
         label = f"{r.renderer}: {r.method}"
         if r.renderer == "cycles":
             label += f", {r.samples} spp"
-        body.append([label, f"{r.ssim:.3f}", f"{r.ssim_noise_free:.3f}"])
+        body.append(
+            [
+                label,
+                f"{r.ssim:.3f}",
+                f"{r.ssim_noise_free:.3f}",
+                f"{r.rmse:.4f}",
+                f"{r.rmse_noise_free:.4f}",
+            ]
+        )
     return [
         "",
         f"The truth's own noise: a second render of it (another seed) scores SSIM "
         f"{noise['truths_ssim']:.3f} against it, and the noise-free image would score "
         f"{noise['ceiling']:.3f} (`vplace.ssim_ceiling`): no image scores higher against this "
         "truth. Against the noise-free truth, estimated from the two renders "
-        "(`vplace.ssim_noise_free`; within about .01 of SSIM against an 8192 spp render where "
-        "measured):",
+        "(`vplace.ssim_noise_free`, within about .01 of SSIM against an 8192 spp render where "
+        "measured; `vplace.rmse_noise_free`, the root of the mean of the two renders' cross "
+        "products of the error):",
         "",
-        *vplace.markdown.table(["image", "SSIM", "SSIM, noise-free truth"], body),
+        *vplace.markdown.table(
+            ["image", "SSIM", "SSIM, noise-free truth", "RMSE", "RMSE, noise-free truth"], body
+        ),
     ]
 
 

@@ -172,6 +172,7 @@ def test_tiny_report_writes_csv_json_plots_and_markdown(tiny_report):
     # Every view's truth was rendered twice: each image is also scored against the noise-free
     # truth, and each view states the ceiling its truth's noise puts on SSIM.
     assert all(np.isfinite(float(r["ssim_noise_free"])) for r in table)
+    assert all(float(r["rmse_noise_free"]) >= 0.0 for r in table)
     (scene,) = result["scenes"].values()
     for view, info in scene["views"].items():
         noise = info["truth_noise"]

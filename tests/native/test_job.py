@@ -147,6 +147,9 @@ def test_score_of_the_truth_is_perfect_and_ssim_needs_11_pixels():
     # A second render of the truth adds the SSIM against the noise-free truth; none without.
     assert "ssim_noise_free" not in s
     assert vjob.score(img, img, other=img)["ssim_noise_free"] == pytest.approx(1)
+    assert vjob.score(img, img, other=img)["rmse_noise_free"] == 0.0
+    twin = vjob.score(img + 0.1, img, other=img, image_other=img + 0.2)["rmse_noise_free"]
+    assert twin == pytest.approx((0.1 * 0.2) ** 0.5, rel=1e-5)
     assert np.isnan(
         vjob.score(img[:10, :10], img[:10, :10], other=img[:10, :10])["ssim_noise_free"]
     )

@@ -327,6 +327,19 @@ def test_noise_free_ssim_scores_against_the_truth_without_its_noise():
     assert vplace.ssim_ceiling(a, a) == pytest.approx(1.0, abs=1e-12)
 
 
+def test_noise_free_rmse_scores_against_the_truth_without_its_noise():
+    clean, a, b = _noisy_truths(0.12)
+    img = (clean * 1.08).astype(np.float32)  # independent of both renders
+    exact = vplace.rmse(img, clean)
+    assert vplace.rmse(img, a) > 1.5 * exact
+    assert vplace.rmse_noise_free(img, a, img, b) == pytest.approx(exact, rel=0.1)
+    # An image built on a render's passes: the same image built on the other render's passes.
+    # Here the truth's own render scores about 0 against the noise-free truth, never NaN.
+    assert vplace.rmse_noise_free(a, a, b, b) == 0.0
+    with pytest.raises(vplace.InputError, match="image_other"):
+        vplace.rmse_noise_free(img, a, img[:-1], b)
+
+
 def test_noise_free_ssim_input_errors():
     _, a, b = _noisy_truths(0.05)
     with pytest.raises(vplace.InputError, match="other"):

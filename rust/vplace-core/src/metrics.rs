@@ -41,6 +41,31 @@ pub fn rmse(image: &[f32], reference: &[f32]) -> Result<f64> {
     Ok((sum / image.len() as f64).sqrt())
 }
 
+/// RMSE against the noise-free image of which `truth` and `other` are two independent renders
+/// (two seeds), without that image: the square root of `mean((image - truth) (image_other -
+/// other))`, clamped at 0. The truths' noises are independent of each other, so their cross
+/// term averages out and the mean is the squared error against the noise-free image.
+/// `image_other` is `image` where the image is independent of both renders (EEVEE, Cycles
+/// with its own seed); where it is built on a render's passes (the evaluator's image holds the
+/// truth's direct light), `image_other` is the same image built on `other`'s passes.
+pub fn rmse_noise_free(
+    image: &[f32],
+    truth: &[f32],
+    image_other: &[f32],
+    other: &[f32],
+) -> Result<f64> {
+    check_named("image", image, "truth", truth)?;
+    check_named("image_other", image_other, "truth", truth)?;
+    check_named("other", other, "truth", truth)?;
+    let sum: f64 = image
+        .iter()
+        .zip(truth)
+        .zip(image_other.iter().zip(other))
+        .map(|((&x, &a), (&y, &b))| (f64::from(x) - f64::from(a)) * (f64::from(y) - f64::from(b)))
+        .sum();
+    Ok((sum / image.len() as f64).max(0.0).sqrt())
+}
+
 /// Relative MSE: `mean((a - b)^2 / (b^2 + epsilon))` with [`RELATIVE_MSE_EPSILON`].
 pub fn relative_mse(image: &[f32], reference: &[f32]) -> Result<f64> {
     check_pair(image, reference)?;
@@ -409,6 +434,26 @@ mod tests {
         assert!(rmse(&[1.0], &[1.0, 2.0]).is_err());
         assert!(rmse(&[], &[]).is_err());
         assert!(rmse(&[f32::NAN], &[1.0]).is_err());
+    }
+
+    #[test]
+    fn noise_free_rmse_takes_the_truths_noise_out() {
+        let (w, h) = (64, 48);
+        let (clean, a, b) = noisy_pair(w, h, 0.05);
+        let f = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
+        let (clean, a, b) = (f(&clean), f(&a), f(&b));
+        let x: Vec<f32> = clean.iter().map(|v| v * 1.1).collect();
+        let exact = rmse(&x, &clean).unwrap();
+        let plain = rmse(&x, &a).unwrap();
+        let free = rmse_noise_free(&x, &a, &x, &b).unwrap();
+        assert!(plain > 1.2 * exact, "{plain} {exact}");
+        assert!((free - exact).abs() < 0.1 * exact, "{free} {exact}");
+        // The truth itself scores about 0 against the noise-free image; never NaN.
+        assert!(rmse_noise_free(&a, &a, &b, &b).unwrap() < 0.2 * exact);
+        assert!(rmse_noise_free(&x, &a, &x, &b[1..]).is_err());
+        let mut nan = b.clone();
+        nan[3] = f32::NAN;
+        assert!(rmse_noise_free(&x, &a, &x, &nan).is_err());
     }
 
     #[test]

@@ -603,6 +603,29 @@ fn rmse(py: Python<'_>, image: &Bound<'_, PyAny>, reference: &Bound<'_, PyAny>) 
     run(py, move || metrics::rmse(&a, &b))
 }
 
+/// RMSE against the noise-free truth of which `truth` and `other` are two independent renders:
+/// the root of `mean((image - truth) (image_other - other))`, clamped at 0 (all float32
+/// (H, W, 3) of one shape). `image_other`: `image` where it is independent of both renders,
+/// else the same image built on `other`'s passes.
+#[pyfunction]
+fn rmse_noise_free(
+    py: Python<'_>,
+    image: &Bound<'_, PyAny>,
+    truth: &Bound<'_, PyAny>,
+    image_other: &Bound<'_, PyAny>,
+    other: &Bound<'_, PyAny>,
+) -> PyResult<f64> {
+    let (t, h, w) = rgb(truth, "truth")?;
+    let (i, io, o) = (
+        like(image, "image", h, w)?,
+        like(image_other, "image_other", h, w)?,
+        like(other, "other", h, w)?,
+    );
+    let (i, t) = (slice(&i, "image")?, slice(&t, "truth")?);
+    let (io, o) = (slice(&io, "image_other")?, slice(&o, "other")?);
+    run(py, move || metrics::rmse_noise_free(i, t, io, o))
+}
+
 /// Relative MSE `mean((a - b)^2 / (b^2 + 0.01))` of `image` against `reference`, (H, W, 3).
 #[pyfunction]
 fn relative_mse(
@@ -693,6 +716,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(ssim, m)?)?;
     m.add_function(wrap_pyfunction!(ssim_noise_free, m)?)?;
     m.add_function(wrap_pyfunction!(ssim_ceiling, m)?)?;
+    m.add_function(wrap_pyfunction!(rmse_noise_free, m)?)?;
     m.add("LUMINANCE", LUMINANCE.to_array())?;
     m.add(
         "NEAR_FIELD_FRACTION",

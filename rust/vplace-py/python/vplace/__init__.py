@@ -35,8 +35,8 @@ The pieces, in pipeline order:
   A :class:`VplSet` carries its ``profile`` (``"cosine"``: AREA disk lights, ``"omni"``: POINT
   lights) and near-field ``radius``: exactly the lights the add-on writes.
 - :func:`rmse`, :func:`relative_mse`, :func:`ssim`: the metrics of DESIGN.md;
-  :func:`ssim_noise_free` and :func:`ssim_ceiling`: SSIM seen through the truth's own noise, from
-  two renders of the truth with different seeds.
+  :func:`ssim_noise_free`, :func:`ssim_ceiling` and :func:`rmse_noise_free`: SSIM and RMSE seen
+  through the truth's own noise, from two renders of the truth with different seeds.
 
 Long calls release the GIL, report progress and cancel through a :class:`Progress`; a Rust
 panic surfaces as :class:`InternalError`, never as a crash.
@@ -82,6 +82,7 @@ from vplace._native import (
     refit,
     relative_mse,
     rmse,
+    rmse_noise_free,
     rsm_vpls,
     ssim,
     ssim_ceiling,
@@ -129,6 +130,7 @@ __all__ = [
     "refit",
     "relative_mse",
     "rmse",
+    "rmse_noise_free",
     "rsm_vpls",
     "ssim",
     "ssim_ceiling",

@@ -410,13 +410,19 @@ def attribute(
 
 
 def score(
-    image: np.ndarray, truth: np.ndarray, *, other: np.ndarray | None = None
+    image: np.ndarray,
+    truth: np.ndarray,
+    *,
+    other: np.ndarray | None = None,
+    image_other: np.ndarray | None = None,
 ) -> dict[str, float]:
     """RMSE, relative MSE (linear HDR), SSIM (display luminance) of ``image`` against ``truth``,
     its brightness (mean luminance over the truth's) and its :func:`outliers`; SSIM is NaN
     below 11 x 11 pixels. ``other``, a second render of the truth with another seed, adds
-    ``ssim_noise_free``: the SSIM against the noise-free truth (:func:`vplace.ssim_noise_free`;
-    NaN below 11 x 11 pixels)."""
+    ``ssim_noise_free`` and ``rmse_noise_free``: SSIM and RMSE against the noise-free truth
+    (:func:`vplace.ssim_noise_free`, NaN below 11 x 11 pixels; :func:`vplace.rmse_noise_free`,
+    with ``image_other``: the same image built on ``other``'s passes where ``image`` is built on
+    ``truth``'s, else ``image`` itself)."""
     image = np.ascontiguousarray(image, dtype=np.float32)
     truth = np.ascontiguousarray(truth, dtype=np.float32)
     sized = min(truth.shape[:2]) >= 11
@@ -435,6 +441,8 @@ def score(
         out["ssim_noise_free"] = (
             vplace.ssim_noise_free(image, truth, other) if sized else float("nan")
         )
+        twin = image if image_other is None else np.ascontiguousarray(image_other, np.float32)
+        out["rmse_noise_free"] = vplace.rmse_noise_free(image, truth, twin, other)
     return out
 
 
