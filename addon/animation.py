@@ -349,19 +349,14 @@ def run_animated_job(
             image: np.ndarray,
             truth: np.ndarray,
             s: float,
-            over_direct: np.ndarray | None = None,
+            scores: dict[str, float] | None = None,
         ) -> None:
-            """Scores one image; ``over_direct``: the light it adds to the truth's direct light
-            (the evaluator's images), for its noise-free RMSE (``vplace.rmse_noise_free``)."""
+            """Scores one image (``scores``: already scored, as the evaluator's images are)."""
             images.setdefault(kind, []).append(image)
             seconds.setdefault(kind, []).append(s)
-            again = others.get(frame)
-            twin = None
-            if again is not None and over_direct is not None:
-                twin = again.direct + over_direct
-            scores = vplace.job.score(
-                image, truth, other=None if again is None else again.gi, image_other=twin
-            )
+            if scores is None:
+                again = others.get(frame)
+                scores = vplace.job.score(image, truth, other=None if again is None else again.gi)
             row: dict[str, float | int | str | bool] = {
                 "frame": frame,
                 "captured": frame in runs,
@@ -370,6 +365,15 @@ def run_animated_job(
                 "seconds": s,
             }
             summary.rows.append(row)
+
+        def add_over_direct(frame: int, kind: str, ref: vplace.job.Reference,
+                            indirect: np.ndarray, s: float) -> None:  # fmt: skip
+            """Scores the evaluator's image of ``indirect`` over the truth's direct light
+            (``vplace.job.score_over_direct``: its noise-free RMSE with its twin)."""
+            again = others.get(frame)
+            other = None if again is None else (again.direct, again.gi)
+            scores = vplace.job.score_over_direct(indirect, ref.direct, ref.gi, other=other)
+            add(frame, kind, ref.direct + indirect, ref.gi, s, scores)
 
         scored_runs: dict[int, _Frame] = {}
         for f in scored:
@@ -396,13 +400,11 @@ def run_animated_job(
             start = time.perf_counter()
             lights = vplace.temporal.at_frame(tracked, frames, f)
             indirect, _ = vplace.evaluate(run.prepared.scene, ref.view, lights)
-            seconds_keyed = time.perf_counter() - start
-            add(f, KEYED, ref.direct + indirect, ref.gi, seconds_keyed, over_direct=indirect)
+            add_over_direct(f, KEYED, ref, indirect, time.perf_counter() - start)
             parts["direct"].append(ref.direct)
             parts["vpl"].append(indirect)
-            still = run.computed.indirect
-            add(f, STILL, ref.direct + still, ref.gi, run.computed.stats.seconds, over_direct=still)
-            add(f, DIRECT, ref.direct, ref.gi, 0.0, over_direct=np.zeros_like(ref.direct))
+            add_over_direct(f, STILL, ref, run.computed.indirect, run.computed.stats.seconds)
+            add_over_direct(f, DIRECT, ref, np.zeros_like(ref.direct), 0.0)
             for n in cycles_samples:
                 with timer.stage(f"Cycles + OIDN {n} spp, frame {f}"):
                     img = eevee_render.render(

@@ -111,11 +111,8 @@ class ViewData:
         """The truth's direct light plus ``indirect`` (the evaluator's image) scored as
         :meth:`score` does; its noise-free RMSE pairs it with the second render's direct light
         plus ``indirect`` (``vplace.rmse_noise_free``)."""
-        image = self.truth.direct + indirect
-        if self.other is None:
-            return pipeline.score(image, self.truth.gi)
-        twin = self.other.direct + indirect
-        return pipeline.score(image, self.truth.gi, other=self.other.gi, image_other=twin)
+        other = None if self.other is None else (self.other.direct, self.other.gi)
+        return vplace.job.score_over_direct(indirect, self.truth.direct, self.truth.gi, other=other)
 
     def truth_noise(self) -> dict[str, float]:
         """What the truth's own noise does to SSIM: the two renders' SSIM against each other,

@@ -582,14 +582,8 @@ fn pair<'py>(
     image: &Bound<'py, PyAny>,
     reference: &Bound<'py, PyAny>,
 ) -> PyResult<(Vec<f32>, Vec<f32>)> {
-    let r = array::<f32>(
-        reference,
-        "reference",
-        &[Dim::Any, Dim::Any, Dim::Is(3)],
-        "float32",
-    )?;
-    let dims: Vec<Dim> = r.shape().iter().map(|&s| Dim::Is(s)).collect();
-    let i = array::<f32>(image, "image", &dims, "float32")?;
+    let (r, h, w) = rgb(reference, "reference")?;
+    let i = like(image, "image", h, w)?;
     Ok((
         slice(&i, "image")?.to_vec(),
         slice(&r, "reference")?.to_vec(),

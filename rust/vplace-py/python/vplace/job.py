@@ -446,6 +446,23 @@ def score(
     return out
 
 
+def score_over_direct(
+    indirect: np.ndarray,
+    direct: np.ndarray,
+    truth: np.ndarray,
+    *,
+    other: tuple[np.ndarray, np.ndarray] | None = None,
+) -> dict[str, float]:
+    """The evaluator's image, the truth's ``direct`` light plus ``indirect``, scored against
+    ``truth`` (:func:`score`). ``other``: the second render's (direct, global illumination); its
+    noise-free RMSE then pairs the image with its twin on that render, ``other`` direct plus
+    ``indirect``, since the image shares the first render's noise."""
+    image = direct + indirect
+    if other is None:
+        return score(image, truth)
+    return score(image, truth, other=other[1], image_other=other[0] + indirect)
+
+
 @dataclass
 class Reference:
     """What a run is scored against: a Cycles render of a view, as arrays (its G-buffer is the
