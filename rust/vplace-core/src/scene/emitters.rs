@@ -456,6 +456,8 @@ struct EmissiveTriangle {
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct EmissiveMesh {
     triangles: Vec<EmissiveTriangle>,
+    /// Per triangle of the scene: whether it is one of `triangles`.
+    emits: Vec<bool>,
     cdf: Vec<f32>,
     /// The probability of each triangle.
     prob: Vec<f32>,
@@ -485,7 +487,8 @@ impl EmissiveMesh {
         }
         let mut out = Vec::new();
         let mut weights = Vec::new();
-        for (idx, &m) in triangles.iter().zip(material_ids) {
+        let mut emits = vec![false; triangles.len()];
+        for ((idx, &m), flag) in triangles.iter().zip(material_ids).zip(&mut emits) {
             let radiance = materials[m as usize].emission;
             if luminance(radiance) <= 0.0 {
                 continue;
@@ -497,6 +500,7 @@ impl EmissiveMesh {
             if area.is_nan() || area <= 0.0 {
                 continue;
             }
+            *flag = true;
             weights.push(f64::from(luminance(radiance)) * f64::from(area));
             out.push(EmissiveTriangle {
                 a,
@@ -513,10 +517,17 @@ impl EmissiveMesh {
         let radiance_area = out.iter().map(|t| t.radiance * t.area).sum();
         Ok(Self {
             triangles: out,
+            emits,
             cdf,
             prob,
             radiance_area,
         })
+    }
+
+    /// Whether triangle `t` of the scene emits (false for an index past the scene's).
+    #[must_use]
+    pub fn emits(&self, t: u32) -> bool {
+        self.emits.get(t as usize).copied().unwrap_or(false)
     }
 
     /// Number of emissive triangles.
@@ -642,6 +653,9 @@ pub struct EmissionRay {
     pub direction: Vec3,
     /// Flux of the ray over the emitter's power, per channel.
     pub weight: Vec3,
+    /// True when it leaves an emissive triangle's back side (against its winding's normal):
+    /// the inside of a closed emitter whose normals face out, as Blender's do.
+    pub back: bool,
 }
 
 /// Draws an emission ray of `emitter` from the uniform numbers `next` returns (see the module
@@ -674,12 +688,14 @@ pub fn sample_emission(
                     origin: light.position + s * *radius,
                     direction: cosine_direction(s, u1, u2),
                     weight: one,
+                    back: false,
                 }
             } else {
                 EmissionRay {
                     origin: light.position,
                     direction: uniform_sphere(u1, u2),
                     weight: one,
+                    back: false,
                 }
             }
         }
@@ -702,6 +718,7 @@ pub fn sample_emission(
                 origin: on_sphere(*radius, next),
                 direction: d,
                 weight: Vec3::splat(w),
+                back: false,
             }
         }
         LightKind::Area {
@@ -724,6 +741,7 @@ pub fn sample_emission(
                 origin: light.position + offset,
                 direction: d,
                 weight: Vec3::splat(w),
+                back: false,
             }
         }
         LightKind::Sun { angle } => {
@@ -739,6 +757,7 @@ pub fn sample_emission(
                 origin: outside_disk(scene, d, u1, u2),
                 direction: d,
                 weight: one,
+                back: false,
             }
         }
         LightKind::World { map } => world_ray(map.as_deref(), scene, u1, u2, next),
@@ -755,7 +774,8 @@ fn mesh_ray(
     next: &mut impl FnMut() -> f32,
 ) -> EmissionRay {
     let (p, n, radiance, pdf_area) = mesh.sample(u1, u2);
-    let side = if next() < 0.5 { n } else { -n };
+    let back = next() >= 0.5;
+    let side = if back { -n } else { n };
     let d = cosine_direction(side, next(), next());
     // Flux of the ray `L A / p` per side over the half power `pi sum L A` of a side.
     let weight = Vec3::select(
@@ -767,6 +787,7 @@ fn mesh_ray(
         origin: p + side * scene.ray_epsilon(),
         direction: d,
         weight,
+        back,
     }
 }
 
@@ -796,6 +817,7 @@ fn world_ray(
         origin: outside_disk(scene, -w, v1, v2),
         direction: -w,
         weight,
+        back: false,
     }
 }
 
