@@ -243,6 +243,10 @@ def _report_options(sub: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     rep.add_argument("--eevee-samples", type=int, default=None, help="EEVEE's render samples")
     rep.add_argument("--feature-mode", choices=FEATURE_MODES, default="auto")
+    rep.add_argument(
+        "--radius", type=float, default=None,
+        help="near-field radius of the VPLs, m (default: 1%% of the scene's diagonal)",
+    )  # fmt: skip
     rep.add_argument("--no-par2d", action="store_true", help="skip the PAR 2D plot")
     rep.add_argument(
         "--animate", type=int, nargs=3, default=None, metavar=("START", "END", "STEP"),
@@ -329,6 +333,7 @@ def run(args: argparse.Namespace) -> None:
             region_radius=args.region_radius,
             generated_views=args.generated_views,
             truth_noise=not args.single_truth,
+            radius=args.radius,
         )
         if args.eevee_samples is not None:
             config.eevee_samples = args.eevee_samples

@@ -166,6 +166,8 @@ class ReportConfig:
     #: that each row also has its SSIM against the noise-free truth, and each view the ceiling
     #: the truth's own noise puts on SSIM (``vplace.ssim_noise_free``, ``vplace.ssim_ceiling``).
     truth_noise: bool = True
+    #: The VPLs' near-field radius, metres (``Job.radius``); None: 1 % of the scene's diagonal.
+    radius: float | None = None
 
     def generated_for(self, preset: ScenePreset) -> int:
         """How many held-out views the report makes for ``preset``."""
@@ -203,6 +205,10 @@ class ReportConfig:
         unknown = [m for m in self.methods if m not in METHODS]
         if unknown:
             raise ReportError(f"unknown methods {unknown}: choose from {list(METHODS)}")
+        try:
+            pipeline.Job(radius=self.radius).validate()  # the job's own check of the radius
+        except AddonError as exc:
+            raise ReportError(str(exc)) from None
         if not self.budgets or min(self.budgets) < 1:
             raise ReportError(f"budgets must be positive VPL counts, got {list(self.budgets)}")
         if max(self.budgets) > apply.MAX_VPLS:

@@ -201,6 +201,7 @@ def load_scene(
         feature_mode=config.feature_mode,
         cache_dir=cache_dir,
         views=ViewSet(coverage=config.coverage, region_radius=config.region_radius),
+        radius=config.radius,
     )
     cams = {}
     for name in (*preset.fit_views, *preset.held_out_views):

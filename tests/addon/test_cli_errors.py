@@ -165,6 +165,7 @@ CASES = [
     Case(["report", "--capture-samples", "0"], "capture samples must be at least 1, got 0"),
     Case(["report", "--truth-samples", "0"], "truth samples must be at least 1, got 0"),
     Case(["report", "--eevee-samples", "0"], "EEVEE samples must be at least 1, got 0"),
+    Case(["report", "--radius", "-1"], "the near-field radius must be 0 or more metres, got -1"),
     Case(["report", "--cycles-samples", "0"], "Cycles sample counts must be at least 1"),
     Case(["report", "--capture-curve", "0"], "Cycles sample counts must be at least 1"),
     Case(["report", "--resolution", "0", "0"], "the resolution must be at least 8 x 8"),

@@ -178,6 +178,13 @@ def test_tiny_report_writes_csv_json_plots_and_markdown(tiny_report):
         noise = info["truth_noise"]
         assert 0.0 < noise["truths_ssim"] < noise["ceiling"] <= 1.0, view
     assert md.count("The truth's own noise") == 3 and "SSIM, noise-free truth" in md
+    # A view whose two renders agree below NOISY_TRUTH says that the estimate reads low there.
+    noisy = [
+        v
+        for v, i in scene["views"].items()
+        if i["truth_noise"]["truths_ssim"] < summary.NOISY_TRUTH
+    ]
+    assert md.count("here the noise-free estimate itself reads low") == len(noisy)
     assert any("(noise-free truth)" in c["check"] for c in result["targets"])
 
 
@@ -242,6 +249,17 @@ def test_targets_are_checked_against_the_noise_free_truth_as_well():
     # Rows without a second truth render get no such check.
     bare = summary.targets([replace(r, ssim_noise_free=math.nan) for r in rows])
     assert not any("noise-free" in c["check"] for c in bare)
+
+
+def test_a_view_with_a_noisy_truth_says_its_noise_free_estimate_reads_low():
+    # The noise-free estimate reads low where the two truth renders agree below NOISY_TRUTH
+    # (ARCHITECTURE); the view's section says so there, and only there.
+    rows = [_row("A", "vplace+refit", 256, 0.78, ssim_noise_free=0.95)]
+    caution = "here the noise-free estimate itself reads low"
+    for agree, said in ((0.46, True), (summary.NOISY_TRUTH - 0.01, True), (0.9, False)):
+        lines = summary._noise_lines(rows, {"truths_ssim": agree, "ceiling": 0.95}, [256])
+        assert (caution in " ".join(lines)) is said, agree
+    assert summary._noise_lines(rows, {}, [256]) == []
 
 
 def test_break_even_compares_against_the_noise_free_truth_where_it_can():

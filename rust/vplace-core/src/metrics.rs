@@ -306,11 +306,18 @@ pub fn ssim_gray(
 /// statistics of the noise-free image come from products *across* the two renders, whose noise
 /// averages out. Its mean is `sqrt(mean(a) mean(b))`, its covariance with `x` that of `x` with
 /// `(a + b) / 2`, and its variance `cov(a, b)` (clamped at 0). With `a == b` it is [`ssim_gray`]
-/// of `x` against `a`. It holds while the noise is moderate: where the two renders scored .46
-/// to .67 against each other (a sky-lit room at 512 spp), it came within .007 of the SSIM
-/// against an 8192 spp render (ARCHITECTURE, "SSIM against the noise-free truth"); at .3 it
-/// overshoots by .04-.06, since each window's variance is then estimated from noise. Noise
-/// that `x` shares with one render (an image built on its passes) counts half as signal.
+/// of `x` against `a`. Noise that `x` shares with one render (an image built on its passes)
+/// counts half as signal.
+///
+/// It reads low where the renders are noisy on flat surfaces: there the noise-free image's
+/// variance is about 0, SSIM's contrast-structure term divides by it plus `C2`, and the
+/// clamped estimate of it is noise, at least 0, so every image loses alike. Measured with a
+/// known clean image and a real truth's noise (`docs/noise_free/simulate.py`, a sky-lit room at
+/// 192x108): a noise-free image reads .997-.998 where the two renders agree at SSIM .84-.86
+/// (the noise of 2048 spp), .977-.980 at .62-.64 and .943 on a view lit by bounce light alone
+/// at .47 (512 spp), and .84-.91 at .30-.40; an image with an error reads low by about as much.
+/// Less noisy renders are the remedy (a clamp-free or thresholded variance trades the error for
+/// a larger one of either sign).
 pub fn ssim_gray_noise_free(
     x: &[f64],
     a: &[f64],
