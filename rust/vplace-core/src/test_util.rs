@@ -23,6 +23,74 @@ pub fn closed_box(lights: Vec<Light>) -> Scene {
     box_with(lights, &[])
 }
 
+/// [`closed_box`]'s geometry (albedo 0.5) around a closed emissive cube (albedo 0.8, radiance
+/// 2) whose normals face out, as Blender's do: the scene, the cube's centre and half size.
+#[must_use]
+pub fn emissive_cube_in_box() -> (Scene, Vec3, f32) {
+    let (mut v, mut t) = box_geometry(&[]);
+    let (c, h) = (Vec3::new(0.1, -0.2, 1.0), 0.15);
+    let p = |x: f32, y: f32, z: f32| c + Vec3::new(x, y, z) * h;
+    let faces = [
+        [
+            p(-1., -1., 1.),
+            p(1., -1., 1.),
+            p(1., 1., 1.),
+            p(-1., 1., 1.),
+        ],
+        [
+            p(-1., -1., -1.),
+            p(-1., 1., -1.),
+            p(1., 1., -1.),
+            p(1., -1., -1.),
+        ],
+        [
+            p(1., -1., -1.),
+            p(1., 1., -1.),
+            p(1., 1., 1.),
+            p(1., -1., 1.),
+        ],
+        [
+            p(-1., -1., -1.),
+            p(-1., -1., 1.),
+            p(-1., 1., 1.),
+            p(-1., 1., -1.),
+        ],
+        [
+            p(-1., 1., -1.),
+            p(-1., 1., 1.),
+            p(1., 1., 1.),
+            p(1., 1., -1.),
+        ],
+        [
+            p(-1., -1., -1.),
+            p(1., -1., -1.),
+            p(1., -1., 1.),
+            p(-1., -1., 1.),
+        ],
+    ];
+    let mut ids = vec![0; t.len()];
+    for [a, b, q, d] in faces {
+        let base = v.len() as u32;
+        assert!(
+            (b - a).cross(q - a).dot(a - c) > 0.0,
+            "the cube's normals face out"
+        );
+        v.extend([a, b, q, d]);
+        t.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
+        ids.extend([1, 1]);
+    }
+    let lamp = Material::diffuse(Vec3::splat(0.8)).with_emission(Vec3::splat(2.0));
+    let scene = Scene::new(SceneInput {
+        vertices: &v,
+        triangles: &t,
+        material_ids: &ids,
+        materials: &[Material::diffuse(Vec3::splat(0.5)), lamp],
+        ..Default::default()
+    })
+    .expect("the emissive cube in the box is a valid scene");
+    (scene, c, h)
+}
+
 /// A horizontal quad over the middle of the floor of [`closed_box`], 0.5 above it.
 pub const BLOCKER: [Vec3; 4] = [
     Vec3::new(-0.4, -0.3, 0.5),

@@ -17,7 +17,9 @@ use std::f32::consts::PI;
 
 use crate::error::Result;
 use crate::layout::largest_remainder;
-use crate::scene::emitters::{area_direction, basis, sample_emission, spot_attenuation, Emitter};
+use crate::scene::emitters::{
+    area_direction, basis, sample_emission, spot_attenuation, EmissionRay, Emitter,
+};
 use crate::scene::{LightKind, Scene};
 use crate::vpl::{light_powers, Vpl};
 
@@ -33,15 +35,9 @@ const STEPS: [f64; 4] = [
     0.645_751_311_064_591,
 ];
 
-/// The ray of lattice point `i` of `m` (coordinates `(u, v)`) of `emitter`'s view:
-/// `(origin, unit direction, weight)`, the weight the ray's flux over `P / m` (see
-/// [`sample_emission`]).
-fn lattice_ray(
-    emitter: Emitter<'_>,
-    scene: &Scene,
-    (u, v): (f32, f32),
-    i: usize,
-) -> (Vec3, Vec3, Vec3) {
+/// The ray of lattice point `i` of `m` (coordinates `(u, v)`) of `emitter`'s view, its weight
+/// the ray's flux over `P / m` (see [`sample_emission`]).
+fn lattice_ray(emitter: Emitter<'_>, scene: &Scene, (u, v): (f32, f32), i: usize) -> EmissionRay {
     let phi = 2.0 * PI * v;
     let light = match emitter {
         Emitter::Light(l) if !matches!(l.kind, LightKind::World { .. }) => l,
@@ -56,9 +52,14 @@ fn lattice_ray(
                     _ => ((i as f64 + 0.5) * STEPS[(k - 3) % STEPS.len()]).fract() as f32,
                 }
             };
-            let r = sample_emission(emitter, scene, &mut next);
-            return (r.origin, r.direction, r.weight);
+            return sample_emission(emitter, scene, &mut next);
         }
+    };
+    let ray = |origin, direction, weight| EmissionRay {
+        origin,
+        direction,
+        weight,
+        back: false,
     };
     let (t, b) = basis(light.direction);
     let one = Vec3::ONE;
@@ -66,7 +67,7 @@ fn lattice_ray(
         LightKind::Point { .. } => {
             let z = 1.0 - 2.0 * u;
             let r = (1.0 - z * z).max(0.0).sqrt();
-            (
+            ray(
                 light.position,
                 Vec3::new(r * phi.cos(), r * phi.sin(), z),
                 one,
@@ -83,24 +84,24 @@ fn lattice_ray(
             } else {
                 1.0
             };
-            (light.position, d.normalize(), Vec3::splat(w))
+            ray(light.position, d.normalize(), Vec3::splat(w))
         }
         LightKind::Area { spread, .. } if *spread < PI => {
             let (d, w) = area_direction(light.direction, *spread, u, v);
-            (light.position, d, Vec3::splat(w))
+            ray(light.position, d, Vec3::splat(w))
         }
         LightKind::Area { .. } => {
             let r = u.sqrt();
             let d =
                 light.direction * (1.0 - u).max(0.0).sqrt() + (t * phi.cos() + b * phi.sin()) * r;
-            (light.position, d.normalize(), one)
+            ray(light.position, d.normalize(), one)
         }
         LightKind::Sun { .. } => {
             let (centre, radius) = scene.bounding_sphere();
             let r = radius * u.sqrt();
             let origin =
                 centre - light.direction * (2.0 * radius) + (t * phi.cos() + b * phi.sin()) * r;
-            (origin, light.direction, one)
+            ray(origin, light.direction, one)
         }
         LightKind::World { .. } => unreachable!("handled above"),
     }
@@ -122,11 +123,13 @@ pub fn rsm_vpls(scene: &Scene, n: usize) -> Result<Vec<Vpl>> {
         for i in 0..m {
             let u = ((i as f64 + 0.5) / m as f64) as f32;
             let v = ((i as f64 * GOLDEN).fract()) as f32;
-            let (origin, dir, weight) = lattice_ray(emitter, scene, (u, v), i);
-            if weight == Vec3::ZERO {
+            let ray = lattice_ray(emitter, scene, (u, v), i);
+            if ray.weight == Vec3::ZERO {
                 continue;
             }
-            if let Some(h) = scene.closest_hit(origin, dir, eps, f32::INFINITY) {
+            let (origin, dir) = (ray.origin, ray.direction);
+            let hit = scene.closest_hit(origin, dir, eps, f32::INFINITY);
+            if let Some(h) = hit.filter(|h| !ray.trapped(scene, h.triangle)) {
                 let mut normal = scene.normal(h.triangle);
                 if normal.dot(dir) > 0.0 {
                     normal = -normal;
@@ -134,7 +137,7 @@ pub fn rsm_vpls(scene: &Scene, n: usize) -> Result<Vec<Vpl>> {
                 out.push(Vpl {
                     position: origin + dir * h.t + normal * offset,
                     normal,
-                    flux: per_ray * weight * scene.albedo_at(h.triangle, h.barycentrics),
+                    flux: per_ray * ray.weight * scene.albedo_at(h.triangle, h.barycentrics),
                 });
             }
         }
@@ -184,6 +187,28 @@ mod tests {
                 "{total} {expect}"
             );
         }
+    }
+
+    #[test]
+    fn light_trapped_inside_a_closed_emitter_leaves_no_vpl() {
+        // As for the light paths: the half of the cube's power its faces emit inward never
+        // leaves it, so no VPL lies inside, and the rest reaches the box (albedo 0.5).
+        let (s, c, h) = crate::test_util::emissive_cube_in_box();
+        let v = rsm_vpls(&s, 4000).unwrap();
+        for vpl in &v {
+            let d = (vpl.position - c).abs().max_element();
+            assert!(
+                d > h * 0.999,
+                "a VPL inside the emitter: {:?}",
+                vpl.position
+            );
+        }
+        let total: Vec3 = v.iter().map(|v| v.flux).sum();
+        let want = s.emissive().power() * 0.5 * 0.5;
+        assert!(
+            (total - want).abs().max_element() < 0.03 * want.max_element(),
+            "{total} {want}"
+        );
     }
 
     #[test]

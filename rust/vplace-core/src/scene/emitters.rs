@@ -658,6 +658,23 @@ pub struct EmissionRay {
     pub back: bool,
 }
 
+impl EmissionRay {
+    /// Whether this ray, which first meets `triangle`, is light trapped inside a closed
+    /// emitter: it left an emissive triangle's back side and meets an emissive triangle's back
+    /// side. Blender's normals face out of a closed mesh, so that light bounces inside the
+    /// emitter and never leaves it (Cycles emits on both sides alike). As VPLs it would only
+    /// take the budget (a 4 cm emissive strip under a ceiling held 7 of the 12 strongest of 128
+    /// VPLs) and light a surface that meets the emitter's face through that face. Light that
+    /// leaves an open emitter's back side meets something else and goes on. The light paths
+    /// and the RSM leave no VPL for it.
+    #[must_use]
+    pub fn trapped(&self, scene: &Scene, triangle: u32) -> bool {
+        self.back
+            && scene.emissive().emits(triangle)
+            && scene.normal(triangle).dot(self.direction) > 0.0
+    }
+}
+
 /// Draws an emission ray of `emitter` from the uniform numbers `next` returns (see the module
 /// docs). The numbers are taken in a fixed order per kind (two for a direction, then two for a
 /// position where the kind has one), so a point, spot, area light or sun with the parameters of

@@ -8,7 +8,7 @@ use crate::color::luminance;
 use crate::error::{Result, VplaceError};
 use crate::rng::Rng;
 use crate::scene::emitters::{
-    cosine_direction, emitter_power, ggx_reflection, light_power, sample_emission, EmissionRay,
+    cosine_direction, emitter_power, ggx_reflection, light_power, sample_emission,
 };
 use crate::scene::{Light, Scene};
 use crate::vpl::Vpl;
@@ -79,7 +79,8 @@ pub const MAX_BOUNCES: usize = 16;
 /// GGX microfacet normal, kept above the surface, carrying `f * gloss / (q p)`), each picked with
 /// `p` its share of the reflected luminance: an unbiased estimate of the flux reflected at each
 /// bounce. With `bounces = 1` these are the first hits only. Light trapped inside a closed
-/// emitter ([`trapped`]) ends at its first hit: it counts among the paths and leaves no VPL.
+/// emitter ([`crate::scene::emitters::EmissionRay::trapped`]) ends at its first hit: it counts
+/// among the paths and leaves no VPL.
 /// The last path may be cut short when the `n`-th VPL is made (a bias of at most one path's
 /// later bounces). Deterministic for `seed`.
 ///
@@ -128,7 +129,7 @@ pub fn light_path_vpls(scene: &Scene, n: usize, seed: u64, bounces: usize) -> Re
             let Some(h) = scene.closest_hit(origin, dir, eps, f32::INFINITY) else {
                 break;
             };
-            if bounce == 0 && trapped(scene, &ray, h.triangle) {
+            if bounce == 0 && ray.trapped(scene, h.triangle) {
                 break;
             }
             let mut normal = scene.normal(h.triangle);
@@ -177,17 +178,6 @@ pub fn light_path_vpls(scene: &Scene, n: usize, seed: u64, bounces: usize) -> Re
         .collect())
 }
 
-/// Whether `ray`, which first meets `triangle`, is light trapped inside a closed emitter: it
-/// left an emissive triangle's back side and meets an emissive triangle's back side. Blender's
-/// normals face out of a closed mesh, so that light bounces inside the emitter and never leaves
-/// it (Cycles emits on both sides alike). As VPLs it would only take the budget (a 4 cm
-/// emissive strip under a ceiling held 7 of the 12 strongest of 128 VPLs) and light a surface
-/// that meets the emitter's face through that face. Light that leaves an open emitter's back
-/// side meets something else and goes on.
-fn trapped(scene: &Scene, ray: &EmissionRay, triangle: u32) -> bool {
-    ray.back && scene.emissive().emits(triangle) && scene.normal(triangle).dot(ray.direction) > 0.0
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -218,67 +208,7 @@ mod tests {
         // power leaves the outer faces and reaches the box; the half its faces emit inward
         // never leaves it. So every VPL lies outside the cube, and the first bounce carries
         // 0.5 x half the power (with the inward half as VPLs, 0.8 x the other half more).
-        let (mut v, mut t) = crate::test_util::box_geometry(&[]);
-        let (c, h) = (Vec3::new(0.1, -0.2, 1.0), 0.15);
-        let p = |x: f32, y: f32, z: f32| c + Vec3::new(x, y, z) * h;
-        let faces = [
-            [
-                p(-1., -1., 1.),
-                p(1., -1., 1.),
-                p(1., 1., 1.),
-                p(-1., 1., 1.),
-            ],
-            [
-                p(-1., -1., -1.),
-                p(-1., 1., -1.),
-                p(1., 1., -1.),
-                p(1., -1., -1.),
-            ],
-            [
-                p(1., -1., -1.),
-                p(1., 1., -1.),
-                p(1., 1., 1.),
-                p(1., -1., 1.),
-            ],
-            [
-                p(-1., -1., -1.),
-                p(-1., -1., 1.),
-                p(-1., 1., 1.),
-                p(-1., 1., -1.),
-            ],
-            [
-                p(-1., 1., -1.),
-                p(-1., 1., 1.),
-                p(1., 1., 1.),
-                p(1., 1., -1.),
-            ],
-            [
-                p(-1., -1., -1.),
-                p(1., -1., -1.),
-                p(1., -1., 1.),
-                p(-1., -1., 1.),
-            ],
-        ];
-        let mut ids = vec![0; t.len()];
-        for [a, b, q, d] in faces {
-            let base = v.len() as u32;
-            assert!(
-                (b - a).cross(q - a).dot(a - c) > 0.0,
-                "the cube's normals face out"
-            );
-            v.extend([a, b, q, d]);
-            t.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
-            ids.extend([1, 1]);
-        }
-        let lamp = Material::diffuse(Vec3::splat(0.8)).with_emission(Vec3::splat(2.0));
-        let scene = Scene::new(SceneInput {
-            vertices: &v,
-            triangles: &t,
-            material_ids: &ids,
-            materials: &[Material::diffuse(Vec3::splat(0.5)), lamp],
-            ..Default::default()
-        })
-        .unwrap();
+        let (scene, c, h) = crate::test_util::emissive_cube_in_box();
         let vpls = light_path_vpls(&scene, 4000, 5, MAX_BOUNCES).unwrap();
         for vpl in &vpls {
             let d = (vpl.position - c).abs().max_element();
