@@ -79,12 +79,17 @@ def build_scene(exported: ExportedScene) -> vplace.Scene:
     """A ``vplace.Scene`` (with its BVH) from an exported Blender scene: its lights, its world
     when that sends light, its materials' emission; per material its albedo, or its base-colour
     texture (``albedo_offset + texture_tint * rgb``) and alpha cut-out, read through the
-    exported UVs."""
+    exported UVs; light paths stay within the bounces Cycles follows (``light_bounces``; at
+    least the first diffuse one)."""
     lights = [native_light(light) for light in exported.lights]
     if exported.world is not None and exported.world.emits:
         lights.append(native_world(exported.world))
     mats = exported.materials
     textured = any(m.texture is not None or m.alpha is not None for m in mats)
+    bounces = None
+    if exported.light_bounces is not None:
+        diffuse, glossy, total = (min(b, vplace.MAX_BOUNCES) for b in exported.light_bounces)
+        bounces = (max(diffuse, 1), glossy, max(total, 1))
     if not textured:
         return vplace.Scene(
             exported.vertices,
@@ -93,6 +98,7 @@ def build_scene(exported: ExportedScene) -> vplace.Scene:
             exported.albedo,
             lights,
             emission=exported.emission,
+            light_bounces=bounces,
             **_gloss(mats, textured=False),
         )
     albedo = np.array(
@@ -110,6 +116,7 @@ def build_scene(exported: ExportedScene) -> vplace.Scene:
         base_textures=[_texture_map(m.texture) if m.texture is not None else None for m in mats],
         texture_tint=np.array([m.texture_tint for m in mats], dtype=np.float32).reshape(-1, 3),
         alpha_tests=[_alpha_test(m.alpha) for m in mats],
+        light_bounces=bounces,
         **_gloss(mats, textured=True),
     )
 

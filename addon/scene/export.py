@@ -182,6 +182,9 @@ class ExportedScene:
     texture_names: list[str] = field(default_factory=list)
     #: What was left out or approximated, one line each (naming the object or material).
     warnings: list[str] = field(default_factory=list)
+    #: The reflections Cycles follows, ``(diffuse, glossy, total)`` (:func:`light_bounces`);
+    #: None: no limits known.
+    light_bounces: tuple[int, int, int] | None = None
 
     @property
     def albedo(self) -> np.ndarray:
@@ -231,7 +234,7 @@ class ExportedScene:
             h.update(np.ascontiguousarray(tex).tobytes())
         h.update(repr([vars(m) for m in self.materials]).encode())
         h.update(repr([vars(light) for light in self.lights]).encode())
-        h.update(repr(self.world_color).encode())
+        h.update(repr((self.world_color, self.light_bounces)).encode())
         if self.world is not None:
             h.update(self.world.fingerprint())
         return h.hexdigest()
@@ -769,7 +772,30 @@ class _Exporter:
             textures=textures,
             texture_names=names,
             warnings=self.warnings,
+            light_bounces=self.bounces(scene),
         )
+
+    def bounces(self, scene: bpy.types.Scene) -> tuple[int, int, int]:
+        """:func:`light_bounces`, with a warning where Cycles follows no diffuse bounce."""
+        diffuse, glossy, total = light_bounces(scene)
+        if min(diffuse, total) == 0:
+            self.warn(
+                "Cycles follows no diffuse bounce here (Light Paths > Max Bounces > Diffuse or "
+                "Total is 0), so its renders show no bounce light; vplace's lights add the "
+                "first bounce"
+            )
+        return diffuse, glossy, total
+
+
+def light_bounces(scene: bpy.types.Scene) -> tuple[int, int, int]:
+    """The reflections ``scene``'s Cycles renders follow before the surface a path ends on, which
+    a light lights directly: Light Paths > Max Bounces ``(Diffuse, Glossy, Total)`` (Blender's
+    defaults 4, 4, 12). A capture renders with them, so the light vplace adds to a view stops
+    there too: light that only many reflections bring (a room lit through a doorway) is darker
+    in Cycles than every bounce would make it."""
+    c = scene.cycles
+    total = max(0, int(c.max_bounces))
+    return min(int(c.diffuse_bounces), total), min(int(c.glossy_bounces), total), total
 
 
 def export_scene(

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from blender_util import CORNELL_OBJ, cornell, empty_file
 
+from addon.native import vplace
 from addon.scene import export
 from addon.scene.convert import build_scene
 from addon.scenes.registry import parse_mtl, parse_obj
@@ -47,6 +48,35 @@ def test_hidden_objects_and_fingerprint():
     assert export.export_scene(scene).fingerprint() == a.fingerprint()
     bpy.data.lights["light"].energy *= 2
     assert export.export_scene(scene).fingerprint() != a.fingerprint()
+
+
+def test_light_paths_stop_where_cycles_does():
+    # Cycles follows Light Paths > Max Bounces (Diffuse, Glossy, each at most Total); light that
+    # needs more reflections (a room lit through a doorway) is not in its renders, so the light
+    # paths of the native scene stay within them too.
+    scene = cornell()
+    c = scene.cycles
+    saved = c.diffuse_bounces, c.glossy_bounces, c.max_bounces
+    try:
+        c.diffuse_bounces, c.glossy_bounces, c.max_bounces = 4, 4, 12  # Blender's defaults
+        four = export.export_scene(scene)
+        assert four.light_bounces == (4, 4, 12)
+        assert build_scene(four).light_bounces == (4, 4, 12)
+        c.diffuse_bounces, c.glossy_bounces = 2, 0
+        two = export.export_scene(scene)
+        assert build_scene(two).light_bounces == (2, 0, 12)
+        assert two.fingerprint() != four.fingerprint()
+        c.diffuse_bounces, c.glossy_bounces, c.max_bounces = 8, 8, 1
+        assert build_scene(export.export_scene(scene)).light_bounces == (1, 1, 1)
+        c.diffuse_bounces, c.max_bounces = 0, 12
+        none = export.export_scene(scene)
+        assert any("no diffuse bounce" in w for w in none.warnings)
+        assert build_scene(none).light_bounces == (1, 8, 12)  # vplace adds the first bounce
+        c.diffuse_bounces, c.glossy_bounces, c.max_bounces = 1024, 1024, 1024
+        most = vplace.MAX_BOUNCES
+        assert build_scene(export.export_scene(scene)).light_bounces == (most, most, most)
+    finally:
+        c.diffuse_bounces, c.glossy_bounces, c.max_bounces = saved
 
 
 def test_light_power_includes_exposure_and_normalize():

@@ -100,3 +100,48 @@ def test_held_out_poses_stay_in_the_region_and_look_elsewhere(scene):
     # Given a radius, the poses keep to it.
     near = coverage.held_out_poses(scene, eye, forward, 3, seed=3, radius=0.2)
     assert all(np.linalg.norm(p.eye - eye) <= 0.2 * coverage.HELD_OUT_REACH[1] + 1e-6 for p in near)
+
+
+def room_with_window() -> tuple[vplace.Scene, np.ndarray]:
+    """The box of ``box_mesh`` whose -y wall has a window (x in [-0.4, 0.4], z in [0.6, 1.4]),
+    a sun shining in through it; and the (T, 3, 3) corners of its triangles."""
+    v, _ = box_mesh()
+    # The -y wall (the box's last quad) goes; four panes around the hole come.
+    quads = [v[4 * q : 4 * q + 4].tolist() for q in range(5)]
+    y = -1.0
+    panes = [(-1, -0.4, 0, 2), (0.4, 1, 0, 2), (-0.4, 0.4, 0, 0.6), (-0.4, 0.4, 1.4, 2)]
+    for x0, x1, z0, z1 in panes:
+        quads.append([[x0, y, z0], [x0, y, z1], [x1, y, z1], [x1, y, z0]])
+    verts = np.array([p for q in quads for p in q], dtype=np.float32)
+    tris = np.array(
+        [[b, b + 1, b + 2] for b in range(0, len(verts), 4)]
+        + [[b, b + 2, b + 3] for b in range(0, len(verts), 4)],
+        dtype=np.uint32,
+    )
+    ids = np.zeros(len(tris), dtype=np.uint32)
+    albedo = np.array([[0.5, 0.5, 0.5]], dtype=np.float32)
+    sun = vplace.Light.sun([0.0, 0.8, -0.6], [3.0, 3.0, 3.0])
+    return vplace.Scene(verts, tris, ids, albedo, [sun]), verts[tris]
+
+
+def test_no_view_stands_beyond_the_rooms_window():
+    # A camera by the window, looking into the room: the ray it casts out of the window escapes.
+    # A region point along it stood outside the room and saw the wall's sunlit outer face, which
+    # no camera in the room sees, and the layout spent VPLs on it (a flat's sunlit facade took
+    # 49 of 256). Every coverage and held-out view now stands inside.
+    scene, corners = room_with_window()
+    pose = coverage.Pose(np.array([0.0, -0.6, 1.0]), np.array([0, 1.0, 0]), np.array([0, 0, 1.0]))
+    target = vplace.uniform_vpls(scene, 64, bounces=vplace.MAX_BOUNCES)
+    user = coverage.coverage_view(scene, corners, pose, 24, target, name="user camera")
+    assert coverage.enclosed(scene, pose.eye.astype(np.float32))
+    cov = coverage.cover(scene, corners, [user], coverage.Region(count=8, size=16))
+    assert cov.poses
+    inside = [bool(p.eye[1] > -1.0) for p in cov.poses]
+    assert all(inside), [p.eye for p in cov.poses]
+    for seed in range(8):
+        for p in coverage.held_out_poses(scene, pose.eye, pose.forward, 3, seed=seed):
+            assert p.eye[1] > -1.0, p.eye
+    # Outdoors (most rays escape), a ray that escapes still reaches the region's radius.
+    assert coverage.reach(2.0, float("inf"), inside=False) == 2.0
+    assert coverage.reach(2.0, float("inf"), inside=True) == 0.0
+    assert coverage.reach(2.0, 1.0, inside=True) == coverage.WALL_MARGIN * 1.0

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use vplace_core::{
     metrics,
     scene::emitters::{emitter_power, Emitter, EnvironmentMap},
-    scene::{Light, LightKind, Material, Scene, SceneInput},
+    scene::{Light, LightBounces, LightKind, Material, Scene, SceneInput},
     LUMINANCE,
 };
 
@@ -260,11 +260,16 @@ impl PyScene {
     /// all zeros: no layer), plus `gloss_tint` float32 (M, 3) (default zeros) times the base
     /// texture's RGB, clamped to [0, 1]; `gloss_roughness` float32 (M,) in [0, 1] (Blender's
     /// roughness, default 0.5). The shading of views never reads them.
+    ///
+    /// `light_bounces` `(diffuse, glossy, total)`: the reflections the renderer the scene is
+    /// scored against follows (Cycles' Light Paths > Max Bounces; diffuse and total in
+    /// 1..=`MAX_BOUNCES`, glossy in 0..=`MAX_BOUNCES`; default `MAX_BOUNCES` each); light paths
+    /// leave VPLs only within them.
     #[new]
     #[pyo3(signature = (
         vertices, triangles, material_ids, albedo, lights, *, emission = None,
         uvs = None, textures = None, base_textures = None, texture_tint = None, alpha_tests = None,
-        gloss = None, gloss_tint = None, gloss_roughness = None
+        gloss = None, gloss_tint = None, gloss_roughness = None, light_bounces = None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -283,6 +288,7 @@ impl PyScene {
         gloss: Option<&Bound<'_, PyAny>>,
         gloss_tint: Option<&Bound<'_, PyAny>>,
         gloss_roughness: Option<&Bound<'_, PyAny>>,
+        light_bounces: Option<(usize, usize, usize)>,
     ) -> PyResult<Self> {
         let v = array::<f32>(vertices, "vertices", &[Dim::Any, Dim::Is(3)], "float32")?;
         let t = array::<u32>(triangles, "triangles", &[Dim::Any, Dim::Is(3)], "uint32")?;
@@ -327,6 +333,14 @@ impl PyScene {
                 lights,
                 uvs: surf.uvs.as_deref(),
                 textures: surf.textures,
+            })
+            .and_then(|s| match light_bounces {
+                Some((diffuse, glossy, total)) => s.with_light_bounces(LightBounces {
+                    diffuse,
+                    glossy,
+                    total,
+                }),
+                None => Ok(s),
             })
         })?;
         Ok(Self {
@@ -387,6 +401,14 @@ impl PyScene {
     #[getter]
     fn near_field_radius(&self) -> f32 {
         self.inner.near_field_radius()
+    }
+
+    /// `(diffuse, glossy, total)`: the reflections light paths stay within (`light_bounces` of
+    /// the constructor).
+    #[getter]
+    fn light_bounces(&self) -> (usize, usize, usize) {
+        let b = self.inner.light_bounces();
+        (b.diffuse, b.glossy, b.total)
     }
 
     /// Number of textures.

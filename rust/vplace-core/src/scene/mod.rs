@@ -34,6 +34,7 @@ use std::time::Duration;
 use crate::error::{check_finite, Result, VplaceError};
 use crate::scene::emitters::{EmissiveMesh, EnvironmentMap};
 use crate::scene::texture::{AlphaTest, Texture, TextureRef};
+use crate::vpl::MAX_BOUNCES;
 
 /// The default near-field radius `radius` as a fraction of the scene diagonal
 /// ([`Scene::near_field_radius`]; the shading kernel, `shade::shading`, bounds
@@ -99,6 +100,46 @@ pub struct Scene {
     /// Textures, UVs and alpha tests; `None` when no material has a texture or an alpha test
     /// (then nothing per hit is looked up).
     surfaces: Option<Box<Surfaces>>,
+    /// The reflections the renderer the scene is scored against follows
+    /// ([`Scene::light_bounces`]).
+    light_bounces: LightBounces,
+}
+
+/// The reflections a renderer follows along a path from the camera (Cycles' Light Paths > Max
+/// Bounces): at most `diffuse` diffuse and `glossy` glossy reflections, `total` in all, before
+/// the path's last surface, which is lit by a light directly (Cycles' Diffuse 0 shows direct
+/// light only). A VPL at the `k`-th surface hit of a light path stands for the camera paths that
+/// reflect diffusely at the surface they see and at the VPL, and at each of the hits between
+/// the VPL and the first as the light path did there (the first hit is lit by the light
+/// directly): such a VPL is within the limits when `k <= total` and, for `k >= 2`,
+/// `2 + (diffuse reflections at hits 2..k-1) <= diffuse` and `(glossy ones there) <= glossy`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LightBounces {
+    /// Diffuse reflections, `>= 1`.
+    pub diffuse: usize,
+    /// Glossy reflections.
+    pub glossy: usize,
+    /// Reflections in all, `>= 1`.
+    pub total: usize,
+}
+
+impl LightBounces {
+    /// Every bounce that carries light ([`MAX_BOUNCES`] of each kind).
+    pub const ALL: Self = Self {
+        diffuse: MAX_BOUNCES,
+        glossy: MAX_BOUNCES,
+        total: MAX_BOUNCES,
+    };
+
+    /// Whether a VPL at the `hit`-th surface hit (1 for the first) of a light path that went on
+    /// diffusely `diffuse_between` times and glossily `glossy_between` times at hits
+    /// `2..hit-1` is within the limits (see the type's docs).
+    #[must_use]
+    pub fn admit(&self, hit: usize, diffuse_between: usize, glossy_between: usize) -> bool {
+        hit >= 1
+            && hit <= self.total
+            && (hit == 1 || (2 + diffuse_between <= self.diffuse && glossy_between <= self.glossy))
+    }
 }
 
 /// What textured and alpha-tested materials need at a hit.
@@ -248,7 +289,40 @@ impl Scene {
             degenerate_triangles: degenerate,
             emissive,
             surfaces,
+            light_bounces: LightBounces::ALL,
         })
+    }
+
+    /// The scene with the reflections the renderer it is scored against follows (see
+    /// [`LightBounces`]; Cycles' Light Paths > Max Bounces). Light paths
+    /// ([`crate::vpl::light_path_vpls`]) leave VPLs only within them, so a room that light
+    /// reaches only after many reflections is not lit brighter than that renderer lights it.
+    /// The default is [`LightBounces::ALL`].
+    ///
+    /// Errors: `diffuse` or `total` outside `1..=MAX_BOUNCES`, `glossy` above it.
+    pub fn with_light_bounces(mut self, bounces: LightBounces) -> Result<Self> {
+        for (what, value, low) in [
+            ("diffuse bounces", bounces.diffuse, 1),
+            ("glossy bounces", bounces.glossy, 0),
+            ("total bounces", bounces.total, 1),
+        ] {
+            if !(low..=MAX_BOUNCES).contains(&value) {
+                return Err(VplaceError::OutOfRange {
+                    what: what.into(),
+                    value: value.to_string(),
+                    expected: format!("{low}..={MAX_BOUNCES}"),
+                });
+            }
+        }
+        self.light_bounces = bounces;
+        Ok(self)
+    }
+
+    /// The reflections the renderer the scene is scored against follows
+    /// ([`Scene::with_light_bounces`]; default [`LightBounces::ALL`]).
+    #[must_use]
+    pub fn light_bounces(&self) -> LightBounces {
+        self.light_bounces
     }
 
     /// The emissive triangles of the scene (possibly none).

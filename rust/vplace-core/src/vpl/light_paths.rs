@@ -69,7 +69,9 @@ pub const MAX_BOUNCES: usize = 16;
 /// probability proportional to its emitted luminance; [`sample_emission`] draws the rays of
 /// every kind, the world's and the sun's from a disk outside the scene's bounding sphere)
 /// until `n` VPLs exist. A path leaves a VPL
-/// at each of its first `bounces` surface hits; the VPL carries the flux the surface reflects,
+/// at each of its first `bounces` surface hits that are within the scene's
+/// [`Scene::light_bounces`] (what the renderer it is scored against follows: a path that leaves
+/// them ends); the VPL carries the flux the surface reflects,
 /// `f * albedo / paths`, where `f` is the flux the path brings to that hit and `paths` counts
 /// every emission ray traced, including those that escaped. The VPL is the diffuse part; where
 /// the material has a glossy layer ([`Scene::gloss_at`]) its reflection goes on as the path,
@@ -95,6 +97,8 @@ pub fn light_path_vpls(scene: &Scene, n: usize, seed: u64, bounces: usize) -> Re
             expected: ">= 1".into(),
         });
     }
+    let limits = scene.light_bounces();
+    let bounces = bounces.min(limits.total);
     let total: f32 = weights.iter().sum();
     let mut cdf = Vec::with_capacity(weights.len());
     let mut acc = 0.0;
@@ -125,11 +129,16 @@ pub fn light_path_vpls(scene: &Scene, n: usize, seed: u64, bounces: usize) -> Re
         let ray = sample_emission(emitters[li], scene, &mut || rng.next_f32());
         let (mut origin, mut dir) = (ray.origin, ray.direction);
         let mut carried = powers[li] / (weights[li] / total) * ray.weight;
+        // How the path went on at hits 2.. (diffusely, glossily): what `limits` counts.
+        let (mut diffuse_between, mut glossy_between) = (0, 0);
         for bounce in 0..bounces {
             let Some(h) = scene.closest_hit(origin, dir, eps, f32::INFINITY) else {
                 break;
             };
             if bounce == 0 && ray.trapped(scene, h.triangle) {
+                break;
+            }
+            if !limits.admit(bounce + 1, diffuse_between, glossy_between) {
                 break;
             }
             let mut normal = scene.normal(h.triangle);
@@ -148,6 +157,16 @@ pub fn light_path_vpls(scene: &Scene, n: usize, seed: u64, bounces: usize) -> Re
                 .gloss_at(h.triangle, h.barycentrics)
                 .unwrap_or((Vec3::ZERO, 1.0));
             let (diffuse, glossy) = (luminance(carried * albedo), luminance(carried * gloss));
+            // A path whose next hit is outside the limits either way ends here.
+            let on = usize::from(bounce > 0);
+            let next = bounce + 2;
+            let by_diffuse =
+                diffuse > 0.0 && limits.admit(next, diffuse_between + on, glossy_between);
+            let by_glossy =
+                glossy > 0.0 && limits.admit(next, diffuse_between, glossy_between + on);
+            if !by_diffuse && !by_glossy {
+                break;
+            }
             let q = (diffuse + glossy) / luminance(carried).max(f32::MIN_POSITIVE);
             let q = q.clamp(0.0, 1.0);
             if q.is_nan() || q <= 0.0 || rng.next_f32() >= q {
@@ -156,6 +175,13 @@ pub fn light_path_vpls(scene: &Scene, n: usize, seed: u64, bounces: usize) -> Re
             // (A material without a glossy layer draws no number for the pick.)
             let pick_glossy = glossy > 0.0 && rng.next_f32() * (diffuse + glossy) < glossy;
             let (u1, u2) = (rng.next_f32(), rng.next_f32());
+            if bounce > 0 {
+                if pick_glossy {
+                    glossy_between += 1;
+                } else {
+                    diffuse_between += 1;
+                }
+            }
             if pick_glossy {
                 let alpha = (roughness * roughness).max(1e-3);
                 carried = carried * gloss * ((diffuse + glossy) / (q * glossy));
@@ -181,7 +207,7 @@ pub fn light_path_vpls(scene: &Scene, n: usize, seed: u64, bounces: usize) -> Re
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::{Material, SceneInput};
+    use crate::scene::{LightBounces, Material, SceneInput};
     use crate::test_util::closed_box;
 
     #[test]
@@ -371,6 +397,118 @@ mod tests {
             uniform_vpls(&s, 50, 2).unwrap()
         );
         assert!(light_path_vpls(&s, 50, 2, 0).is_err());
+    }
+
+    #[test]
+    fn light_paths_stop_at_the_scenes_bounce_limit() {
+        // The scene's renderer follows 3 diffuse reflections: asking for every bounce gives
+        // bounces 1..=3 (P * (0.5 + 0.25 + 0.125) in a closed diffuse box of albedo 0.5), the
+        // same paths as asking for 3; fewer stay fewer. Without limits, every bounce (the test
+        // above).
+        let light = Light::point(Vec3::new(0.2, -0.1, 1.2), Vec3::new(10., 5., 1.));
+        let diffuse = |d: usize| LightBounces {
+            diffuse: d,
+            ..LightBounces::ALL
+        };
+        let s = closed_box(vec![light.clone()])
+            .with_light_bounces(diffuse(3))
+            .unwrap();
+        assert_eq!(s.light_bounces(), diffuse(3));
+        let p = emitted_power(&light, &s);
+        let every = light_path_vpls(&s, 20_000, 4, MAX_BOUNCES).unwrap();
+        let total: Vec3 = every.iter().map(|v| v.flux).sum();
+        assert!(
+            (total / p - Vec3::splat(0.875)).abs().max_element() < 0.03,
+            "{}",
+            total / p
+        );
+        assert_eq!(every, light_path_vpls(&s, 20_000, 4, 3).unwrap());
+        let two: Vec3 = light_path_vpls(&s, 20_000, 4, 2)
+            .unwrap()
+            .iter()
+            .map(|v| v.flux)
+            .sum();
+        assert!((two / p - Vec3::splat(0.75)).abs().max_element() < 0.03);
+        // The total caps it too.
+        let s1 = closed_box(vec![light.clone()])
+            .with_light_bounces(LightBounces {
+                total: 1,
+                ..LightBounces::ALL
+            })
+            .unwrap();
+        assert_eq!(
+            light_path_vpls(&s1, 500, 4, MAX_BOUNCES).unwrap(),
+            uniform_vpls(&s1, 500, 4).unwrap()
+        );
+        assert_eq!(
+            closed_box(vec![light.clone()]).light_bounces(),
+            LightBounces::ALL
+        );
+        for bad in [
+            diffuse(0),
+            diffuse(MAX_BOUNCES + 1),
+            LightBounces {
+                glossy: MAX_BOUNCES + 1,
+                ..LightBounces::ALL
+            },
+            LightBounces {
+                total: 0,
+                ..LightBounces::ALL
+            },
+        ] {
+            assert!(closed_box(vec![light.clone()])
+                .with_light_bounces(bad)
+                .is_err());
+        }
+    }
+
+    #[test]
+    fn glossy_reflections_count_apart_from_diffuse_ones() {
+        // A camera path that reflects glossily between the VPL and the first hit spends a
+        // glossy bounce, not a diffuse one (Cycles counts them apart): with Diffuse 2, a VPL
+        // at the third hit is within the limits when the path went on glossily at the second.
+        let b = LightBounces {
+            diffuse: 2,
+            glossy: 1,
+            total: 12,
+        };
+        assert!(b.admit(1, 0, 0) && b.admit(2, 0, 0));
+        assert!(!b.admit(3, 1, 0), "a third diffuse reflection");
+        assert!(b.admit(3, 0, 1), "a glossy reflection at hit 2");
+        assert!(!b.admit(4, 0, 2), "a second glossy one");
+        assert!(!b.admit(0, 0, 0));
+        assert!(!LightBounces { total: 2, ..b }.admit(3, 0, 1));
+        // In a closed box of albedo 0.3 with a glossy layer of 0.2 and Diffuse 2, the VPLs
+        // carry 0.3 P at hit 1, 0.3 x 0.5 P at hit 2 (the first hit reflects either way) and,
+        // with glossy bounces, 0.3 x 0.5 x 0.2^(k-2) P at hit k >= 3 (the path went on
+        // glossily at every hit between): 0.4875 P in all, against 0.45 P without.
+        let (v, t) = crate::test_util::box_geometry(&[]);
+        let light = Light::point(Vec3::new(0.2, -0.1, 1.2), Vec3::new(10., 5., 1.));
+        let material =
+            Material::diffuse(Vec3::splat(0.3)).with_gloss(Vec3::splat(0.2), Vec3::ZERO, 0.5);
+        let total = |glossy: usize| -> Vec3 {
+            let s = Scene::new(SceneInput {
+                vertices: &v,
+                triangles: &t,
+                material_ids: &vec![0; t.len()],
+                materials: &[material],
+                lights: vec![light.clone()],
+                ..Default::default()
+            })
+            .unwrap()
+            .with_light_bounces(LightBounces { glossy, ..b })
+            .unwrap();
+            let p = emitted_power(&light, &s);
+            let vpls = light_path_vpls(&s, 40_000, 3, MAX_BOUNCES).unwrap();
+            vpls.iter().map(|v| v.flux).sum::<Vec3>() / p
+        };
+        for (glossy, want) in [(0, 0.45), (4, 0.4875)] {
+            let got = total(glossy);
+            assert!(
+                (got - Vec3::splat(want)).abs().max_element() < 0.02 * want,
+                "{glossy}: {got} {want}"
+            );
+        }
     }
 
     #[test]

@@ -126,6 +126,7 @@ class Scene:
         gloss: _F32 | None = None,
         gloss_tint: _F32 | None = None,
         gloss_roughness: _F32 | None = None,
+        light_bounces: tuple[int, int, int] | None = None,
     ) -> Scene: ...
     def intersect(
         self, origins: _F32, directions: _F32, tmin: float = 0.0
@@ -153,6 +154,8 @@ class Scene:
     def diagonal(self) -> float: ...
     @property
     def near_field_radius(self) -> float: ...
+    @property
+    def light_bounces(self) -> tuple[int, int, int]: ...
 
 @final
 class Progress:

@@ -10,7 +10,10 @@ their VPLs from few, heavy off-screen draws, and a refit trades them away for th
   surface: the room the camera stands in, whatever the scene's units).
 - **Candidates.** A cube of :data:`FACES` 90-degree views at ``c`` and at the points
   ``c + r u`` of the region (``u`` the 6 axes and 8 diagonals; a point is pulled back from a
-  surface it would reach).
+  surface it would reach). A camera that stands inside something (most of its rays hit a
+  surface) gets no point along a ray that escapes: that ray leaves through an opening (a
+  window, a doorway to the sky), and a point beyond it stands outside the room, seeing the
+  sunlit facade that no camera in the room sees (:func:`reach`).
 - **Coverage.** Each candidate casts a :data:`PROBE` x :data:`PROBE` grid of rays; the surfaces
   it sees are voxels (:data:`VOXELS` along the scene's diagonal, split by the normal's dominant
   axis and sign, so the two faces of a wall differ). The user's captures cover theirs already.
@@ -189,6 +192,21 @@ def free_distance(scene: Scene, eye: np.ndarray) -> float:
     return float(min(np.median(t), scene.diagonal))
 
 
+def enclosed(scene: Scene, eye: np.ndarray) -> bool:
+    """Whether ``eye`` stands inside something: most rays from it hit a surface."""
+    return bool(np.isfinite(np.median(trace(scene, eye, fibonacci_sphere(256)))))
+
+
+def reach(radius: float, hit: float, inside: bool) -> float:
+    """How far a region point may stand from its camera along a ray that meets a surface at
+    ``hit`` (inf: it escapes): the region's ``radius``, pulled back by :data:`WALL_MARGIN` from
+    the surface; 0 along a ray that escapes from a camera that stands ``inside`` (the ray
+    leaves through an opening, and beyond it is outside the room)."""
+    if not math.isfinite(hit):
+        return 0.0 if inside else radius
+    return min(radius, WALL_MARGIN * hit)
+
+
 def _candidates(scene: Scene, eyes: Sequence[np.ndarray], radii: Sequence[float]) -> list[Pose]:
     axes = np.eye(3, dtype=np.float32)
     diag = np.array(
@@ -199,10 +217,11 @@ def _candidates(scene: Scene, eyes: Sequence[np.ndarray], radii: Sequence[float]
     for eye, r in zip(eyes, radii, strict=True):
         points.append(eye)
         t = trace(scene, eye, dirs)
+        inside = enclosed(scene, eye)
         for u, ti in zip(dirs, t, strict=True):
-            reach = min(r, WALL_MARGIN * float(ti))
-            if reach > 0.1 * r:
-                points.append(eye + reach * u)
+            far = reach(r, float(ti), inside)
+            if far > 0.1 * r:
+                points.append(eye + far * u)
     for i, a in enumerate(eyes):  # between the user's cameras, where nothing blocks the way
         for b in eyes[i + 1 :]:
             d = b - a
@@ -385,26 +404,28 @@ def held_out_poses(
     default of :class:`Region`) away in a random, mostly horizontal direction (pulled back from
     the surface it would reach by :data:`WALL_MARGIN`), and turns a random
     :data:`HELD_OUT_TURN` away from the camera's heading, level pitch kept. Deterministic for
-    ``seed``; a pose whose centre ray escapes the scene is drawn again (up to 64 draws each)."""
+    ``seed``; a pose whose centre ray escapes the scene, or that would stand beyond an opening
+    of the room (:func:`reach`), is drawn again (up to 64 draws each)."""
     e = np.asarray(eye, dtype=np.float64)
     f0 = np.asarray(forward, dtype=np.float64)
     f0 = f0 / max(float(np.linalg.norm(f0)), 1e-12)
     r = radius or REGION_FRACTION * free_distance(scene, e.astype(np.float32))
     rng = np.random.default_rng([seed, 20])
     z = np.array([0.0, 0.0, 1.0])
+    inside = enclosed(scene, e.astype(np.float32))
     poses: list[Pose] = []
     for _ in range(count):
         for _draw in range(64):
             u = rng.normal(size=3) * np.array([1.0, 1.0, 0.3])
             u /= max(float(np.linalg.norm(u)), 1e-12)
             hit = float(trace(scene, e.astype(np.float32), u[None, :].astype(np.float32))[0])
-            reach = min(r * rng.uniform(*HELD_OUT_REACH), WALL_MARGIN * hit)
+            far = reach(r * rng.uniform(*HELD_OUT_REACH), hit, inside)
             turn = math.radians(rng.uniform(*HELD_OUT_TURN)) * rng.choice([-1.0, 1.0])
             c, s = math.cos(turn), math.sin(turn)
             f = np.array([c * f0[0] - s * f0[1], s * f0[0] + c * f0[1], f0[2]])
-            p = e + reach * u
+            p = e + far * u
             sees = trace(scene, p.astype(np.float32), f[None, :].astype(np.float32))[0]
-            if reach >= 0.1 * r and np.isfinite(sees) and abs(float(f @ z)) < 0.95:
+            if far >= 0.1 * r and np.isfinite(sees) and abs(float(f @ z)) < 0.95:
                 poses.append(Pose(p, f, z))
                 break
     return poses
