@@ -2,6 +2,8 @@
 Standard view) agree per pixel with the evaluator's image of the same VPLs, the pixels next to
 the VPLs included (the cosine VPLs are disks of the near-field radius on both sides)."""
 
+import dataclasses
+
 import bpy
 import numpy as np
 import pytest
@@ -21,7 +23,15 @@ RES = (48, 48)
 @pytest.mark.slow
 def test_eevee_renders_the_evaluators_vpl_light_pixel_for_pixel():
     scene = cornell()
-    native = build_scene(export.export_scene(scene))
+    # The set of 48 light-path VPLs this test renders was drawn from paths of every bounce; the
+    # scene's own limit (Cycles' Diffuse 4, stop 40) draws another set. Kept as it was, since
+    # what is tested is how EEVEE renders a given set. With the other set the relative RMSE
+    # reads 0.1014 (this one 0.0968): in both, 42-61 % of the squared error lies in the few
+    # pixels at the short box's base, 3 cm above the floor, lit by a floor VPL 11 cm away
+    # whose disk reaches under the box, which EEVEE lights 1.7-2.6x as brightly as the
+    # evaluator (issue 21: contacts).
+    everything = dataclasses.replace(export.export_scene(scene), light_bounces=None)
+    native = build_scene(everything)
     gbuf = capture.capture(scene, resolution=RES, samples=8)
     vpls = vplace.uniform_vpls(native, 48, seed=3, bounces=vplace.MAX_BOUNCES)
     apply.write_vpls(scene, vpls, scene_diagonal=native.diagonal)

@@ -34,7 +34,6 @@ use std::time::Duration;
 use crate::error::{check_finite, Result, VplaceError};
 use crate::scene::emitters::{EmissiveMesh, EnvironmentMap};
 use crate::scene::texture::{AlphaTest, Texture, TextureRef};
-use crate::vpl::MAX_BOUNCES;
 
 /// The default near-field radius `radius` as a fraction of the scene diagonal
 /// ([`Scene::near_field_radius`]; the shading kernel, `shade::shading`, bounds
@@ -104,6 +103,10 @@ pub struct Scene {
     /// ([`Scene::light_bounces`]).
     light_bounces: LightBounces,
 }
+
+/// The most surface hits a light path follows ([`LightBounces::ALL`]; Russian roulette ends
+/// most paths long before it).
+pub const MAX_BOUNCES: usize = 16;
 
 /// The reflections a renderer follows along a path from the camera (Cycles' Light Paths > Max
 /// Bounces): at most `diffuse` diffuse and `glossy` glossy reflections, `total` in all, before

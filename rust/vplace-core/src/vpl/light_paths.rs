@@ -62,8 +62,9 @@ pub fn uniform_vpls(scene: &Scene, n: usize, seed: u64) -> Result<Vec<Vpl>> {
 }
 
 /// Bounce cap for [`light_path_vpls`] when all bounces are wanted; Russian roulette ends most
-/// paths long before it.
-pub const MAX_BOUNCES: usize = 16;
+/// paths long before it. (Defined with the scene's [`crate::scene::LightBounces`], which it
+/// bounds.)
+pub use crate::scene::MAX_BOUNCES;
 
 /// Keller's instant radiosity: traces light paths from the emitters (each chosen with
 /// probability proportional to its emitted luminance; [`sample_emission`] draws the rays of
