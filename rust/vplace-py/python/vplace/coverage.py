@@ -23,8 +23,9 @@ their VPLs from few, heavy off-screen draws, and a refit trades them away for th
   (position, the geometric normal facing the eye, albedo through the textures), its direct
   light from :func:`vplace.direct_light` (what Cycles' DiffDir holds), and as its indirect
   image the light reflected by :data:`TARGET_VPLS` light-path VPLs
-  (:func:`vplace.uniform_vpls`, every bounce; physically derived powers, no fitting): the
-  iteration and the refit are held to it on the surfaces the captures did not see.
+  (:func:`vplace.uniform_vpls`, every bounce the scene's renderer follows; physically derived
+  powers, no fitting): the iteration and the refit are held to it on the surfaces the
+  captures did not see.
 
 No Cycles render is made: a coverage view costs rays only (about ``size^2`` primary rays,
 ``samples`` shadow rays per pixel and emitter, and ``TARGET_VPLS`` shadow rays per pixel).
