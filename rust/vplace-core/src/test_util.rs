@@ -99,6 +99,34 @@ pub const BLOCKER: [Vec3; 4] = [
     Vec3::new(-0.4, 0.4, 0.5),
 ];
 
+/// Panics if a VPL lies inside the cube of centre `centre` and half size `half`
+/// ([`emissive_cube_in_box`]).
+pub fn assert_none_inside(vpls: &[Vpl], centre: Vec3, half: f32) {
+    for vpl in vpls {
+        let d = (vpl.position - centre).abs().max_element();
+        assert!(
+            d > half * 0.999,
+            "a VPL inside the emitter: {:?}",
+            vpl.position
+        );
+    }
+}
+
+/// [`closed_box`]'s geometry with one `material` on every face, and `lights`.
+#[must_use]
+pub fn box_of(material: Material, lights: Vec<Light>) -> Scene {
+    let (v, t) = box_geometry(&[]);
+    Scene::new(SceneInput {
+        vertices: &v,
+        triangles: &t,
+        material_ids: &vec![0; t.len()],
+        materials: &[material],
+        lights,
+        ..Default::default()
+    })
+    .expect("the test box is a valid scene")
+}
+
 /// [`closed_box`] with extra quads (corners in order) inside it, e.g. occluders.
 #[must_use]
 pub fn box_with(lights: Vec<Light>, extra: &[[Vec3; 4]]) -> Scene {

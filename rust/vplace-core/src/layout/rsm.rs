@@ -195,14 +195,7 @@ mod tests {
         // leaves it, so no VPL lies inside, and the rest reaches the box (albedo 0.5).
         let (s, c, h) = crate::test_util::emissive_cube_in_box();
         let v = rsm_vpls(&s, 4000).unwrap();
-        for vpl in &v {
-            let d = (vpl.position - c).abs().max_element();
-            assert!(
-                d > h * 0.999,
-                "a VPL inside the emitter: {:?}",
-                vpl.position
-            );
-        }
+        crate::test_util::assert_none_inside(&v, c, h);
         let total: Vec3 = v.iter().map(|v| v.flux).sum();
         let want = s.emissive().power() * 0.5 * 0.5;
         assert!(

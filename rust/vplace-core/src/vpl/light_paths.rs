@@ -237,14 +237,7 @@ mod tests {
         // 0.5 x half the power (with the inward half as VPLs, 0.8 x the other half more).
         let (scene, c, h) = crate::test_util::emissive_cube_in_box();
         let vpls = light_path_vpls(&scene, 4000, 5, MAX_BOUNCES).unwrap();
-        for vpl in &vpls {
-            let d = (vpl.position - c).abs().max_element();
-            assert!(
-                d > h * 0.999,
-                "a VPL inside the emitter: {:?}",
-                vpl.position
-            );
-        }
+        crate::test_util::assert_none_inside(&vpls, c, h);
         let first: Vec3 = uniform_vpls(&scene, 20_000, 5)
             .unwrap()
             .iter()
@@ -263,19 +256,8 @@ mod tests {
         // a microfacet bounce sends below the surface is kept): over two bounces the VPLs carry
         // 0.3 P + 0.3 (0.3 + 0.2) P = 0.45 P; the albedo alone would give 0.39 P. The first
         // bounce's VPLs carry the diffuse part only.
-        let (v, t) = crate::test_util::box_geometry(&[]);
         let light = Light::point(Vec3::new(0.2, -0.1, 1.2), Vec3::new(10., 5., 1.));
-        let build = |m: Material| {
-            Scene::new(SceneInput {
-                vertices: &v,
-                triangles: &t,
-                material_ids: &vec![0; t.len()],
-                materials: &[m],
-                lights: vec![light.clone()],
-                ..Default::default()
-            })
-            .unwrap()
-        };
+        let build = |m: Material| crate::test_util::box_of(m, vec![light.clone()]);
         let diffuse = Material::diffuse(Vec3::splat(0.3));
         let total = |s: &Scene, bounces| -> Vec3 {
             let vpls = light_path_vpls(s, 40_000, 3, bounces).unwrap();
@@ -483,22 +465,13 @@ mod tests {
         // carry 0.3 P at hit 1, 0.3 x 0.5 P at hit 2 (the first hit reflects either way) and,
         // with glossy bounces, 0.3 x 0.5 x 0.2^(k-2) P at hit k >= 3 (the path went on
         // glossily at every hit between): 0.4875 P in all, against 0.45 P without.
-        let (v, t) = crate::test_util::box_geometry(&[]);
         let light = Light::point(Vec3::new(0.2, -0.1, 1.2), Vec3::new(10., 5., 1.));
         let material =
             Material::diffuse(Vec3::splat(0.3)).with_gloss(Vec3::splat(0.2), Vec3::ZERO, 0.5);
         let total = |glossy: usize| -> Vec3 {
-            let s = Scene::new(SceneInput {
-                vertices: &v,
-                triangles: &t,
-                material_ids: &vec![0; t.len()],
-                materials: &[material],
-                lights: vec![light.clone()],
-                ..Default::default()
-            })
-            .unwrap()
-            .with_light_bounces(LightBounces { glossy, ..b })
-            .unwrap();
+            let s = crate::test_util::box_of(material, vec![light.clone()])
+                .with_light_bounces(LightBounces { glossy, ..b })
+                .unwrap();
             let p = emitted_power(&light, &s);
             let vpls = light_path_vpls(&s, 40_000, 3, MAX_BOUNCES).unwrap();
             vpls.iter().map(|v| v.flux).sum::<Vec3>() / p

@@ -186,16 +186,27 @@ def trace(scene: Scene, origin: np.ndarray, dirs: np.ndarray) -> np.ndarray:
     return np.where(tri >= 0, t, np.inf)
 
 
+def median_free_distance(scene: Scene, eye: np.ndarray) -> float:
+    """Median distance rays from ``eye`` travel before a surface (inf when most escape)."""
+    return float(np.median(trace(scene, eye, fibonacci_sphere(256))))
+
+
 def free_distance(scene: Scene, eye: np.ndarray) -> float:
-    """Median distance rays from ``eye`` travel before a surface (the scene's diagonal when
-    most escape)."""
-    t = trace(scene, eye, fibonacci_sphere(256))
-    return float(min(np.median(t), scene.diagonal))
+    """:func:`median_free_distance`, the scene's diagonal when most rays escape."""
+    return min(median_free_distance(scene, eye), scene.diagonal)
 
 
 def enclosed(scene: Scene, eye: np.ndarray) -> bool:
     """Whether ``eye`` stands inside something: most rays from it hit a surface."""
-    return bool(np.isfinite(np.median(trace(scene, eye, fibonacci_sphere(256)))))
+    return math.isfinite(median_free_distance(scene, eye))
+
+
+def _region(scene: Scene, eye: np.ndarray, radius: float) -> tuple[float, bool]:
+    """The region's radius around ``eye`` (``radius``, or :data:`REGION_FRACTION` of the free
+    distance) and whether ``eye`` is :func:`enclosed`, from one set of rays."""
+    median = median_free_distance(scene, eye)
+    r = radius or REGION_FRACTION * min(median, scene.diagonal)
+    return r, math.isfinite(median)
 
 
 def reach(radius: float, hit: float, inside: bool) -> float:
@@ -208,19 +219,20 @@ def reach(radius: float, hit: float, inside: bool) -> float:
     return min(radius, WALL_MARGIN * hit)
 
 
-def _candidates(scene: Scene, eyes: Sequence[np.ndarray], radii: Sequence[float]) -> list[Pose]:
+def _candidates(
+    scene: Scene, eyes: Sequence[np.ndarray], radii: Sequence[float], inside: Sequence[bool]
+) -> list[Pose]:
     axes = np.eye(3, dtype=np.float32)
     diag = np.array(
         [[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float32
     ) / np.float32(math.sqrt(3.0))
     dirs = np.concatenate([axes, -axes, diag])
     points: list[np.ndarray] = []
-    for eye, r in zip(eyes, radii, strict=True):
+    for eye, r, indoors in zip(eyes, radii, inside, strict=True):
         points.append(eye)
         t = trace(scene, eye, dirs)
-        inside = enclosed(scene, eye)
         for u, ti in zip(dirs, t, strict=True):
-            far = reach(r, float(ti), inside)
+            far = reach(r, float(ti), indoors)
             if far > 0.1 * r:
                 points.append(eye + far * u)
     for i, a in enumerate(eyes):  # between the user's cameras, where nothing blocks the way
@@ -278,13 +290,14 @@ def pick(
     of the region's voxels covered before and after, and the region's radius per view.
     ``triangles``: (T, 3, 3) float32 corners of the scene's triangles."""
     eyes = [np.asarray(v.camera_position, dtype=np.float32) for v in user_views]
-    radii = [region.radius or REGION_FRACTION * free_distance(scene, e) for e in eyes]
+    regions = [_region(scene, e, region.radius) for e in eyes]
+    radii = [r for r, _ in regions]
     covered: set[int] = set()
     for v in user_views:
         mask = v.covered.ravel()
         covered |= _voxels(scene, v.position.reshape(-1, 3)[mask], v.normal.reshape(-1, 3)[mask])
     sets = []
-    poses = _candidates(scene, eyes, radii)
+    poses = _candidates(scene, eyes, radii, [inside for _, inside in regions])
     for pose in poses:
         hit, pos, normal, *_ = _hits(scene, triangles, pose, PROBE)
         sets.append(_voxels(scene, pos[hit], normal[hit]))
@@ -410,10 +423,9 @@ def held_out_poses(
     e = np.asarray(eye, dtype=np.float64)
     f0 = np.asarray(forward, dtype=np.float64)
     f0 = f0 / max(float(np.linalg.norm(f0)), 1e-12)
-    r = radius or REGION_FRACTION * free_distance(scene, e.astype(np.float32))
+    r, inside = _region(scene, e.astype(np.float32), radius)
     rng = np.random.default_rng([seed, 20])
     z = np.array([0.0, 0.0, 1.0])
-    inside = enclosed(scene, e.astype(np.float32))
     poses: list[Pose] = []
     for _ in range(count):
         for _draw in range(64):
