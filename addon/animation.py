@@ -168,7 +168,9 @@ def _run_frame(
         bl_scene,
         prepared.scene,
         prepared.exported,
-        Captured(prepared.captures, prepared.views[:n], prepared.gloss),
+        Captured(
+            prepared.captures, prepared.views[:n], prepared.gloss, specular=prepared.vpl_specular
+        ),
         reference_render(job, truth_samples),
         capture_samples=job.samples,
         cache_dir=job.cache_dir,

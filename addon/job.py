@@ -47,7 +47,6 @@ from .scene.convert import export_native
 from .settings import override
 from .writeback import apply, match_eevee
 from .writeback import stage as writeback_stage
-from .writeback.stage import vpl_specular
 from .writeback.stand_ins import StandIns, stand_ins
 
 #: Re-exported from ``vplace.job`` for the add-on's callers (the panel, the command line, the
@@ -149,6 +148,9 @@ class Prepared:
     #: The coverage views added for the region (``vplace.coverage``); they follow the
     #: captures' views in ``views``.
     coverage: vplace.coverage.Coverage | None = None
+    #: The written VPLs' specular factor, decided on the captures
+    #: (``capture.native_view.vpl_specular``; 0: no glossy layer modelled, ``gloss`` all None).
+    vpl_specular: float = 0.0
 
     @property
     def capture(self) -> capture.Capture:
@@ -174,11 +176,6 @@ class Prepared:
         if self.coverage is not None:
             eyes += [p.eye for p in self.coverage.poses]
         return stand_ins(self.exported, self.scene, self.surfaces, eyes)
-
-    @property
-    def vpl_specular(self) -> float:
-        """The written VPLs' specular factor (``writeback.stage.vpl_specular``)."""
-        return vpl_specular(self.exported)
 
 
 def prepare(
@@ -242,7 +239,15 @@ def prepare(
         )
     views = captured.views + (cover.views if cover is not None else [])
     return Prepared(
-        scene, exported, captured.captures, views, captured.skipped, captured.gloss, ref, cover
+        scene,
+        exported,
+        captured.captures,
+        views,
+        captured.skipped,
+        captured.gloss,
+        ref,
+        cover,
+        captured.specular,
     )
 
 
@@ -297,7 +302,12 @@ def eevee_refit_views(
 
 def capture_reference(prepared: Prepared, job: Job) -> Reference:
     """The first view's own capture: the reference of the panel's runs (no extra render)."""
-    captured = Captured(prepared.captures, prepared.captured_views, prepared.gloss)
+    captured = Captured(
+        prepared.captures,
+        prepared.captured_views,
+        prepared.gloss,
+        specular=prepared.vpl_specular,
+    )
     return own_reference(captured, job.samples)
 
 
@@ -493,6 +503,7 @@ def run_main_job(
         written = writeback_stage.write_back(
             bl_scene,
             computed.vpls,
+            specular=prepared.vpl_specular,
             scene=prepared.scene,
             exported=prepared.exported,
             lights=prepared.stand_ins,

@@ -1,7 +1,9 @@
-"""A capture as a ``vplace.View``, and the mask of the pixels whose glossy layer vplace models."""
+"""A capture as a ``vplace.View``, the mask of the pixels whose glossy layer vplace models, and
+whether it models them at all (the written VPLs' specular factor)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -37,6 +39,34 @@ def gloss_mask(scene: vplace.Scene, exported: ExportedScene, cap: Capture) -> np
     mat = exported.material_ids[np.where(hit, tri, 0)]
     mask[ys, xs] = np.where(hit & sharp[mat], 0.0, 1.0)
     return mask
+
+
+def vpl_specular(
+    scene: vplace.Scene, exported: ExportedScene, captures: Sequence[Capture]
+) -> float:
+    """The written VPLs' specular factor, 1 or 0; with 0 vplace models no glossy layer (the
+    callers then pass no :func:`gloss_mask`), so the evaluator shows what EEVEE does.
+
+    EEVEE gives a light's specular to every surface alike. On a rough glossy layer
+    (``export.ROUGH_GLOSS``) it is the broad glossy bounce the evaluator counts. On a sharp one,
+    left to EEVEE's ray tracing (which already reflects the lit room), each VPL's disk shows as
+    a mirrored spot: on a floor of roughness 0.15 seen at a grazing angle, 0.42 % of the pixels
+    hot (ARCHITECTURE.md, "Glossy light"). So the factor is 1 when some material has a rough
+    glossy layer and the captured views show at least as much glossy indirect light (Cycles'
+    Glossy Indirect x Glossy Color, luminance) on rough layers as on sharp ones; else 0."""
+    if not exported.rough_gloss.any():
+        return 0.0
+    if not exported.sharp_gloss.any():
+        return 1.0
+    lum = np.asarray(vplace.LUMINANCE, dtype=np.float32)
+    rough = sharp = 0.0
+    for cap in captures:
+        mask = gloss_mask(scene, exported, cap)
+        assert mask is not None  # some layer is rough
+        glossy = (cap.glossy_indirect * cap.glossy_color)[..., :3] @ lum
+        rough += float(glossy[cap.covered & (mask > 0)].sum())
+        sharp += float(glossy[cap.covered & (mask == 0)].sum())
+    return 1.0 if rough >= sharp else 0.0
 
 
 def view_of(

@@ -19,7 +19,7 @@ import numpy as np
 from ..errors import CaptureError
 from ..native import vplace
 from ..scene.export import ExportedScene
-from .native_view import gloss_mask, view_of
+from .native_view import gloss_mask, view_of, vpl_specular
 from .passes import Capture, capture
 from .views import ViewSpec
 
@@ -36,6 +36,9 @@ class Captured:
     skipped: dict[str, str] = field(default_factory=dict)
     #: The coverage views of the region around the captures (``vplace.coverage``), if asked.
     coverage: vplace.coverage.Coverage | None = None
+    #: The written VPLs' specular factor (``native_view.vpl_specular``); 0: no glossy layer
+    #: modelled (``gloss`` all None).
+    specular: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -110,7 +113,16 @@ def capture_views(
             + "; ".join(skipped.values())
             + "): aim the camera at the scene"
         )
-    gloss = [gloss_mask(scene, exported, c) for c in captures]
+    specular = vpl_specular(scene, exported, captures)
+    if not specular and exported.rough_gloss.any():
+        sharp = [m.name for m, s in zip(exported.materials, exported.sharp_gloss, strict=True) if s]
+        log(
+            "[vplace] note: the written VPLs have no specular: the sharp glossy layers (e.g. "
+            f"{sharp[0]!r}) show more glossy light in the captures than the rough ones, and "
+            "EEVEE would mirror each VPL in them as a spot (their reflections are EEVEE's ray "
+            "tracing's)"
+        )
+    gloss = [gloss_mask(scene, exported, c) if specular else None for c in captures]
     views = [view_of(c, gloss=g) for c, g in zip(captures, gloss, strict=True)]
     cover = None
     if region is not None and region.count > 0:
@@ -125,7 +137,7 @@ def capture_views(
                 radius=radius,
             )
         log(f"[vplace] {cover.describe()}")
-    return Captured(captures, views, gloss, skipped, cover)
+    return Captured(captures, views, gloss, skipped, cover, specular)
 
 
 def reference_of(
@@ -186,7 +198,7 @@ def render_reference(
         if render.ground_truth
         else "as noisy as the capture: give truth samples for a ground truth"
     )
-    gloss = gloss_mask(scene, exported, ref)
+    gloss = gloss_mask(scene, exported, ref) if captured.specular else None
     return reference_of(
         ref,
         view_of(ref, held_out=True, gloss=gloss),

@@ -238,7 +238,9 @@ def load_scene(
         if config.truth_noise:
             with timer.stage(f"second truth {name} (seed {OTHER_TRUTH_SEED}, cached)"):
                 other = truth_of(seed=OTHER_TRUTH_SEED)
-        gloss = gloss_mask(prepared.scene, prepared.exported, truth)
+        gloss = (
+            gloss_mask(prepared.scene, prepared.exported, truth) if prepared.vpl_specular else None
+        )
         view = view_of(truth, held_out=True, gloss=gloss)
         views.append(ViewData(name, role, cams[name], truth, view, other))
     seconds = sum(c.render_seconds for c in prepared.captures)

@@ -10,9 +10,11 @@ ones the evaluator renders (``vplace.VplSet`` carries profile and near-field rad
   Omni profile: a POINT light of radius 0, power ``2 Phi``, a point on both sides (its near
   field is singular in Blender and in the evaluator alike; see ``shading.rs``).
 - ``diffuse_factor`` 1, ``transmission_factor`` and ``volume_factor`` 0. ``specular_factor``
-  is 1 when the scene has rough glossy layers (``export.ROUGH_GLOSS``: the evaluator counts
-  the VPLs' light on them, and so must EEVEE), else 0: a VPL's small bright disk would only
-  show as a highlight on sharp glossy surfaces, whose reflections EEVEE's ray tracing makes.
+  (``Prepared.vpl_specular``, ``capture.native_view.vpl_specular``) is 1 when the scene has
+  rough glossy layers (``export.ROUGH_GLOSS``: the evaluator counts the VPLs' light on them,
+  and so must EEVEE) and the captures see at least as much glossy light on them as on the
+  sharp ones, else 0: a VPL's disk shows as a mirrored spot on sharp glossy surfaces, whose
+  reflections EEVEE's ray tracing makes.
 - EEVEE culls a light whose intensity falls below ``scene.eevee.light_threshold`` and, with a
   custom distance, fades it as ``(1 - (d / cutoff)^4)^2`` (``light_influence_attenuation`` in
   EEVEE's source). Each VPL light gets a custom cutoff of :data:`CUTOFF_DIAGONALS` scene

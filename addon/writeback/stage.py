@@ -37,6 +37,7 @@ def write_back(
     bl_scene: bpy.types.Scene,
     vpls: vplace.VplSet,
     *,
+    specular: float,
     scene: vplace.Scene,
     exported: ExportedScene,
     lights: StandIns,
@@ -44,11 +45,10 @@ def write_back(
     stage: Callable[[str], AbstractContextManager[None]],
     log: Callable[[str], None],
 ) -> WrittenBack:
-    """Writes ``vpls`` and the stand-in ``lights`` of ``exported`` (``stand_ins.stand_ins``)
-    into the VPL collection (``apply.write_vpls``), saves a copy of the file to ``blend_path``
-    when given, and logs what EEVEE will not show right. The VPLs get specular factor 1 when
-    some material has a rough glossy layer (``apply``'s module docs)."""
-    specular = vpl_specular(exported)
+    """Writes ``vpls`` (specular factor ``specular``: ``Prepared.vpl_specular``) and the
+    stand-in ``lights`` of ``exported`` (``stand_ins.stand_ins``) into the VPL collection
+    (``apply.write_vpls``), saves a copy of the file to ``blend_path`` when given, and logs
+    what EEVEE will not show right."""
     with stage("write back"):
         apply.write_vpls(
             bl_scene,
@@ -73,12 +73,6 @@ def write_back(
     for note in notes:
         log(f"[vplace] note: {note}")
     return WrittenBack(lights, problems, notes)
-
-
-def vpl_specular(exported: ExportedScene) -> float:
-    """The written VPLs' specular factor: 1 when some material has a rough glossy layer (the
-    evaluator counts the VPLs' light on it), else 0 (``apply``'s module docs)."""
-    return 1.0 if exported.rough_gloss.any() else 0.0
 
 
 def score_eevee(

@@ -1,6 +1,8 @@
 """Glossy layers (``export.ROUGH_GLOSS``): which materials have one and how rough, where a view
 sees the rough ones, the reflectance and indirect light vplace models there, and the written
-VPLs' specular factor."""
+VPLs' specular factor, decided on what the captures see."""
+
+import dataclasses
 
 import blender_util
 import bpy
@@ -8,7 +10,7 @@ import numpy as np
 import pytest
 from blender_util import empty_file
 
-from addon.capture.native_view import gloss_mask
+from addon.capture.native_view import gloss_mask, vpl_specular
 from addon.capture.passes import Capture
 from addon.compat import new_material
 from addon.native import vplace
@@ -158,6 +160,38 @@ def test_the_modelled_reflectance_and_indirect_light_add_the_glossy_layer_where_
     np.testing.assert_allclose(cap.modelled_indirect(gloss)[0, :, 0], [0.25, 0.2])
     np.testing.assert_allclose(cap.reflectance(None), cap.albedo)
     np.testing.assert_allclose(cap.modelled_indirect(None), cap.indirect)
+
+
+def test_the_vpls_specular_follows_the_glossy_light_the_captures_see(scene):
+    """1 where the rough layers show the captures at least as much glossy indirect light as the
+    sharp ones (EEVEE then shows the VPLs' broad glossy bounce the evaluator counts), else 0 (a
+    VPL's disk would show in the sharp layers as a spot): summed over every capture's pixels,
+    each weighted by its Glossy Indirect x Glossy Color."""
+    quad(scene, principled("rough", Roughness=0.8), 0.0)
+    quad(scene, principled("sharp", Roughness=0.1), 1.0)
+    exported = export.export_scene(scene)
+    native = build_scene(exported)
+
+    def cap(*xs, light=None):
+        position = np.array([[[x, 0.5, 0.0] for x in xs]])
+        c = fake_capture(position, np.ones((1, len(xs)), bool), (1.0, 0.5, 3.0))
+        if light is not None:
+            glossy = np.repeat(np.array(light, np.float32)[None, :, None], 3, axis=-1)
+            c = dataclasses.replace(c, glossy_indirect=glossy)
+        return c
+
+    assert vpl_specular(native, exported, [cap(0.5, 0.5, 1.5)]) == 1.0
+    assert vpl_specular(native, exported, [cap(0.5, 1.5)]) == 1.0  # a tie keeps it
+    assert vpl_specular(native, exported, [cap(0.5, 1.5, 1.5)]) == 0.0
+    assert vpl_specular(native, exported, [cap(0.5, 0.5), cap(1.5, 1.5, 1.5)]) == 0.0
+    assert vpl_specular(native, exported, [cap(0.5, 1.5, 1.5, light=[1.0, 0.25, 0.25])]) == 1.0
+    # Without a sharp layer it is on whatever the views see; without a rough one, off.
+    scene.objects["sharp"].data.materials[0] = shader_material("matte", "ShaderNodeBsdfDiffuse")
+    exported = export.export_scene(scene)
+    assert vpl_specular(build_scene(exported), exported, [cap(1.5, 1.5)]) == 1.0
+    scene.objects["rough"].data.materials[0] = principled("sharp 2", Roughness=0.2)
+    exported = export.export_scene(scene)
+    assert vpl_specular(build_scene(exported), exported, [cap(0.5)]) == 0.0
 
 
 @pytest.mark.parametrize("specular", [0.0, 1.0])
