@@ -168,9 +168,7 @@ def _run_frame(
         bl_scene,
         prepared.scene,
         prepared.exported,
-        Captured(
-            prepared.captures, prepared.views[:n], prepared.gloss, specular=prepared.vpl_specular
-        ),
+        Captured(prepared.captures, prepared.views[:n], prepared.gloss),
         reference_render(job, truth_samples),
         capture_samples=job.samples,
         cache_dir=job.cache_dir,

@@ -36,6 +36,7 @@ from .capture.stage import (
     capture_views,
     own_reference,
     render_reference,
+    specular_of,
 )
 from .capture.views import ViewSet, ViewSpec, capture_resolution
 from .capture.views import specs as view_specs
@@ -148,9 +149,6 @@ class Prepared:
     #: The coverage views added for the region (``vplace.coverage``); they follow the
     #: captures' views in ``views``.
     coverage: vplace.coverage.Coverage | None = None
-    #: The written VPLs' specular factor, decided on the captures
-    #: (``capture.native_view.vpl_specular``; 0: no glossy layer modelled, ``gloss`` all None).
-    vpl_specular: float = 0.0
 
     @property
     def capture(self) -> capture.Capture:
@@ -176,6 +174,12 @@ class Prepared:
         if self.coverage is not None:
             eyes += [p.eye for p in self.coverage.poses]
         return stand_ins(self.exported, self.scene, self.surfaces, eyes)
+
+    @property
+    def vpl_specular(self) -> float:
+        """The written VPLs' specular factor, decided on the captures
+        (``capture.native_view.vpl_specular``): 1 exactly when ``gloss`` holds a mask."""
+        return specular_of(self.gloss)
 
 
 def prepare(
@@ -247,7 +251,6 @@ def prepare(
         captured.gloss,
         ref,
         cover,
-        captured.specular,
     )
 
 
@@ -302,12 +305,7 @@ def eevee_refit_views(
 
 def capture_reference(prepared: Prepared, job: Job) -> Reference:
     """The first view's own capture: the reference of the panel's runs (no extra render)."""
-    captured = Captured(
-        prepared.captures,
-        prepared.captured_views,
-        prepared.gloss,
-        specular=prepared.vpl_specular,
-    )
+    captured = Captured(prepared.captures, prepared.captured_views, prepared.gloss)
     return own_reference(captured, job.samples)
 
 

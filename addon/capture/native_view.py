@@ -42,10 +42,13 @@ def gloss_mask(scene: vplace.Scene, exported: ExportedScene, cap: Capture) -> np
 
 
 def vpl_specular(
-    scene: vplace.Scene, exported: ExportedScene, captures: Sequence[Capture]
+    exported: ExportedScene,
+    captures: Sequence[Capture],
+    masks: Sequence[np.ndarray | None],
 ) -> float:
-    """The written VPLs' specular factor, 1 or 0; with 0 vplace models no glossy layer (the
-    callers then pass no :func:`gloss_mask`), so the evaluator shows what EEVEE does.
+    """The written VPLs' specular factor, 1 or 0, from the captures and their
+    :func:`gloss_mask`; with 0 vplace models no glossy layer (the callers then pass no mask),
+    so the evaluator shows what EEVEE does.
 
     EEVEE gives a light's specular to every surface alike. On a rough glossy layer
     (``export.ROUGH_GLOSS``) it is the broad glossy bounce the evaluator counts. On a sharp one,
@@ -60,8 +63,7 @@ def vpl_specular(
         return 1.0
     lum = np.asarray(vplace.LUMINANCE, dtype=np.float32)
     rough = sharp = 0.0
-    for cap in captures:
-        mask = gloss_mask(scene, exported, cap)
+    for cap, mask in zip(captures, masks, strict=True):
         assert mask is not None  # some layer is rough
         glossy = (cap.glossy_indirect * cap.glossy_color)[..., :3] @ lum
         rough += float(glossy[cap.covered & (mask > 0)].sum())

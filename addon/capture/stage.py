@@ -36,9 +36,18 @@ class Captured:
     skipped: dict[str, str] = field(default_factory=dict)
     #: The coverage views of the region around the captures (``vplace.coverage``), if asked.
     coverage: vplace.coverage.Coverage | None = None
-    #: The written VPLs' specular factor (``native_view.vpl_specular``); 0: no glossy layer
-    #: modelled (``gloss`` all None).
-    specular: float = 0.0
+
+    @property
+    def specular(self) -> float:
+        """The written VPLs' specular factor (``native_view.vpl_specular``): 1 exactly when
+        glossy layers are modelled (some mask is given), else 0."""
+        return specular_of(self.gloss)
+
+
+def specular_of(gloss: Sequence[np.ndarray | None]) -> float:
+    """The VPLs' specular factor that the captures' glossy masks stand for: ``capture_views``
+    gives masks only where ``native_view.vpl_specular`` is 1."""
+    return 1.0 if any(g is not None for g in gloss) else 0.0
 
 
 @dataclass(frozen=True)
@@ -113,7 +122,8 @@ def capture_views(
             + "; ".join(skipped.values())
             + "): aim the camera at the scene"
         )
-    specular = vpl_specular(scene, exported, captures)
+    masks = [gloss_mask(scene, exported, c) for c in captures]
+    specular = vpl_specular(exported, captures, masks)
     if not specular and exported.rough_gloss.any():
         sharp = [m.name for m, s in zip(exported.materials, exported.sharp_gloss, strict=True) if s]
         log(
@@ -122,7 +132,7 @@ def capture_views(
             "EEVEE would mirror each VPL in them as a spot (their reflections are EEVEE's ray "
             "tracing's)"
         )
-    gloss = [gloss_mask(scene, exported, c) if specular else None for c in captures]
+    gloss = masks if specular else [None] * len(captures)
     views = [view_of(c, gloss=g) for c, g in zip(captures, gloss, strict=True)]
     cover = None
     if region is not None and region.count > 0:
@@ -137,7 +147,7 @@ def capture_views(
                 radius=radius,
             )
         log(f"[vplace] {cover.describe()}")
-    return Captured(captures, views, gloss, skipped, cover, specular)
+    return Captured(captures, views, gloss, skipped, cover)
 
 
 def reference_of(

@@ -78,7 +78,7 @@ def test_eevee_shows_the_vpl_light_the_evaluator_computed_with_the_decided_specu
     exported = export.export_scene(scene)
     native = build_scene(exported)
     gbuf = capture.capture(scene, resolution=RES, samples=8)
-    specular = vpl_specular(native, exported, [gbuf])
+    specular = vpl_specular(exported, [gbuf], [gloss_mask(native, exported, gbuf)])
     assert specular == 0.0
     vpls = vplace.uniform_vpls(native, 64, seed=3, bounces=vplace.MAX_BOUNCES)
     ours, _ = vplace.evaluate(native, view_of(gbuf, gloss=None), vpls)
