@@ -36,7 +36,6 @@ from .capture.stage import (
     capture_views,
     own_reference,
     render_reference,
-    specular_of,
 )
 from .capture.views import ViewSet, ViewSpec, capture_resolution
 from .capture.views import specs as view_specs
@@ -149,6 +148,9 @@ class Prepared:
     #: The coverage views added for the region (``vplace.coverage``); they follow the
     #: captures' views in ``views``.
     coverage: vplace.coverage.Coverage | None = None
+    #: The written VPLs' specular factor, decided on the captures (``Captured.specular``,
+    #: ``capture.native_view.vpl_specular``; 0: no glossy layer modelled, ``gloss`` all None).
+    vpl_specular: float = 0.0
 
     @property
     def capture(self) -> capture.Capture:
@@ -174,12 +176,6 @@ class Prepared:
         if self.coverage is not None:
             eyes += [p.eye for p in self.coverage.poses]
         return stand_ins(self.exported, self.scene, self.surfaces, eyes)
-
-    @property
-    def vpl_specular(self) -> float:
-        """The written VPLs' specular factor, decided on the captures
-        (``capture.native_view.vpl_specular``): 1 exactly when ``gloss`` holds a mask."""
-        return specular_of(self.gloss)
 
 
 def prepare(
@@ -251,6 +247,7 @@ def prepare(
         captured.gloss,
         ref,
         cover,
+        captured.specular,
     )
 
 

@@ -40,14 +40,8 @@ class Captured:
     @property
     def specular(self) -> float:
         """The written VPLs' specular factor (``native_view.vpl_specular``): 1 exactly when
-        glossy layers are modelled (some mask is given), else 0."""
-        return specular_of(self.gloss)
-
-
-def specular_of(gloss: Sequence[np.ndarray | None]) -> float:
-    """The VPLs' specular factor that the captures' glossy masks stand for: ``capture_views``
-    gives masks only where ``native_view.vpl_specular`` is 1."""
-    return 1.0 if any(g is not None for g in gloss) else 0.0
+        glossy layers are modelled (``capture_views`` gives masks only then), else 0."""
+        return 1.0 if any(g is not None for g in self.gloss) else 0.0
 
 
 @dataclass(frozen=True)
