@@ -243,14 +243,15 @@ def key_lights(
     sun and sky portals of each frame and the first frame's emitter lights."""
     scene = prepared[0].scene
     with timer.stage(f"match VPLs over {len(frames)} frames"):
-        tracked = vplace.temporal.track(vpl_sets, scene.diagonal)
+        tracked = vplace.temporal.track(vpl_sets, scene.scale)
     if write_back:
         with timer.stage("write back keyed lights"):
             keyed.write_keyed(
                 bl_scene,
                 frames,
                 tracked,
-                scene_diagonal=scene.diagonal,
+                scene_diagonal=scene.scale,
+                region=scene.region,
                 specular=prepared[0].vpl_specular,
                 emitters=prepared[0].stand_ins.emitters,
                 suns=[p.stand_ins.sun for p in prepared],
@@ -438,7 +439,15 @@ def run_animated_job(
             if not on:
                 continue
             with eevee_setup.users_sun(bl_scene, suns, frames):
-                _score_volume(bl_scene, scored, truths, add, timer, per_frame=per_frame)
+                _score_volume(
+                    bl_scene,
+                    scored,
+                    truths,
+                    add,
+                    timer,
+                    per_frame=per_frame,
+                    region=first.prepared.scene.region,
+                )
     finally:
         bl_scene.frame_set(original)
     if len(truths) >= 2:
@@ -539,7 +548,8 @@ def _score_eevee_still(
     apply.write_vpls(
         bl_scene,
         run.computed.vpls,
-        scene_diagonal=p.scene.diagonal,
+        scene_diagonal=p.scene.scale,
+        region=p.scene.region,
         specular=p.vpl_specular,
         emitters=p.stand_ins.emitters,
         sun=p.stand_ins.sun,
@@ -558,18 +568,21 @@ def _score_volume(
     timer: StageTimer,
     *,
     per_frame: bool,
+    region: apply.Region | None = None,
 ) -> None:
     """EEVEE ray tracing with a light probe volume (vplace's lights hidden; the world's sun as
     the user's lamp, ``eevee_setup.users_sun``) rendered at every
     scored frame: baked once, at the first scored frame (what a user gets from one bake), or
     ``per_frame`` baked again at each (its seconds then the bake's and the render's). The
-    probe is removed after. Not cached: a render's key does not say when its volume was baked."""
+    probe is removed after; it spans ``region`` where the cameras see far less than the scene
+    (``eevee_setup.scene_bounds``). Not cached: a render's key does not say when its volume was
+    baked."""
     kind = VOLUME_PER_FRAME if per_frame else VOLUME_ONCE
     with override() as g, ExitStack() as once:
         hide_vpls(g)
         if not per_frame:
             bl_scene.frame_set(scored[0])
-            seconds = once.enter_context(eevee_setup.temporary_volume(bl_scene))
+            seconds = once.enter_context(eevee_setup.temporary_volume(bl_scene, region=region))
             timer.log(f"[vplace] light probe volume baked once in {seconds:.1f} s")
         for f, truth in zip(scored, truths, strict=True):
             bl_scene.frame_set(f)
@@ -577,7 +590,7 @@ def _score_volume(
             with ExitStack() as each:
                 bake = 0.0
                 if per_frame:
-                    bake = each.enter_context(eevee_setup.temporary_volume(bl_scene))
+                    bake = each.enter_context(eevee_setup.temporary_volume(bl_scene, region=region))
                     timer.log(f"[vplace] light probe volume baked at frame {f} in {bake:.1f} s")
                 with timer.stage(f"{kind}, frame {f}"):
                     img = eevee_render.render(

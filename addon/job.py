@@ -37,7 +37,7 @@ from .capture.stage import (
     own_reference,
     render_reference,
 )
-from .capture.views import ViewSet, ViewSpec, capture_resolution
+from .capture.views import ViewSet, ViewSpec, capture_resolution, eye_positions
 from .capture.views import specs as view_specs
 from .compat import eevee_engine
 from .errors import AddonError, CaptureError, output_folder, run_operator
@@ -194,7 +194,6 @@ def prepare(
     is left is it an error. A view set whose captures would take more than
     :data:`MAX_CAPTURE_BYTES` is refused before anything renders."""
     job.validate()
-    exported, scene = export_native(bl_scene, timer.stage, timer.log)
     with contextlib.ExitStack() as stack:
         specs = (
             list(views)
@@ -209,6 +208,8 @@ def prepare(
                 f"{need / 2**30:.1f} GB of captures (at most {MAX_CAPTURE_BYTES / 2**30:.0f} GB): "
                 "use fewer views or a smaller capture size"
             )
+        eyes, region = eye_positions(bl_scene, specs), job.views.region()
+        exported, scene = export_native(bl_scene, timer.stage, timer.log, eyes)
         captured = capture_views(
             bl_scene,
             scene,
@@ -220,7 +221,7 @@ def prepare(
             cache_dir=job.cache_dir,
             stage=timer.stage,
             log=timer.log,
-            region=job.views.region(),
+            region=region,
             profile=job.profile,
             radius=job.radius,
         )
@@ -293,7 +294,8 @@ def eevee_refit_views(
         prepared.captured_views,
         prepared.gloss,
         prepared.stand_ins,
-        scene_diagonal=prepared.scene.diagonal,
+        scene_diagonal=prepared.scene.scale,
+        region=prepared.scene.region,
         cell_px=job.cell_px,
         cache_dir=job.cache_dir,
         stage=timer.stage,

@@ -31,7 +31,7 @@ def gloss_mask(scene: vplace.Scene, exported: ExportedScene, cap: Capture) -> np
     target = cap.position[ys, xs].astype(np.float32)
     look = target - np.asarray(cap.camera_position, dtype=np.float32)
     look /= np.maximum(np.linalg.norm(look, axis=1, keepdims=True), 1e-12)
-    back = np.float32(1e-3 * scene.diagonal)
+    back = np.float32(1e-3 * scene.scale)
     _, tri, _ = scene.intersect(
         np.ascontiguousarray(target - back * look), np.ascontiguousarray(look)
     )

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import bpy
@@ -206,3 +206,21 @@ def capture_resolution(scene: bpy.types.Scene, size: int) -> tuple[int, int]:
     if w >= h:
         return size, max(1, round(size * h / w))
     return max(1, round(size * w / h)), size
+
+
+def eye_positions(scene: bpy.types.Scene, views: Sequence[ViewSpec]) -> np.ndarray:
+    """The world positions of the views' cameras (N x 3 float32), each at its view's frame (the
+    scene's frame is put back): the eyes whose region gives the scene's working scale
+    (``scene.convert.build_scene``)."""
+    original = scene.frame_current
+    eyes = []
+    try:
+        for spec in views:
+            frame = original if spec.frame is None else spec.frame
+            if frame != scene.frame_current:
+                scene.frame_set(frame)
+            eyes.append(tuple(spec.camera.matrix_world.translation))
+    finally:
+        if scene.frame_current != original:
+            scene.frame_set(original)
+    return np.asarray(eyes, dtype=np.float32).reshape(-1, 3)

@@ -624,7 +624,8 @@ class _EeveeRun:
         apply.write_vpls(
             self.bl_scene,
             s.vpls,
-            scene_diagonal=prepared.scene.diagonal,
+            scene_diagonal=prepared.scene.scale,
+            region=prepared.scene.region,
             specular=prepared.vpl_specular,
             emitters=[e for e in prepared.stand_ins.emitters if portals or not e.portal],
             sun=prepared.stand_ins.sun,
@@ -699,7 +700,9 @@ class _EeveeRun:
                     images[view.name][label] = img.image
         if "rt+volume" in config.alternatives:
             with eevee_setup.temporary_volume(
-                self.bl_scene, probes=config.volume_resolution
+                self.bl_scene,
+                probes=config.volume_resolution,
+                region=self.data.prepared.scene.region,
             ) as bake:
                 self.log(f"[vplace] light probe volume baked in {bake:.1f} s")
                 for view, img in self.each_view(eevee.SETUPS["rt+volume"], config.eevee_samples):

@@ -75,12 +75,14 @@ def _alpha_test(info: AlphaInfo | None) -> vplace.AlphaTest | None:
     )
 
 
-def build_scene(exported: ExportedScene) -> vplace.Scene:
+def build_scene(exported: ExportedScene, eyes: np.ndarray | None = None) -> vplace.Scene:
     """A ``vplace.Scene`` (with its BVH) from an exported Blender scene: its lights, its world
     when that sends light, its materials' emission; per material its albedo, or its base-colour
     texture (``albedo_offset + texture_tint * rgb``) and alpha cut-out, read through the
     exported UVs; light paths stay within the bounces Cycles follows (``light_bounces``; at
-    least the first diffuse one)."""
+    least the first diffuse one). ``eyes`` (N x 3), the cameras' positions, give its working
+    scale (``vplace.Scene.scale``: the region seen from them, not a ground plane no camera
+    sees)."""
     lights = [native_light(light) for light in exported.lights]
     if exported.world is not None and exported.world.emits:
         lights.append(native_world(exported.world))
@@ -99,6 +101,7 @@ def build_scene(exported: ExportedScene) -> vplace.Scene:
             lights,
             emission=exported.emission,
             light_bounces=bounces,
+            eyes=eyes,
             **_gloss(mats, textured=False),
         )
     albedo = np.array(
@@ -117,6 +120,7 @@ def build_scene(exported: ExportedScene) -> vplace.Scene:
         texture_tint=np.array([m.texture_tint for m in mats], dtype=np.float32).reshape(-1, 3),
         alpha_tests=[_alpha_test(m.alpha) for m in mats],
         light_bounces=bounces,
+        eyes=eyes,
         **_gloss(mats, textured=True),
     )
 
@@ -164,14 +168,23 @@ def export_native(
     bl_scene: bpy.types.Scene,
     stage: Callable[[str], AbstractContextManager[None]],
     log: Callable[[str], None],
+    eyes: np.ndarray | None = None,
 ) -> tuple[ExportedScene, vplace.Scene]:
     """The scene stage: the exported scene (its warnings logged), refused when nothing emits,
-    and its ``vplace.Scene`` with the BVH. ``stage`` is the job timer's ``stage``."""
+    and its ``vplace.Scene`` with the BVH and the working scale of the region seen from
+    ``eyes``, the cameras' positions (:func:`build_scene`; logged where it is less than the
+    bounds'). ``stage`` is the job timer's ``stage``."""
     with stage("export scene"):
         exported = export_scene(bl_scene)
     for warning in exported.warnings:
         log(f"[vplace] warning: {warning}")
     check_lights(exported)
     with stage("build BVH"):
-        scene = build_scene(exported)
+        scene = build_scene(exported, eyes)
+    if scene.scale < scene.diagonal:
+        log(
+            f"[vplace] VPL sizes and the sun's and the world's light follow the region the "
+            f"cameras see ({scene.scale:.3g} m), not the scene's bounds ({scene.diagonal:.3g} m "
+            "across: geometry no camera sees)"
+        )
     return exported, scene

@@ -203,7 +203,8 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
         apply.write_vpls(
             scene,
             computed.vpls,
-            scene_diagonal=self.prepared.scene.diagonal,
+            scene_diagonal=self.prepared.scene.scale,
+            region=self.prepared.scene.region,
             specular=self.prepared.vpl_specular,
             emitters=self.prepared.stand_ins.emitters,
             sun=self.prepared.stand_ins.sun,

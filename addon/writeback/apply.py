@@ -18,8 +18,10 @@ ones the evaluator renders (``vplace.VplSet`` carries profile and near-field rad
 - EEVEE culls a light whose intensity falls below ``scene.eevee.light_threshold`` and, with a
   custom distance, fades it as ``(1 - (d / cutoff)^4)^2`` (``light_influence_attenuation`` in
   EEVEE's source). Each VPL light gets a custom cutoff of :data:`CUTOFF_DIAGONALS` scene
-  diagonals: no two points of the scene are farther apart than one diagonal, where the fade then
-  loses 0.32 % (two diagonals lost 12 %). The scene's own threshold is left alone.
+  diagonals (the working scale, ``vplace.Scene.scale``: the bounds' diagonal, or twice the
+  region the cameras see where that is less): no two points of the region are farther apart
+  than one diagonal, where the fade then loses 0.32 % (two diagonals lost 12 %). The scene's
+  own threshold is left alone.
 - Shadows: EEVEE keeps every shadowed light's shadow map in a pool of pages (256 x 256 each,
   4 per MB of ``scene.eevee.shadow_pool_size``, at most 4,096). A light the pool cannot hold
   loses its shadow silently and leaks through walls (Sponza, 256 VPLs, Blender's defaults:
@@ -67,6 +69,10 @@ if TYPE_CHECKING:
     from ..settings import SettingsGuard
 
 COLLECTION_NAME = "vplace VPLs"
+#: The VPL collection's custom property holding the box of the region the cameras saw
+#: (``vplace.Scene.region``: min x, y, z, max x, y, z), where it set the working scale: the EEVEE
+#: set-up fits its probe volume and lamp reach to it (``eevee_setup.scene_bounds``).
+REGION_KEY = "vplace_region"
 #: EEVEE renders 8,192 lights; beyond 65,536 it drops them (DESIGN). We refuse more than this.
 MAX_VPLS = 8192
 #: The custom cutoff distance of every VPL light, in scene diagonals (see the module docs).
@@ -288,6 +294,30 @@ def world_sun_light(scene: bpy.types.Scene) -> bpy.types.Object | None:
     return next((o for o in scene.objects if o.get("vplace_world_sun", False)), None)
 
 
+#: A box ``(min, max)`` of world-space corners (``vplace.Scene.region``).
+Region = tuple[Sequence[float], Sequence[float]]
+
+
+def new_collection(name: str, region: Region | None) -> bpy.types.Collection:
+    """A new, unlinked VPL collection to write ``name`` into, marked as vplace's, with
+    ``region`` under :data:`REGION_KEY` when given."""
+    coll = bpy.data.collections.new(name + " (writing)")
+    coll[VPL_MARKER] = True
+    if region is not None:
+        coll[REGION_KEY] = [float(v) for corner in region for v in corner]
+    return coll
+
+
+def stored_region(name: str = COLLECTION_NAME) -> Region | None:
+    """The region kept on the VPL collection ``name`` (:data:`REGION_KEY`), or None."""
+    coll = bpy.data.collections.get(name)
+    values = coll.get(REGION_KEY) if coll is not None and coll.get(VPL_MARKER, False) else None
+    if values is None or len(values) != 6:
+        return None
+    v = [float(x) for x in values]
+    return (v[:3], v[3:])
+
+
 def write_vpls(
     scene: bpy.types.Scene,
     vpls: vplace.VplSet,
@@ -297,6 +327,7 @@ def write_vpls(
     specular: float = 0.0,
     emitters: Sequence[EmitterLight] = (),
     sun: SunLight | None = None,
+    region: Region | None = None,
     name: str = COLLECTION_NAME,
 ) -> bpy.types.Collection:
     """Writes the VPLs of ``vpls`` that carry power as lights (by its profile and near-field
@@ -304,7 +335,8 @@ def write_vpls(
     :data:`MAX_SHADOWED_VPLS` brightest cast shadows; ``specular`` is their specular factor
     (``Prepared.vpl_specular``); ``emitters`` are written beside them, lights that stand in
     for emissive meshes EEVEE does not light with (``emitter_lights``), and ``sun``, a SUN light
-    for the world's sun (``emitter_lights.world_sun``). See the module docs."""
+    for the world's sun (``emitter_lights.world_sun``). ``region`` (``vplace.Scene.region``)
+    is kept on the collection (:data:`REGION_KEY`). See the module docs."""
     n = len(vpls)
     if n > MAX_VPLS:
         raise WriteBackError(
@@ -316,8 +348,7 @@ def write_vpls(
     position, normal, flux = vpls.position, vpls.normal, vpls.flux
     power = vpls.blender_power
     # Build the new collection unlinked; only a complete one replaces the old one.
-    coll = bpy.data.collections.new(name + " (writing)")
-    coll[VPL_MARKER] = True
+    coll = new_collection(name, region)
     lum = power @ np.asarray(vplace.LUMINANCE, dtype=np.float64)
     lit = np.flatnonzero(power.max(axis=1) > 0)
     shadowed = set(lit[np.argsort(-lum[lit], kind="stable")[:MAX_SHADOWED_VPLS]].tolist())

@@ -485,8 +485,16 @@ def lamp_notes(scene: bpy.types.Scene) -> list[str]:
     ]
 
 
-def scene_bounds(scene: bpy.types.Scene) -> tuple[Vector, Vector]:
-    """The world-space bounds of the scene's render-visible meshes (vplace's lights excluded)."""
+def scene_bounds(
+    scene: bpy.types.Scene, region: apply.Region | None = None
+) -> tuple[Vector, Vector]:
+    """The box the EEVEE set-up works over: ``region``, else the region kept on the VPL
+    collection (``apply.stored_region``: where the cameras see far less than the scene, as a
+    room on a kilometre of ground), else the world-space bounds of the scene's render-visible
+    meshes (vplace's lights excluded)."""
+    region = region if region is not None else apply.stored_region()
+    if region is not None:
+        return Vector(region[0]), Vector(region[1])
     corners = [
         obj.matrix_world @ Vector(c)
         for obj in scene.objects
@@ -507,10 +515,11 @@ def new_volume(
     margin: float = 1.0,
     probes: int = VOLUME_PROBES,
     capture_indirect: bool = True,
+    region: apply.Region | None = None,
 ) -> bpy.types.Object:
-    """A light probe volume over the scene's bounds times ``margin``, ``probes`` along its
-    longest side, linked to ``collection`` (not baked)."""
-    lo, hi = scene_bounds(scene)
+    """A light probe volume over :func:`scene_bounds` (``region``) times ``margin``,
+    ``probes`` along its longest side, linked to ``collection`` (not baked)."""
+    lo, hi = scene_bounds(scene, region)
     size = (hi - lo) * margin
     longest = max(max(size), 1e-6)
     data = bpy.data.lightprobes.new("vplace volume", "VOLUME")
@@ -547,11 +556,17 @@ def temporary_volume(
     margin: float = VOLUME_MARGIN,
     probes: int = VOLUME_PROBES,
     capture_indirect: bool = True,
+    region: apply.Region | None = None,
 ) -> Iterator[float]:
     """A light probe volume over the scene (see :func:`new_volume`), baked for the block;
     yields the bake's seconds and always removes the probe and its data again."""
     obj = new_volume(
-        scene, scene.collection, margin=margin, probes=probes, capture_indirect=capture_indirect
+        scene,
+        scene.collection,
+        margin=margin,
+        probes=probes,
+        capture_indirect=capture_indirect,
+        region=region,
     )
     data = obj.data
     try:
@@ -603,14 +618,18 @@ def users_sun(
 
 @contextmanager
 def world_for_render(
-    scene: bpy.types.Scene, *, probes: int = VOLUME_PROBES, portals: bool | None = None
+    scene: bpy.types.Scene,
+    *,
+    probes: int = VOLUME_PROBES,
+    portals: bool | None = None,
+    region: apply.Region | None = None,
 ) -> Iterator[float]:
     """For a render of the written lights as :func:`set_up` would leave the scene: with sky
     portals, the world for the camera only (:func:`camera_only`) for the block; else, when the
     world emits and vplace has baked no volume, a temporary one without indirect light (the
     world's light, occluded). ``portals``: whether the lights rendered in the block have sky
-    portals (None: whether the scene has them now). Yields the volume's bake seconds (0.0 when
-    none is baked)."""
+    portals (None: whether the scene has them now); the volume spans :func:`scene_bounds`
+    (``region``). Yields the volume's bake seconds (0.0 when none is baked)."""
     world = scene.world
     if portals is None:
         portals = bool(portal_lights(scene))
@@ -628,10 +647,12 @@ def world_for_render(
         with override() as g:
             for obj in portal_lights(scene):
                 g.set(obj, "hide_render", True)
-            with world_for_render(scene, probes=probes, portals=False) as seconds:
+            with world_for_render(scene, probes=probes, portals=False, region=region) as seconds:
                 yield seconds
     elif world_emits(scene) and vplace_volume(scene) is None:
-        with temporary_volume(scene, probes=probes, capture_indirect=False) as seconds:
+        with temporary_volume(
+            scene, probes=probes, capture_indirect=False, region=region
+        ) as seconds:
             yield seconds
     else:
         yield 0.0

@@ -93,6 +93,7 @@ def write_keyed(
     emitters: Sequence[EmitterLight] = (),
     suns: Sequence[SunLight | None] = (),
     portals: Sequence[Sequence[EmitterLight]] = (),
+    region: apply.Region | None = None,
     name: str = apply.COLLECTION_NAME,
 ) -> bpy.types.Collection:
     """Writes the slots of ``keyed`` (one per light, keyed on ``frames``), the world's sun of
@@ -100,7 +101,8 @@ def write_keyed(
     one list per frame, or none; a portal in ``emitters`` is left to them) and ``emitters``
     into a fresh VPL collection
     linked to ``scene`` (see the module docs); the :data:`apply.MAX_SHADOWED_VPLS` slots
-    brightest on some frame cast shadows. The scene's current frame is kept."""
+    brightest on some frame cast shadows; ``region`` is kept on the collection
+    (``apply.REGION_KEY``). The scene's current frame is kept."""
     slots = keyed.position.shape[1]
     if len(frames) != keyed.position.shape[0]:
         raise WriteBackError(f"{len(frames)} frames for {keyed.position.shape[0]} keyed frames")
@@ -118,8 +120,7 @@ def write_keyed(
     shadowed = set(np.argsort(-brightest, kind="stable")[: apply.MAX_SHADOWED_VPLS].tolist())
     energy, color = keyed.energy, keyed.color
     current = scene.frame_current
-    coll = bpy.data.collections.new(name + " (writing)")
-    coll[apply.VPL_MARKER] = True
+    coll = apply.new_collection(name, region)
     try:
         for s in range(slots):
             if brightest[s] <= 0.0:

@@ -51,6 +51,7 @@ def refit_views(
     stand_ins: StandIns,
     *,
     scene_diagonal: float,
+    region: apply.Region | None = None,
     cell_px: int,
     cache_dir: Path | None,
     stage: Callable[[str], AbstractContextManager[None]],
@@ -81,12 +82,15 @@ def refit_views(
             bl_scene,
             nothing,
             scene_diagonal=scene_diagonal,
+            region=region,
             emitters=stand_ins.emitters,
             sun=stand_ins.sun,
             name=COLLECTION,
         )
         try:
-            with eevee_setup.world_for_render(bl_scene, portals=bool(stand_ins.portals)):
+            with eevee_setup.world_for_render(
+                bl_scene, portals=bool(stand_ins.portals), region=region
+            ):
                 for i, cap in enumerate(captures):
                     camera = bpy.data.objects.get(cap.camera)
                     if camera is None or cap.view != cap.camera:  # another frame's view

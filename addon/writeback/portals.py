@@ -353,7 +353,7 @@ def openings(scene: vplace.Scene, eyes: Sequence[Sequence[float]]) -> tuple[list
     share = escaped / max(1, len(eyes) * len(dirs))
     if share > MAX_OPEN or not patches:
         return [], share
-    gap = PLANE_GAP * scene.diagonal
+    gap = PLANE_GAP * scene.scale
     group = list(range(len(patches)))
 
     def root(i: int) -> int:

@@ -53,7 +53,8 @@ def write_back(
         apply.write_vpls(
             bl_scene,
             vpls,
-            scene_diagonal=scene.diagonal,
+            scene_diagonal=scene.scale,
+            region=scene.region,
             specular=specular,
             emitters=lights.emitters,
             sun=lights.sun,

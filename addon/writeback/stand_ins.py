@@ -191,7 +191,7 @@ def emitter_lights(
     centres = np.array([s.centre for s in shapes])
     normals = np.array([s.normal for s in shapes])
     sizes = np.array([max(s.size, s.size_y) for s in shapes])
-    offset = 1e-3 * scene.diagonal
+    offset = 1e-3 * scene.scale
     sides = []
     for sign in (1.0, -1.0):
         open_ = _open_sides(scene, centres, sign * normals, sizes, 1e-2 * offset)
@@ -350,7 +350,7 @@ def sun_lit_fraction(
     facing = n @ d > 0.0
     if not facing.any():
         return 0.0
-    eps = np.float32(1e-4 * scene.diagonal)
+    eps = np.float32(1e-4 * scene.scale)
     origins = position[ys, xs][facing].astype(np.float32) + eps * n[facing]
     targets = origins + np.float32(2.0 * scene.diagonal) * d
     blocked = scene.occluded(np.ascontiguousarray(origins), np.ascontiguousarray(targets))

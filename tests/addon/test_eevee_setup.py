@@ -164,3 +164,31 @@ def test_the_users_soft_lamps_without_jitter_are_noted_and_never_changed(scene):
     sun.data.angle = 0.1
     scene.collection.objects.link(sun)
     assert eevee_setup.unjittered_lamps(scene) == []
+
+
+def test_a_ground_no_camera_sees_neither_stretches_the_volume_nor_the_lamps_reach(scene):
+    """The region the cameras saw (``vplace.Scene.region``, kept on the VPL collection) is what
+    the probe volume spans and what the lamps must reach, not a kilometre of ground under the
+    box (before: a volume of 1 km with the box inside one probe cell)."""
+    bpy.ops.mesh.primitive_plane_add(size=1000.0, location=(0.0, 0.0, -0.5))
+    plain = eevee_setup.scene_bounds(scene)
+    assert (plain[1] - plain[0]).length > 1000.0
+    rng = np.random.default_rng(0)
+    pos = rng.uniform(-0.8, 0.8, (8, 3)).astype(np.float32) + np.float32([0, 0, 1])
+    vpls = vplace.VplSet(pos, np.tile(np.float32([0, 0, 1]), (8, 1)), np.ones((8, 3), np.float32))
+    box = ((-1.0, -1.0, 0.0), (1.0, 1.0, 2.0))
+    coll = apply.write_vpls(scene, vpls, scene_diagonal=6.9, region=box)
+    assert list(coll[apply.REGION_KEY]) == [-1.0, -1.0, 0.0, 1.0, 1.0, 2.0]
+    lo, hi = eevee_setup.scene_bounds(scene)
+    assert (tuple(lo), tuple(hi)) == box
+    volume = eevee_setup.new_volume(scene, scene.collection, margin=eevee_setup.VOLUME_MARGIN)
+    assert max(volume.scale) < 2.0
+    lamp = scene.objects["light"].data
+    scene.eevee.light_threshold = 0.01  # the lamp reaches 3.09 m
+    scene.eevee.light_threshold = eevee_setup.threshold_for(scene)
+    need = eevee_setup.LAMP_REACH_DIAGONALS * (hi - lo).length
+    assert need <= eevee_setup.lamp_reach(lamp, scene.eevee.light_threshold) < 1.01 * need
+    # written without a region (a scene whose cameras see most of it): the meshes' bounds
+    write(scene, 8)
+    assert apply.stored_region() is None
+    assert eevee_setup.scene_bounds(scene) == plain

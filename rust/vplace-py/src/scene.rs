@@ -265,11 +265,16 @@ impl PyScene {
     /// scored against follows (Cycles' Light Paths > Max Bounces; diffuse and total in
     /// 1..=`MAX_BOUNCES`, glossy in 0..=`MAX_BOUNCES`; default `MAX_BOUNCES` each); light paths
     /// leave VPLs only within them.
+    ///
+    /// `eyes` float32 (N, 3), the cameras' positions (optional): the working scale (`scale`)
+    /// is then that of the region seen from them, where that is much less than the bounds
+    /// (`vplace_core::scene::region`); VPL sizes and ray offsets follow it.
     #[new]
     #[pyo3(signature = (
         vertices, triangles, material_ids, albedo, lights, *, emission = None,
         uvs = None, textures = None, base_textures = None, texture_tint = None, alpha_tests = None,
-        gloss = None, gloss_tint = None, gloss_roughness = None, light_bounces = None
+        gloss = None, gloss_tint = None, gloss_roughness = None, light_bounces = None,
+        eyes = None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -289,7 +294,15 @@ impl PyScene {
         gloss_tint: Option<&Bound<'_, PyAny>>,
         gloss_roughness: Option<&Bound<'_, PyAny>>,
         light_bounces: Option<(usize, usize, usize)>,
+        eyes: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
+        let eyes = match eyes {
+            Some(e) => {
+                let e = array::<f32>(e, "eyes", &[Dim::Any, Dim::Is(3)], "float32")?;
+                vec3s(slice(&e, "eyes")?)
+            }
+            None => Vec::new(),
+        };
         let v = array::<f32>(vertices, "vertices", &[Dim::Any, Dim::Is(3)], "float32")?;
         let t = array::<u32>(triangles, "triangles", &[Dim::Any, Dim::Is(3)], "uint32")?;
         let m = array::<u32>(material_ids, "material_ids", &[Dim::Any], "uint32")?;
@@ -342,6 +355,7 @@ impl PyScene {
                 }),
                 None => Ok(s),
             })
+            .and_then(|s| s.with_eyes(&eyes))
         })?;
         Ok(Self {
             inner: Arc::new(scene),
@@ -390,14 +404,31 @@ impl PyScene {
         (lo.to_array(), hi.to_array())
     }
 
-    /// Length of the bounds' diagonal, metres.
+    /// Length of the bounds' diagonal, metres: the distance that takes a ray out of the scene.
     #[getter]
     fn diagonal(&self) -> f32 {
         self.inner.diagonal()
     }
 
+    /// The working scale, metres: the diagonal of the region seen from the constructor's
+    /// `eyes`, where that is much less than the bounds, else the bounds' diagonal. VPL sizes,
+    /// their offsets and ray offsets are fractions of it.
+    #[getter]
+    fn scale(&self) -> f32 {
+        self.inner.scale()
+    }
+
+    /// `(min, max)` corners of the region the cameras see where it sets the working scale
+    /// (less than the bounds), else None.
+    #[getter]
+    fn region(&self) -> Option<([f32; 3], [f32; 3])> {
+        self.inner
+            .region()
+            .map(|(lo, hi)| (lo.to_array(), hi.to_array()))
+    }
+
     /// The default near-field radius of the scene's VPLs, metres (`NEAR_FIELD_FRACTION` of
-    /// the diagonal).
+    /// the working scale).
     #[getter]
     fn near_field_radius(&self) -> f32 {
         self.inner.near_field_radius()
@@ -738,6 +769,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
         "NEAR_FIELD_FRACTION",
         vplace_core::scene::NEAR_FIELD_FRACTION,
     )?;
+    m.add("REGION_MARGIN", vplace_core::scene::region::REGION_MARGIN)?;
     m.add("MAX_RADIUS_FACTOR", vplace_core::vpl::MAX_RADIUS_FACTOR)?;
     m.add("SPACING_NEIGHBOURS", vplace_core::vpl::SPACING_NEIGHBOURS)?;
     Ok(())

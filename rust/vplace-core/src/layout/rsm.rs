@@ -97,10 +97,9 @@ fn lattice_ray(emitter: Emitter<'_>, scene: &Scene, (u, v): (f32, f32), i: usize
             ray(light.position, d.normalize(), one)
         }
         LightKind::Sun { .. } => {
-            let (centre, radius) = scene.bounding_sphere();
+            let (centre, radius, start) = scene.emission_sphere();
             let r = radius * u.sqrt();
-            let origin =
-                centre - light.direction * (2.0 * radius) + (t * phi.cos() + b * phi.sin()) * r;
+            let origin = centre - light.direction * start + (t * phi.cos() + b * phi.sin()) * r;
             ray(origin, light.direction, one)
         }
         LightKind::World { .. } => unreachable!("handled above"),
@@ -113,7 +112,7 @@ pub fn rsm_vpls(scene: &Scene, n: usize) -> Result<Vec<Vpl>> {
     let weights: Vec<f64> = weights.into_iter().map(f64::from).collect();
     let counts = largest_remainder(&weights, n);
     let eps = scene.ray_epsilon();
-    let offset = Vpl::SURFACE_OFFSET * scene.diagonal();
+    let offset = Vpl::SURFACE_OFFSET * scene.scale();
     let mut out = Vec::with_capacity(n);
     for ((emitter, power), &m) in scene.emitters().into_iter().zip(&powers).zip(&counts) {
         if m == 0 {

@@ -284,7 +284,7 @@ pub fn build_strata(
 ) -> Result<Strata> {
     check_strata_input(views, predicted, params)?;
     let c = params.cell_px;
-    let offset = Vpl::SURFACE_OFFSET * scene.diagonal();
+    let offset = Vpl::SURFACE_OFFSET * scene.scale();
     let occluded = |a: Vec3, b: Vec3| scene.occluded(a, b);
     let mut grids = Vec::with_capacity(views.len());
     let mut per: Vec<Vec<Emitter>> = Vec::new();

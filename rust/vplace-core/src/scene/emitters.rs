@@ -615,12 +615,29 @@ impl Scene {
         let (lo, hi) = self.bounds();
         (0.5 * (lo + hi), 0.5 * self.diagonal())
     }
+
+    /// The sphere the sun's and the world's light is sent through, `(centre, radius, start)`:
+    /// the working region's ([`Scene::scale`] across, about the centre of the region the
+    /// cameras see; the bounding sphere when the scale is the bounds'), and the distance
+    /// before its centre at which a parallel ray starts outside every triangle. Light that
+    /// meets geometry outside it (a ground plane of a kilometre under a room) is not sent: it
+    /// would make VPLs where no camera looks, out of the budget of those it does.
+    #[must_use]
+    pub fn emission_sphere(&self) -> (Vec3, f32, f32) {
+        let (lo, hi) = self.bounds();
+        let centre = self.region_centre;
+        let far = (centre - lo)
+            .max(hi - centre)
+            .length()
+            .max(0.5 * self.scale());
+        (centre, 0.5 * self.scale(), 2.0 * far)
+    }
 }
 
 /// Total power a light emits into the scene (RGB watts; see the module docs).
 #[must_use]
 pub fn light_power(light: &Light, scene: &Scene) -> Vec3 {
-    let (_, r) = scene.bounding_sphere();
+    let (_, r, _) = scene.emission_sphere();
     match &light.kind {
         LightKind::Point { .. } | LightKind::Area { .. } => light.power,
         LightKind::Spot {
@@ -839,13 +856,14 @@ fn world_ray(
 }
 
 /// The start of a parallel ray travelling along unit `d`: a point uniform on the disk of the
-/// bounding sphere's radius, perpendicular to `d`, twice that radius before the centre.
+/// emission sphere's radius ([`Scene::emission_sphere`]), perpendicular to `d`, outside every
+/// triangle before the centre (twice the radius before it when the sphere bounds the scene).
 fn outside_disk(scene: &Scene, d: Vec3, u1: f32, u2: f32) -> Vec3 {
-    let (centre, radius) = scene.bounding_sphere();
+    let (centre, radius, start) = scene.emission_sphere();
     let (t, b) = basis(d);
     let r = radius * u1.sqrt();
     let a = 2.0 * PI * u2;
-    centre - d * (2.0 * radius) + (t * a.cos() + b * a.sin()) * r
+    centre - d * start + (t * a.cos() + b * a.sin()) * r
 }
 
 /// A direction leaving an area light of axis `axis` and spread `spread`, and its weight (mean

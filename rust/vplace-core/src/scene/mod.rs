@@ -14,6 +14,7 @@
 pub mod emitters;
 mod light;
 mod material;
+pub mod region;
 mod shadow_bvh;
 pub mod texture;
 
@@ -35,7 +36,7 @@ use crate::error::{check_finite, Result, VplaceError};
 use crate::scene::emitters::{EmissiveMesh, EnvironmentMap};
 use crate::scene::texture::{AlphaTest, Texture, TextureRef};
 
-/// The default near-field radius `radius` as a fraction of the scene diagonal
+/// The default near-field radius `radius` as a fraction of the scene's working scale
 /// ([`Scene::near_field_radius`]; the shading kernel, `shade::shading`, bounds
 /// the `1 / r^2` of a cosine VPL with the disk of this radius): VPL spacing grows with the scene, so the radius
 /// within which a VPL's `1 / r^2` is bounded does too.
@@ -92,6 +93,13 @@ pub struct Scene {
     pub lights: Vec<Light>,
     bounds_min: Vec3,
     bounds_max: Vec3,
+    /// The working scale ([`Scene::scale`]).
+    scale: f32,
+    /// The centre of the sphere the sun and the world send light through
+    /// ([`Scene::emission_sphere`]).
+    region_centre: Vec3,
+    /// The box of the region the cameras see, where it sets the scale ([`Scene::region`]).
+    region: Option<(Vec3, Vec3)>,
     /// Number of zero-area triangles (kept, never hit).
     pub degenerate_triangles: usize,
     /// The triangles whose material emits, sampled by power ([`crate::scene::emitters`]).
@@ -289,6 +297,9 @@ impl Scene {
             lights,
             bounds_min: lo,
             bounds_max: hi,
+            scale: (hi - lo).length().max(1e-6),
+            region_centre: 0.5 * (lo + hi),
+            region: None,
             degenerate_triangles: degenerate,
             emissive,
             surfaces,
@@ -352,23 +363,39 @@ impl Scene {
         (self.bounds_min, self.bounds_max)
     }
 
-    /// Length of the bounds' diagonal: the scene's scale for ray offsets.
+    /// Length of the bounds' diagonal: the distance that takes a ray out of the scene.
     #[must_use]
     pub fn diagonal(&self) -> f32 {
         (self.bounds_max - self.bounds_min).length().max(1e-6)
     }
 
-    /// The default near-field radius of the scene's VPLs: [`NEAR_FIELD_FRACTION`] of the
-    /// diagonal (VPL spacing grows with the scene; see `shade::shading::near_field`).
+    /// The working scale, metres: the size of the region the cameras work in
+    /// ([`Scene::with_eyes`], [`region`]), or the bounds' diagonal. VPL sizes and offsets and
+    /// ray offsets are fractions of it.
     #[must_use]
-    pub fn near_field_radius(&self) -> f32 {
-        NEAR_FIELD_FRACTION * self.diagonal()
+    pub fn scale(&self) -> f32 {
+        self.scale
     }
 
-    /// Ray offset used to leave a surface without hitting it again.
+    /// The box `(min, max)` of the region the cameras see ([`Scene::with_eyes`]) where it sets
+    /// the working scale (it is less than the bounds); else `None`.
+    #[must_use]
+    pub fn region(&self) -> Option<(Vec3, Vec3)> {
+        self.region
+    }
+
+    /// The default near-field radius of the scene's VPLs: [`NEAR_FIELD_FRACTION`] of the
+    /// working scale (VPL spacing grows with the scene; see `shade::shading::near_field`).
+    #[must_use]
+    pub fn near_field_radius(&self) -> f32 {
+        NEAR_FIELD_FRACTION * self.scale
+    }
+
+    /// Ray offset used to leave a surface without hitting it again (a fraction of the working
+    /// scale).
     #[must_use]
     pub fn ray_epsilon(&self) -> f32 {
-        1e-4 * self.diagonal()
+        1e-4 * self.scale
     }
 
     /// Unit geometric normal of triangle `t` (zero if degenerate).

@@ -108,7 +108,7 @@ pub fn light_path_vpls(scene: &Scene, n: usize, seed: u64, bounces: usize) -> Re
         cdf.push(acc);
     }
     let eps = scene.ray_epsilon();
-    let offset = Vpl::SURFACE_OFFSET * scene.diagonal();
+    let offset = Vpl::SURFACE_OFFSET * scene.scale();
     let emitters = scene.emitters();
     let mut rng = Rng::new(seed, 0x5eed);
     // (position, normal, reflected flux of one path before dividing by the path count)

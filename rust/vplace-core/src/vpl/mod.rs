@@ -117,7 +117,8 @@ pub struct Vpl {
 }
 
 impl Vpl {
-    /// Offset of a VPL off its surface, as a fraction of the scene diagonal.
+    /// Offset of a VPL off its surface, as a fraction of the scene's working scale
+    /// ([`crate::scene::Scene::scale`]).
     pub const SURFACE_OFFSET: f32 = 1e-3;
 }
 

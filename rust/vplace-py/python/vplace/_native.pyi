@@ -12,6 +12,8 @@ VPL_SURFACE_OFFSET: float
 MAX_BOUNCES: int
 LUMINANCE: list[float]
 NEAR_FIELD_FRACTION: float
+#: The working scale is at most this many times the diagonal of the region the cameras see.
+REGION_MARGIN: float
 MAX_RADIUS_FACTOR: float
 SPACING_NEIGHBOURS: int
 
@@ -127,6 +129,7 @@ class Scene:
         gloss_tint: _F32 | None = None,
         gloss_roughness: _F32 | None = None,
         light_bounces: tuple[int, int, int] | None = None,
+        eyes: _F32 | None = None,
     ) -> Scene: ...
     def intersect(
         self, origins: _F32, directions: _F32, tmin: float = 0.0
@@ -152,6 +155,10 @@ class Scene:
     def bounds(self) -> tuple[list[float], list[float]]: ...
     @property
     def diagonal(self) -> float: ...
+    @property
+    def scale(self) -> float: ...
+    @property
+    def region(self) -> tuple[list[float], list[float]] | None: ...
     @property
     def near_field_radius(self) -> float: ...
     @property

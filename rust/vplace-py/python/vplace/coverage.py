@@ -15,7 +15,7 @@ their VPLs from few, heavy off-screen draws, and a refit trades them away for th
   window, a doorway to the sky), and a point beyond it stands outside the room, seeing the
   sunlit facade that no camera in the room sees (:func:`reach`).
 - **Coverage.** Each candidate casts a :data:`PROBE` x :data:`PROBE` grid of rays; the surfaces
-  it sees are voxels (:data:`VOXELS` along the scene's diagonal, split by the normal's dominant
+  it sees are voxels (:data:`VOXELS` along the scene's working scale, split by the normal's dominant
   axis and sign, so the two faces of a wall differ). The user's captures cover theirs already.
   Greedy set cover: the candidate that sees the most voxels not yet covered is added, until
   ``count`` views or until the best adds less than :data:`MIN_GAIN` of what the region sees.
@@ -50,7 +50,7 @@ REGION_FRACTION = 1.0
 WALL_MARGIN = 0.5
 #: Rays per side of a candidate's coverage probe.
 PROBE = 32
-#: Voxels along the scene's diagonal for the coverage count.
+#: Voxels along the scene's working scale (``Scene.scale``) for the coverage count.
 VOXELS = 96
 #: Stop adding views when the best adds less than this share of what the region sees.
 MIN_GAIN = 0.02
@@ -192,8 +192,8 @@ def median_free_distance(scene: Scene, eye: np.ndarray) -> float:
 
 
 def free_distance(scene: Scene, eye: np.ndarray) -> float:
-    """:func:`median_free_distance`, the scene's diagonal when most rays escape."""
-    return min(median_free_distance(scene, eye), scene.diagonal)
+    """:func:`median_free_distance`, the scene's working scale when most rays escape."""
+    return min(median_free_distance(scene, eye), scene.scale)
 
 
 def enclosed(scene: Scene, eye: np.ndarray) -> bool:
@@ -205,7 +205,7 @@ def _region(scene: Scene, eye: np.ndarray, radius: float) -> tuple[float, bool]:
     """The region's radius around ``eye`` (``radius``, or :data:`REGION_FRACTION` of the free
     distance) and whether ``eye`` is :func:`enclosed`, from one set of rays."""
     median = median_free_distance(scene, eye)
-    r = radius or REGION_FRACTION * min(median, scene.diagonal)
+    r = radius or REGION_FRACTION * min(median, scene.scale)
     return r, math.isfinite(median)
 
 
@@ -250,12 +250,12 @@ def _candidates(
 
 
 def _voxels(scene: Scene, points: np.ndarray, normals: np.ndarray) -> set[int]:
-    lo, _ = scene.bounds
-    cell = scene.diagonal / VOXELS
-    ijk = np.floor((points - np.asarray(lo, dtype=np.float32)) / cell).astype(np.int64) + 1
+    lo, hi = (np.asarray(b, dtype=np.float32) for b in scene.bounds)
+    cell = scene.scale / VOXELS
+    ijk = np.floor((points - lo) / cell).astype(np.int64) + 1
     axis = np.abs(normals).argmax(axis=1)
     sign = np.take_along_axis(normals, axis[:, None], axis=1)[:, 0] > 0
-    n = VOXELS + 3
+    n = int(np.ceil(float((hi - lo).max()) / cell)) + 3
     keys = ((ijk[:, 0] * n + ijk[:, 1]) * n + ijk[:, 2]) * 6 + axis * 2 + sign
     return set(np.unique(keys).tolist())
 

@@ -72,7 +72,7 @@ class LayoutSettings:
     seed: int = 0
     profile: str = "cosine"
     #: Near-field radius of the VPLs (m); None: the scene's (``NEAR_FIELD_FRACTION`` of its
-    #: diagonal: VPL spacing grows with the scene).
+    #: working scale, ``Scene.scale``: VPL spacing grows with the scene).
     radius: float | None = None
     cell_px: int = 16
     #: One of :data:`METHODS`. The default is ``vplace+refit``: it beats the others in the

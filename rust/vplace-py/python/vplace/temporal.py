@@ -171,7 +171,8 @@ def greedy_match(cost: np.ndarray, max_cost: float = MAX_MATCH_COST) -> np.ndarr
 
 def track(sets: Sequence[vplace.VplSet], diagonal: float) -> Keyed:
     """The VPLs of ``sets`` (one set per frame, in frame order, one profile and radius) matched
-    into slots (see the module docs). Deterministic: the same sets give the same slots."""
+    into slots (see the module docs); ``diagonal`` is the scene's size (its working scale,
+    ``Scene.scale``). Deterministic: the same sets give the same slots."""
     if not sets:
         raise ValueError("no frames to track")
     profile, radius = sets[0].profile, sets[0].radius
