@@ -46,6 +46,7 @@ import numpy as np
 
 from .capture.passes import Capture, capture, hide_vpls
 from .capture.stage import Captured, render_reference
+from .capture.views import ViewSpec, eye_positions
 from .errors import AddonError, WriteBackError, output_folder, run_operator
 from .job import OTHER_REFERENCE_SEED, Job, Prepared, StageTimer, prepare, reference_render
 from .native import vplace
@@ -155,13 +156,29 @@ class _Frame:
     computed: vplace.job.Computed
 
 
+def frame_eyes(bl_scene: bpy.types.Scene, frames: Sequence[int]) -> np.ndarray | None:
+    """The scene camera's position at each of ``frames`` (None without a camera, which the
+    capture refuses): every frame's scene gets the working scale of the region seen from all of
+    them (``vplace.Scene.scale``), so a moving camera keeps one VPL size over the frames."""
+    cam = bl_scene.camera
+    if cam is None:
+        return None
+    return eye_positions(bl_scene, [ViewSpec(cam.name, cam, f) for f in frames])
+
+
 def _run_frame(
-    bl_scene: bpy.types.Scene, frame: int, job: Job, truth_samples: int | None, timer: StageTimer
+    bl_scene: bpy.types.Scene,
+    frame: int,
+    job: Job,
+    truth_samples: int | None,
+    timer: StageTimer,
+    eyes: np.ndarray | None = None,
 ) -> tuple[_Frame, FrameCost]:
-    """The still job at ``frame``: capture, reference, fit, layout, refit, evaluator."""
+    """The still job at ``frame``: capture, reference, fit, layout, refit, evaluator; ``eyes``
+    (:func:`frame_eyes`) set the scene's working scale."""
     bl_scene.frame_set(frame)
     start = time.perf_counter()
-    prepared = prepare(bl_scene, job, timer)
+    prepared = prepare(bl_scene, job, timer, eyes=eyes)
     prepare_seconds = time.perf_counter() - start
     n = len(prepared.captures)
     reference = render_reference(
@@ -199,14 +216,16 @@ def check_animation(job: Job, frame_range: tuple[int, int, int]) -> list[int]:
 def capture_frames(
     bl_scene: bpy.types.Scene, frames: Sequence[int], job: Job, timer: StageTimer
 ) -> list[Prepared]:
-    """:func:`job.prepare` (export and capture, cached) at each of ``frames``; the scene's frame
-    is put back. Uses bpy: the main thread (the panel's first half)."""
+    """:func:`job.prepare` (export and capture, cached) at each of ``frames``, each scene with
+    the working scale of all of them (:func:`frame_eyes`); the scene's frame is put back. Uses
+    bpy: the main thread (the panel's first half)."""
     original = bl_scene.frame_current
+    eyes = frame_eyes(bl_scene, frames)
     try:
         out = []
         for f in frames:
             bl_scene.frame_set(f)
-            out.append(prepare(bl_scene, job, timer))
+            out.append(prepare(bl_scene, job, timer, eyes=eyes))
         return out
     finally:
         bl_scene.frame_set(original)
@@ -296,9 +315,10 @@ def run_animated_job(
     try:
         runs: dict[int, _Frame] = {}
         costs = []
+        eyes = frame_eyes(bl_scene, frames)
         for f in frames:
             log(f"[vplace] frame {f}")
-            runs[f], cost = _run_frame(bl_scene, f, job, truth_samples, timer)
+            runs[f], cost = _run_frame(bl_scene, f, job, truth_samples, timer, eyes)
             costs.append(cost)
         first = runs[frames[0]]
         preps = [runs[f].prepared for f in frames]

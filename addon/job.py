@@ -184,6 +184,7 @@ def prepare(
     timer: StageTimer,
     views: Sequence[ViewSpec] | None = None,
     reference: ReferenceRender | None = None,
+    eyes: np.ndarray | None = None,
 ) -> Prepared:
     """The Blender stages, each entered once: the scene (export, check, BVH), then a capture of
     each view (default: the job's view set), then, with ``reference``, the main job's reference.
@@ -192,7 +193,8 @@ def prepare(
     A view that sees no geometry, or that renders exactly what an earlier view renders (the same
     capture key), is left out and said so in ``Prepared.skipped`` and the log; only when no view
     is left is it an error. A view set whose captures would take more than
-    :data:`MAX_CAPTURE_BYTES` is refused before anything renders."""
+    :data:`MAX_CAPTURE_BYTES` is refused before anything renders. ``eyes`` (N x 3) set the
+    scene's working scale (``vplace.Scene.scale``; default: the views' cameras)."""
     job.validate()
     with contextlib.ExitStack() as stack:
         specs = (
@@ -208,7 +210,8 @@ def prepare(
                 f"{need / 2**30:.1f} GB of captures (at most {MAX_CAPTURE_BYTES / 2**30:.0f} GB): "
                 "use fewer views or a smaller capture size"
             )
-        eyes, region = eye_positions(bl_scene, specs), job.views.region()
+        eyes = eyes if eyes is not None else eye_positions(bl_scene, specs)
+        region = job.views.region()
         exported, scene = export_native(bl_scene, timer.stage, timer.log, eyes)
         captured = capture_views(
             bl_scene,

@@ -13,7 +13,8 @@ from addon import animation
 from addon.capture.passes import capture
 from addon.compat import action_fcurves
 from addon.errors import AddonError
-from addon.job import Job
+from addon.job import Job, StageTimer
+from addon.native import vplace
 from addon.scene.export import VPL_MARKER
 from addon.scenes import animated
 from addon.scenes.registry import build_cornell_moving
@@ -435,3 +436,35 @@ def test_eevees_own_gi_is_scored_with_the_worlds_sun_as_the_users_lamp():
     assert [len(c) for c in (bpy.data.objects, bpy.data.lights, bpy.data.actions)] == counts
     assert eevee_setup.USERS_SUN_COLLECTION not in bpy.data.collections
     assert diff(before, data_snapshot()) == []
+
+
+def test_a_moving_camera_keeps_one_working_scale_over_the_frames(tmp_path):
+    """Each frame's scene takes the working scale of the region seen from the camera at every
+    captured frame (``animation.frame_eyes``): over a kilometre of ground, the region seen from
+    a camera that rises differs per frame, and so would the VPLs' size."""
+    empty_file()
+    scene = build_cornell_moving(bpy.context.scene)
+    bpy.ops.mesh.primitive_plane_add(size=1000.0, location=(0.0, 0.0, -0.5))
+    cam = scene.camera
+    cam.keyframe_insert("location", frame=1)
+    cam.location.z += 3.0
+    cam.keyframe_insert("location", frame=24)
+    job = Job(n_vpls=16, size=24, samples=2, cache_dir=tmp_path / "cache")
+    timer = StageTimer(lambda _line: None)
+    prepared = animation.capture_frames(scene, [1, 24], job, timer)
+    scales = [p.scene.scale for p in prepared]
+    assert scales[0] == scales[1] < 0.5 * prepared[0].scene.diagonal
+    # each frame on its own would see another region
+    alone = [
+        vplace.Scene(
+            p.exported.vertices,
+            p.exported.triangles,
+            p.exported.material_ids,
+            p.exported.albedo,
+            [],
+            eyes=animation.frame_eyes(scene, [f]),
+        ).scale
+        for p, f in zip(prepared, (1, 24), strict=True)
+    ]
+    assert abs(alone[1] - alone[0]) > 0.05 * alone[0], alone
+    assert scene.frame_current == 1
