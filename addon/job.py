@@ -423,6 +423,8 @@ def summary(
         profile=job.profile,
         radius=computed.vpls.radius,
         seed=job.seed,
+        working_scale=prepared.scene.scale,
+        bounds_diagonal=prepared.scene.diagonal,
         stage_seconds=dict(timer.seconds),
         evaluator=evaluator,
         metrics=computed.metrics,

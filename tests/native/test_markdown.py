@@ -60,6 +60,15 @@ def test_job_report_says_how_many_vpls_were_written():
     )
 
 
+def test_job_report_says_when_the_vpls_size_follows_the_region_the_cameras_see():
+    assert "region" not in vjob.job_report(_report(working_scale=8.7, bounds_diagonal=8.7))
+    text = vjob.job_report(_report(working_scale=16.7, bounds_diagonal=1414.2))
+    assert (
+        "near-field radius 0.01 m); VPL sizes follow the region the cameras see (16.7 m), not "
+        "the scene's bounds (1.41e+03 m across)\n" in text
+    )
+
+
 def test_job_report_eevee_row():
     e = {"rmse": 0.1, "relative_mse": 0.2, "ssim": 0.9, "brightness": 1.0, "seconds": 2.0}
     text = vjob.job_report(_report(eevee={**e, "samples": 16, "world_volume_bake_seconds": 3}))

@@ -637,6 +637,10 @@ class JobSummary:
     portals_written: int = 0
     #: Whether a SUN light stands in for the world's sun (``addon.writeback.stand_ins``).
     sun_written: bool = False
+    #: The scene's working scale and its bounds' diagonal, metres (``Scene.scale``,
+    #: ``Scene.diagonal``): the scale is less where the cameras see a small part of the scene.
+    working_scale: float = 0.0
+    bounds_diagonal: float = 0.0
     fit: FitSummary | None = None
     #: "Match EEVEE's direct light": per captured view the refit made up for, the mean of
     #: :func:`eevee_deficit` over the mean of Cycles' direct light (luminance; negative where
@@ -897,6 +901,17 @@ def _unwritten(report: JobSummary) -> str:
     )
 
 
+def _region(report: JobSummary) -> str:
+    """The header's note when the VPLs' size follows the region the cameras see, not the
+    scene's bounds (``Scene.scale``)."""
+    if not 0.0 < report.working_scale < report.bounds_diagonal:
+        return ""
+    return (
+        f"; VPL sizes follow the region the cameras see ({report.working_scale:.3g} m), not "
+        f"the scene's bounds ({report.bounds_diagonal:.3g} m across)"
+    )
+
+
 def eevee_matched_notes(matched: dict[str, float]) -> list[str]:
     """The main job's line on "Match EEVEE's direct light" (``JobSummary.eevee_matched``):
     on which views the refit made up for EEVEE's direct light, and by how much (none without)."""
@@ -931,7 +946,7 @@ def job_report(report: JobSummary) -> str:
         f"{report.triangles} triangles, {report.lights} lights, "
         f"{report.resolution[0]}x{report.resolution[1]} px, {report.samples} spp Cycles, "
         f"{report.n_vpls} VPLs by {report.method} ({report.profile}, "
-        f"near-field radius {report.radius:.3g} m){_unwritten(report)}",
+        f"near-field radius {report.radius:.3g} m){_unwritten(report)}{_region(report)}",
         "",
         *markdown.table(
             ["stage", "seconds"], [[k, f"{v:.2f}"] for k, v in report.stage_seconds.items()]
