@@ -625,7 +625,8 @@ impl Scene {
     #[must_use]
     pub fn emission_sphere(&self) -> (Vec3, f32, f32) {
         let (lo, hi) = self.bounds();
-        let centre = self.region_centre;
+        let (a, b) = self.region().unwrap_or((lo, hi));
+        let centre = 0.5 * (a + b);
         let far = (centre - lo)
             .max(hi - centre)
             .length()

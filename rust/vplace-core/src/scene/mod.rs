@@ -95,9 +95,6 @@ pub struct Scene {
     bounds_max: Vec3,
     /// The working scale ([`Scene::scale`]).
     scale: f32,
-    /// The centre of the sphere the sun and the world send light through
-    /// ([`Scene::emission_sphere`]).
-    region_centre: Vec3,
     /// The box of the region the cameras see, where it sets the scale ([`Scene::region`]).
     region: Option<(Vec3, Vec3)>,
     /// Number of zero-area triangles (kept, never hit).
@@ -298,7 +295,6 @@ impl Scene {
             bounds_min: lo,
             bounds_max: hi,
             scale: (hi - lo).length().max(1e-6),
-            region_centre: 0.5 * (lo + hi),
             region: None,
             degenerate_triangles: degenerate,
             emissive,

@@ -105,7 +105,6 @@ impl Scene {
             let scale = (REGION_MARGIN * (hi - lo).length()).clamp(1e-6, self.diagonal());
             if scale < self.diagonal() {
                 self.scale = scale;
-                self.region_centre = 0.5 * (lo + hi);
                 self.region = Some((lo, hi));
             }
         }
