@@ -172,7 +172,10 @@ class Prepared:
         """Lights that stand in for the scene's emissive meshes, the world's sun and the sky
         through the openings seen from the captured cameras and the coverage views' eyes in
         EEVEE (``writeback.stand_ins``)."""
-        eyes = [c.camera_position for c in self.captures]
+        eyes = [
+            vplace.coverage.camera_eye(self.scene, c.camera_position, c.world_to_clip)
+            for c in self.captures
+        ]
         if self.coverage is not None:
             eyes += [p.eye for p in self.coverage.poses]
         return stand_ins(self.exported, self.scene, self.surfaces, eyes)

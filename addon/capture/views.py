@@ -28,6 +28,7 @@ from mathutils import Matrix, Vector
 
 from ..errors import AddonError
 from ..native import vplace
+from .passes import camera_matrices
 
 VIEW_MODES = ("active", "cameras", "frames", "orbit")
 #: Custom property marking the temporary cameras of an orbit (removed after the capture).
@@ -209,17 +210,28 @@ def capture_resolution(scene: bpy.types.Scene, size: int) -> tuple[int, int]:
 
 
 def eye_positions(scene: bpy.types.Scene, views: Sequence[ViewSpec]) -> np.ndarray:
-    """The world positions of the views' cameras (N x 3 float32), each at its view's frame (the
-    scene's frame is put back): the eyes whose region gives the scene's working scale
-    (``scene.convert.build_scene``)."""
+    """Where the views' cameras stand (N x 3 float32), each at its view's frame (the scene's
+    frame is put back): the eyes whose region gives the scene's working scale
+    (``scene.convert.build_scene``). A camera's position, or where its view begins
+    (``vplace.coverage.view_eye``: its clip start along its axis) when a surface lies between
+    the two: a camera outside a wall whose clip start passes the wall stands in the room it
+    sees (``vplace.coverage.camera_eye``'s rule, with Blender's ray cast)."""
     original = scene.frame_current
+    resolution = capture_resolution(scene, 64)
     eyes = []
     try:
         for spec in views:
             frame = original if spec.frame is None else spec.frame
             if frame != scene.frame_current:
                 scene.frame_set(frame)
-            eyes.append(tuple(spec.camera.matrix_world.translation))
+            position, world_to_clip = camera_matrices(scene, spec.camera, resolution)
+            near = vplace.coverage.view_eye(world_to_clip)
+            way = Vector(near.tolist()) - Vector(position.tolist())
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+            hit = way.length > 0.0 and scene.ray_cast(
+                depsgraph, Vector(position.tolist()), way.normalized(), distance=way.length
+            )[0]
+            eyes.append(near if hit else position)
     finally:
         if scene.frame_current != original:
             scene.frame_set(original)

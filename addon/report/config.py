@@ -56,6 +56,10 @@ GENERATED_VIEWS = 2
 MAX_GENERATED = 8
 #: The name of a made held-out view's camera (removed when the scene's report is done).
 GENERATED_PREFIX = "vplace held-out "
+#: The largest clip start of a made held-out view's camera, metres: it stands where its fit
+#: camera's view begins (past that camera's clip start), so a clip start that let the fit camera
+#: see through a wall would let it see out of the room.
+GENERATED_CLIP_START = 0.1
 
 
 @dataclass(frozen=True)

@@ -49,7 +49,7 @@ from mathutils import Matrix, Vector
 from .. import job as pipeline
 from ..capture import passes as capture
 from ..capture.native_view import gloss_mask, view_of
-from ..capture.views import ViewSet, ViewSpec
+from ..capture.views import ViewSet, ViewSpec, eye_positions
 from ..errors import ReportError, output_folder
 from ..native import vplace
 from ..scenes import registry as default_scene
@@ -60,6 +60,7 @@ from .config import (
     CAPTURE_CURVE,
     CAPTURE_SEED,
     CURVE_SEED,
+    GENERATED_CLIP_START,
     GENERATED_PREFIX,
     OTHER_TRUTH_SEED,
     RELAYOUT,
@@ -147,11 +148,15 @@ def generate_held_out(
     config: ReportConfig,
 ) -> list[bpy.types.Object]:
     """``count`` new cameras (copies of ``camera``'s lens) at the poses of
-    ``vplace.coverage.held_out_poses`` around ``camera``, linked to ``bl_scene``; named
-    :data:`GENERATED_PREFIX` ``k``. :func:`remove_generated` takes them out again."""
-    m = camera.matrix_world
-    eye = list(m.translation)
-    forward = list(m.to_3x3() @ Vector((0.0, 0.0, -1.0)))
+    ``vplace.coverage.held_out_poses`` around where ``camera`` stands (:func:`eye_positions`:
+    past its clip start where that passes a wall), linked to ``bl_scene``; named
+    :data:`GENERATED_PREFIX` ``k``; where the camera's clip start passes a wall, theirs is at most
+    :data:`GENERATED_CLIP_START` (they stand past that wall). :func:`remove_generated` takes them
+    out again."""
+    eye = eye_positions(bl_scene, [ViewSpec(camera.name, camera)])[0]
+    moved = (Vector(eye.tolist()) - camera.matrix_world.translation).length
+    through_wall = moved > 0.5 * camera.data.clip_start
+    forward = list(camera.matrix_world.to_3x3() @ Vector((0.0, 0.0, -1.0)))
     poses = vplace.coverage.held_out_poses(
         prepared.scene, eye, forward, count, seed=0, radius=config.region_radius
     )
@@ -165,6 +170,8 @@ def generate_held_out(
         f, right, up = pose.basis()
         rot = Matrix((right, up, -f)).transposed()  # columns: the camera's x, y and z axes
         data = camera.data.copy()
+        if through_wall:
+            data.clip_start = min(data.clip_start, GENERATED_CLIP_START)
         obj = bpy.data.objects.new(f"{GENERATED_PREFIX}{k}", data)
         obj.matrix_world = Matrix.Translation(Vector(pose.eye.tolist())) @ rot.to_4x4()
         bl_scene.collection.objects.link(obj)

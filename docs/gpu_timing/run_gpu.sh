@@ -1,17 +1,9 @@
 #!/bin/bash
 # On the device, after every chunk is in /tmp/b: unpack the bundle, time EEVEE, then Cycles.
 set -u
-B=/tmp/b; R=/tmp/r; W=/tmp/w
-cd $B && md5sum -c parts.md5 | tail -3
-if [ ! -x $R/py/bin/python3.11 ]; then
-  mkdir -p $R && s0=$SECONDS
-  if command -v xz >/dev/null; then cat $B/part_* | xz -dc -T0 | tar xf - -C $R
-  else cat $B/part_* | python3 -c "import lzma,sys,shutil;shutil.copyfileobj(lzma.open(sys.stdin.buffer),sys.stdout.buffer)" | tar xf - -C $R; fi
-  echo "unpacked in $((SECONDS-s0)) s"; du -sh $R
-  tar xf $B/cyc.tar -C $R/py/lib/python3.11/site-packages/bpy/5.0/scripts/addons_core/cycles/ 
-fi
-mkdir -p $W/gpu && cp $B/*.blend $W/gpu/ && cp $B/*.py $B/watch.sh $B/devenv.sh $W/
-. $B/devenv.sh
+B=/tmp/b; W=/tmp/w
+. "$(dirname "$0")/unpack.sh"
+mkdir -p $W/gpu && cp $B/*.blend $W/gpu/ && cp "$(dirname "$0")"/*.py "$(dirname "$0")"/watch.sh $W/
 echo "EGL vendor json: ${__EGL_VENDOR_LIBRARY_FILENAMES:-none}"
 (cd $W && env -u PYTHONPATH $PY egl_check.py 2>&1 | tail -2)
 nvidia-smi --query-gpu=name,utilization.gpu,memory.used,clocks.sm --format=csv,noheader -lms 1000 > $OUT/smi.log 2>&1 &

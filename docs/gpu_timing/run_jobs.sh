@@ -3,18 +3,11 @@
 # as tar.xz) travelled: unpack both, render the jobs (render_jobs.py) for BUDGET seconds, and
 # send the EXRs (ZIP-compressed) back as tar parts of at most 15 MB (the device returns 8 files of 16 MiB).
 set -u
-B=/tmp/b; R=/tmp/r; HERE=$(cd "$(dirname "$0")" && pwd)
-(cd $B && md5sum -c parts.md5 | tail -4)
-if [ ! -x $R/py/bin/python3.11 ]; then
-  mkdir -p $R && s0=$SECONDS
-  if command -v xz >/dev/null; then cat $B/part_* | xz -dc -T0 | tar xf - -C $R
-  else cat $B/part_* | python3 -c "import lzma,sys,shutil;shutil.copyfileobj(lzma.open(sys.stdin.buffer),sys.stdout.buffer)" | tar xf - -C $R; fi
-  echo "unpacked in $((SECONDS-s0)) s"
-fi
+HERE=$(cd "$(dirname "$0")" && pwd)
+. $HERE/unpack.sh
 rm -rf /tmp/jobs && mkdir -p /tmp/jobs
-python3 -c "import lzma,sys,shutil;shutil.copyfileobj(lzma.open(sys.argv[1]),sys.stdout.buffer)" "$JOBS_TAR" | tar xf - -C /tmp/jobs --strip-components=1
+env -u PYTHONHOME -u LD_LIBRARY_PATH python3 -c "import lzma,sys,shutil;shutil.copyfileobj(lzma.open(sys.argv[1]),sys.stdout.buffer)" "$JOBS_TAR" | tar xf - -C /tmp/jobs --strip-components=1
 echo "jobs: $(ls /tmp/jobs/*.blend | wc -l) files, $(wc -l < /tmp/jobs/jobs.jsonl) lines"
-. $HERE/devenv.sh
 nvidia-smi --query-gpu=name,utilization.gpu,memory.used,clocks.sm --format=csv,noheader -lms 1000 > /tmp/smi.log 2>&1 &
 SMI=$!
 env -u PYTHONPATH $PY $HERE/render_jobs.py /tmp/jobs /tmp/exr "${BUDGET:-400}" > /tmp/render.log 2>&1

@@ -1,9 +1,11 @@
 """Views: one set of lights for several cameras, frames of an animated camera, or an orbit; the
 views that cannot be used are left out with a message, and the file is left as it was."""
 
+import math
+
 import bpy
 import pytest
-from blender_util import addon_cornell, data_snapshot, diff
+from blender_util import add_lamp, addon_cornell, data_snapshot, diff, empty_file
 
 from addon import job as pipeline
 from addon.capture import views
@@ -109,3 +111,52 @@ def test_capture_size_follows_the_render_aspect(scene):
     assert views.capture_resolution(scene, 160) == (160, 90)
     scene.render.resolution_x, scene.render.resolution_y = 600, 800
     assert views.capture_resolution(scene, 160) == (120, 160)
+
+
+def _house_seen_through_its_wall() -> tuple[bpy.types.Scene, bpy.types.Object]:
+    """A closed room 12 x 9 x 3 m (walls 0.25 m thick, a lamp inside) and a camera 0.4 m outside
+    its south wall, looking in: its clip start (1 m) passes the wall, as architects set it."""
+    empty_file()
+    scene = bpy.context.scene
+    w, d, h, t = 12.0, 9.0, 3.0, 0.25
+    slabs = {
+        "floor": ((0, 0, -t / 2), (w + 2 * t, d + 2 * t, t)),
+        "ceiling": ((0, 0, h + t / 2), (w + 2 * t, d + 2 * t, t)),
+        "south": ((0, -d / 2 - t / 2, h / 2), (w + 2 * t, t, h)),
+        "north": ((0, d / 2 + t / 2, h / 2), (w + 2 * t, t, h)),
+        "west": ((-w / 2 - t / 2, 0, h / 2), (t, d, h)),
+        "east": ((w / 2 + t / 2, 0, h / 2), (t, d, h)),
+    }
+    for name, (loc, size) in slabs.items():
+        bpy.ops.mesh.primitive_cube_add(location=loc, scale=[s / 2 for s in size])
+        bpy.context.object.name = name
+    add_lamp(scene, "POINT", (0.0, 0.0, 2.5), 100.0)
+    data = bpy.data.cameras.new("outside")
+    data.clip_start = 1.0
+    cam = bpy.data.objects.new("outside", data)
+    cam.location = (0.0, -d / 2 - t - 0.4, 1.6)
+    cam.rotation_euler = (math.radians(90.0), 0.0, 0.0)  # looking north, along +y
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    scene.render.resolution_x, scene.render.resolution_y = 64, 36
+    bpy.context.view_layer.update()
+    return scene, cam
+
+
+def test_a_camera_that_sees_through_a_wall_stands_in_the_room_behind_it():
+    # An architect's camera outside the wall, its clip start past it, sees the room. Its eye was
+    # its position outside: the region it saw was a 6 x 3 m patch of the wall's outer face (the
+    # working scale 13.8 m where the room's is 16.1 m), and the coverage views stood outside,
+    # looking at the facade and the roof. Now it stands where its view begins: 0.35 m into the
+    # room.
+    scene, cam = _house_seen_through_its_wall()
+    eye = views.eye_positions(scene, [views.ViewSpec("outside", cam)])[0]
+    assert eye.tolist() == pytest.approx([0.0, -4.5 + 0.35, 1.6], abs=1e-4)
+    job = pipeline.Job(size=32, samples=2)
+    prepared = pipeline.prepare(scene, job, pipeline.quiet_timer())
+    assert prepared.scene.scale == pytest.approx(prepared.scene.diagonal)
+    assert prepared.scene.region is None
+    poses = prepared.coverage.poses
+    assert poses
+    for p in poses:  # inside the room's walls, not in front of its facade
+        assert -6.0 < p.eye[0] < 6.0 and -4.5 < p.eye[1] < 4.5 and 0.0 < p.eye[2] < 3.0, p.eye

@@ -145,3 +145,46 @@ def test_no_view_stands_beyond_the_rooms_window():
     assert coverage.reach(2.0, float("inf"), inside=False) == 2.0
     assert coverage.reach(2.0, float("inf"), inside=True) == 0.0
     assert coverage.reach(2.0, 1.0, inside=True) == coverage.WALL_MARGIN * 1.0
+
+
+def test_a_views_eye_is_the_centre_of_its_near_clip_plane():
+    eye, forward = np.array([1.0, -2.0, 0.5]), np.array([0.0, 0.6, 0.8])
+    pose = coverage.Pose(eye, forward, np.array([0.0, 0.0, 1.0]))
+    assert coverage.view_eye(pose.world_to_clip()) == pytest.approx(
+        eye + coverage.NEAR * forward, abs=1e-5
+    )
+    f, right, up = pose.basis()
+    view = np.eye(4)
+    view[0, :3], view[1, :3], view[2, :3] = right, up, -f
+    view[:3, 3] = -view[:3, :3] @ eye
+    n, far = 1.5, 40.0  # a clip start of 1.5: that far along the axis, whatever the lens
+    a, b = (far + n) / (n - far), 2 * far * n / (n - far)
+    perspective = np.array([[3.0, 0, 0, 0], [0, 2.0, 0, 0], [0, 0, a, b], [0, 0, -1.0, 0]])
+    assert coverage.view_eye(perspective @ view) == pytest.approx(eye + n * forward, abs=1e-4)
+    c, d = -2 / (far - n), -(far + n) / (far - n)
+    ortho = np.array([[0.2, 0, 0, 0], [0, 0.2, 0, 0], [0, 0, c, d], [0, 0, 0, 1.0]])
+    assert coverage.view_eye(ortho @ view) == pytest.approx(eye + n * forward, abs=1e-4)
+
+
+def test_a_view_gives_back_its_world_to_clip_matrix(scene):
+    pose = coverage.Pose(np.array([0.0, 0.0, 1.0]), np.array([1.0, 0, 0]), np.array([0, 0, 1.0]))
+    m = user_view(scene).world_to_clip
+    assert m.dtype == np.float32 and m.shape == (4, 4)
+    assert m == pytest.approx(pose.world_to_clip().astype(np.float32), rel=1e-6, abs=1e-7)
+
+
+def test_a_camera_stands_past_its_clip_start_only_where_that_passes_a_wall(scene):
+    def clip(eye: list[float], near: float) -> np.ndarray:
+        """World-to-clip of a camera at ``eye`` looking along +x with clip start ``near``."""
+        view = np.array([[0, -1.0, 0, 0], [0, 0, 1.0, 0], [-1.0, 0, 0, 0], [0, 0, 0, 1.0]])
+        view[:3, 3] = -view[:3, :3] @ np.array(eye)
+        far = 50.0
+        a, b = (far + near) / (near - far), 2 * far * near / (near - far)
+        return np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, a, b], [0, 0, -1.0, 0]]) @ view
+
+    # Outside the box's -x wall, its clip start 1 past it: it stands where its view begins.
+    eye = coverage.camera_eye(scene, [-1.5, 0.2, 0.9], clip([-1.5, 0.2, 0.9], 1.0))
+    assert eye == pytest.approx([-0.5, 0.2, 0.9], abs=1e-5)
+    # Inside, a clip start that passes nothing: its own position.
+    eye = coverage.camera_eye(scene, [0.0, 0.0, 1.0], clip([0.0, 0.0, 1.0], 0.5))
+    assert eye.tolist() == [0.0, 0.0, 1.0]

@@ -152,6 +152,13 @@ impl PyView {
         self.inner.camera.position.to_array()
     }
 
+    /// World-to-clip matrix (4, 4) float32, row-major, as given to the constructor.
+    #[getter]
+    fn world_to_clip<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let rows = self.inner.camera.world_to_clip.transpose().to_cols_array();
+        image(py, &rows, 4, 4, 1)
+    }
+
     /// World position (H, W, 3), a copy.
     #[getter]
     fn position<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {

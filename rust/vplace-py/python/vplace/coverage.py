@@ -5,9 +5,10 @@ their VPLs from few, heavy off-screen draws, and a refit trades them away for th
 (issue 20: from a second camera, bright splotches where the first saw nothing). So a job adds
 *coverage views*, chosen here, and lays out for all of them:
 
-- **Region.** Around each user camera ``c``, a ball of radius ``r`` (the user's, or
-  :data:`REGION_FRACTION` times the median distance rays from ``c`` travel before they hit a
-  surface: the room the camera stands in, whatever the scene's units).
+- **Region.** Around each user camera ``c`` (where it stands, :func:`camera_eye`: past its
+  clip start where that passes a wall), a ball of radius ``r`` (the user's, or :data:`REGION_FRACTION` times the median
+  distance rays from ``c`` travel before they hit a surface: the room the camera stands in,
+  whatever the scene's units).
 - **Candidates.** A cube of :data:`FACES` 90-degree views at ``c`` and at the points
   ``c + r u`` of the region (``u`` the 6 axes and 8 diagonals; a point is pulled back from a
   surface it would reach). A camera that stands inside something (most of its rays hit a
@@ -179,6 +180,29 @@ def fibonacci_sphere(n: int) -> np.ndarray:
     return np.stack([rxy * np.cos(phi), rxy * np.sin(phi), z], axis=1).astype(np.float32)
 
 
+def view_eye(world_to_clip: np.ndarray) -> np.ndarray:
+    """Where a camera's view begins (float32 (3,)): the centre of its near clip plane, its
+    position moved along its axis by its clip start (OpenGL conventions: NDC ``(0, 0, -1)``
+    brought back to the world)."""
+    p = np.linalg.inv(np.asarray(world_to_clip, dtype=np.float64)) @ np.array([0.0, 0.0, -1.0, 1.0])
+    return (p[:3] / p[3]).astype(np.float32)
+
+
+def camera_eye(scene: Scene, position: Sequence[float], world_to_clip: np.ndarray) -> np.ndarray:
+    """Where a camera stands for its region, its coverage views, the held-out views made around
+    it and the sky portals (float32 (3,)): its position, or where its view begins
+    (:func:`view_eye`) when a surface lies between the two. A camera outside a wall whose clip
+    start passes the wall sees the room behind it, and stands there; one whose clip start passes
+    nothing keeps its position. (``capture.views.eye_positions`` in the add-on applies the same
+    rule with Blender's ray cast, before this scene exists.)"""
+    p = np.asarray(position, dtype=np.float32)
+    near = view_eye(world_to_clip)
+    if not np.any(near != p):
+        return p
+    blocked = scene.occluded(p[None, :], near[None, :])[0]  # either side of a surface
+    return near if blocked else p
+
+
 def trace(scene: Scene, origin: np.ndarray, dirs: np.ndarray) -> np.ndarray:
     """Hit distances of rays from ``origin`` (inf where they escape)."""
     origins = np.ascontiguousarray(np.broadcast_to(origin.astype(np.float32), dirs.shape))
@@ -289,7 +313,7 @@ def pick(
     """The coverage poses for ``user_views`` (greedy set cover, see the module docs), the share
     of the region's voxels covered before and after, and the region's radius per view.
     ``triangles``: (T, 3, 3) float32 corners of the scene's triangles."""
-    eyes = [np.asarray(v.camera_position, dtype=np.float32) for v in user_views]
+    eyes = [camera_eye(scene, v.camera_position, v.world_to_clip) for v in user_views]
     regions = [_region(scene, e, region.radius) for e in eyes]
     radii = [r for r, _ in regions]
     covered: set[int] = set()
