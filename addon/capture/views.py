@@ -228,9 +228,12 @@ def eye_positions(scene: bpy.types.Scene, views: Sequence[ViewSpec]) -> np.ndarr
             near = vplace.coverage.view_eye(world_to_clip)
             way = Vector(near.tolist()) - Vector(position.tolist())
             depsgraph = bpy.context.evaluated_depsgraph_get()
-            hit = way.length > 0.0 and scene.ray_cast(
-                depsgraph, Vector(position.tolist()), way.normalized(), distance=way.length
-            )[0]
+            hit = (
+                way.length > 0.0
+                and scene.ray_cast(
+                    depsgraph, Vector(position.tolist()), way.normalized(), distance=way.length
+                )[0]
+            )
             eyes.append(near if hit else position)
     finally:
         if scene.frame_current != original:

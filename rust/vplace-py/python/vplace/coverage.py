@@ -6,9 +6,9 @@ their VPLs from few, heavy off-screen draws, and a refit trades them away for th
 *coverage views*, chosen here, and lays out for all of them:
 
 - **Region.** Around each user camera ``c`` (where it stands, :func:`camera_eye`: past its
-  clip start where that passes a wall), a ball of radius ``r`` (the user's, or :data:`REGION_FRACTION` times the median
-  distance rays from ``c`` travel before they hit a surface: the room the camera stands in,
-  whatever the scene's units).
+  clip start where that passes a wall), a ball of radius ``r`` (the user's, or
+  :data:`REGION_FRACTION` times the median distance rays from ``c`` travel before they hit a
+  surface: the room the camera stands in, whatever the scene's units).
 - **Candidates.** A cube of :data:`FACES` 90-degree views at ``c`` and at the points
   ``c + r u`` of the region (``u`` the 6 axes and 8 diagonals; a point is pulled back from a
   surface it would reach). A camera that stands inside something (most of its rays hit a
