@@ -197,7 +197,7 @@ def camera_eye(scene: Scene, position: Sequence[float], world_to_clip: np.ndarra
     rule with Blender's ray cast, before this scene exists.)"""
     p = np.asarray(position, dtype=np.float32)
     near = view_eye(world_to_clip)
-    if not np.any(near != p):
+    if np.array_equal(near, p):
         return p
     blocked = scene.occluded(p[None, :], near[None, :])[0]  # either side of a surface
     return near if blocked else p
