@@ -226,13 +226,12 @@ def eye_positions(scene: bpy.types.Scene, views: Sequence[ViewSpec]) -> np.ndarr
                 scene.frame_set(frame)
             position, world_to_clip = camera_matrices(scene, spec.camera, resolution)
             near = vplace.coverage.view_eye(world_to_clip)
-            way = Vector(near.tolist()) - Vector(position.tolist())
+            origin = Vector(position.tolist())
+            way = Vector(near.tolist()) - origin
             depsgraph = bpy.context.evaluated_depsgraph_get()
             hit = (
                 way.length > 0.0
-                and scene.ray_cast(
-                    depsgraph, Vector(position.tolist()), way.normalized(), distance=way.length
-                )[0]
+                and scene.ray_cast(depsgraph, origin, way.normalized(), distance=way.length)[0]
             )
             eyes.append(near if hit else position)
     finally:

@@ -1,9 +1,9 @@
 #!/bin/bash
 # On the device, after every chunk is in /tmp/b: unpack the bundle, time EEVEE, then Cycles.
 set -u
-B=/tmp/b; W=/tmp/w
-. "$(dirname "$0")/unpack.sh"
-mkdir -p $W/gpu && cp $B/*.blend $W/gpu/ && cp "$(dirname "$0")"/*.py "$(dirname "$0")"/watch.sh $W/
+B=/tmp/b; W=/tmp/w; HERE=$(cd "$(dirname "$0")" && pwd)
+. $HERE/unpack.sh
+mkdir -p $W/gpu && cp $B/*.blend $W/gpu/ && cp $HERE/*.py $HERE/watch.sh $W/
 echo "EGL vendor json: ${__EGL_VENDOR_LIBRARY_FILENAMES:-none}"
 (cd $W && env -u PYTHONPATH $PY egl_check.py 2>&1 | tail -2)
 nvidia-smi --query-gpu=name,utilization.gpu,memory.used,clocks.sm --format=csv,noheader -lms 1000 > $OUT/smi.log 2>&1 &
