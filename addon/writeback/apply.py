@@ -4,9 +4,9 @@ Re-running replaces that collection and the lights in it, and nothing else. The 
 ones the evaluator renders (``vplace.VplSet`` carries profile and near-field radius):
 
 - cosine profile: an AREA disk of diameter ``2 R_j`` (``R_j`` the VPL's near-field radius,
-  ``VplSet.radii``: the patch it stands for) facing along the surface normal, power ``Phi``:
-  Blender's disk is exactly the near-field kernel of ``vplace_core::shading``, so EEVEE and
-  Cycles show no hot spot the evaluator did not compute.
+  ``VplSet.radii``: two patches of the size it stands for) facing along the surface normal,
+  power ``Phi``: Blender's disk is exactly the near-field kernel of ``vplace_core::shading``, so
+  EEVEE and Cycles show no hot spot the evaluator did not compute.
   Omni profile: a POINT light of radius 0, power ``2 Phi``, a point on both sides (its near
   field is singular in Blender and in the evaluator alike; see ``shading.rs``).
 - ``diffuse_factor`` 1, ``transmission_factor`` and ``volume_factor`` 0. ``specular_factor``

@@ -207,7 +207,8 @@ def test_errors_are_vplace_errors():
 
 def test_vpl_radii_are_the_patches_they_stand_for():
     # A 10 x 10 grid of spacing a: an inner VPL's 8th nearest VPL is a diagonal one (a sqrt 2),
-    # so it stands for a disk of radius a sqrt 2 / sqrt 8 = a / 2; an isolated one gets the cap.
+    # so it stands for a patch of radius a sqrt 2 / sqrt 8 = a / 2, and its disk covers
+    # DISK_PATCHES of them: radius a / 2 * sqrt(DISK_PATCHES); an isolated one gets the cap.
     a = 0.1
     grid = [(a * (i % 10), a * (i // 10), 0.0) for i in range(100)] + [(40.0, 0.0, 0.0)]
     p = np.array(grid, np.float32)
@@ -215,7 +216,8 @@ def test_vpl_radii_are_the_patches_they_stand_for():
     s = vplace.VplSet(p, n, np.ones_like(p), radius=0.01)
     r = s.radii
     assert r.dtype == np.float32 and r.shape == (101,)
-    assert r[55] == pytest.approx(a / 2, rel=1e-5)
+    assert vplace.DISK_PATCHES == 2.0
+    assert r[55] == pytest.approx(a / 2 * np.sqrt(2.0), rel=1e-5)
     assert r[-1] == pytest.approx(vplace.MAX_RADIUS_FACTOR * 0.01, rel=1e-6)
     assert (r >= 0.01).all() and (r <= vplace.MAX_RADIUS_FACTOR * 0.01 * (1 + 1e-6)).all()
     assert np.array_equal(s.with_flux(2 * np.ones_like(p)).radii, r)  # positions only

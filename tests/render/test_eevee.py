@@ -26,10 +26,11 @@ def test_eevee_renders_the_evaluators_vpl_light_pixel_for_pixel():
     # The set of 48 light-path VPLs this test renders was drawn from paths of every bounce; the
     # scene's own limit (Cycles' Diffuse 4, stop 40) draws another set. Kept as it was, since
     # what is tested is how EEVEE renders a given set. With the other set the relative RMSE
-    # reads 0.1014 (this one 0.0968): in both, 42-61 % of the squared error lies in the few
+    # read 0.1014 (this one 0.0968): in both, 42-61 % of the squared error lies in the few
     # pixels at the short box's base, 3 cm above the floor, lit by a floor VPL 11 cm away
     # whose disk reaches under the box, which EEVEE lights 1.7-2.6x as brightly as the
-    # evaluator (issue 21: contacts).
+    # evaluator (issue 21: contacts). Since each disk covers two patches (stop 44) this set
+    # reads 0.0908; at three patches it read 0.1048 (vplace_core::vpl::DISK_PATCHES).
     everything = dataclasses.replace(export.export_scene(scene), light_bounces=None)
     native = build_scene(everything)
     gbuf = capture.capture(scene, resolution=RES, samples=8)

@@ -771,6 +771,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     )?;
     m.add("REGION_MARGIN", vplace_core::scene::region::REGION_MARGIN)?;
     m.add("MAX_RADIUS_FACTOR", vplace_core::vpl::MAX_RADIUS_FACTOR)?;
+    m.add("DISK_PATCHES", vplace_core::vpl::DISK_PATCHES)?;
     m.add("SPACING_NEIGHBOURS", vplace_core::vpl::SPACING_NEIGHBOURS)?;
     Ok(())
 }

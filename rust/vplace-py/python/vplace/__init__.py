@@ -45,6 +45,7 @@ panic surfaces as :class:`InternalError`, never as a crash.
 from vplace import coverage as coverage
 from vplace import par2d as par2d
 from vplace._native import (
+    DISK_PATCHES,
     LUMINANCE,
     MAX_BOUNCES,
     MAX_DIRECT_SAMPLES,
@@ -93,6 +94,7 @@ from vplace._native import (
 from vplace.budget import PIXEL_BUDGET, stride_for
 
 __all__ = [
+    "DISK_PATCHES",
     "LUMINANCE",
     "MAX_BOUNCES",
     "MAX_DIRECT_SAMPLES",

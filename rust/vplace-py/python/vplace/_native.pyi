@@ -15,6 +15,7 @@ NEAR_FIELD_FRACTION: float
 #: The working scale is at most this many times the diagonal of the region the cameras see.
 REGION_MARGIN: float
 MAX_RADIUS_FACTOR: float
+DISK_PATCHES: float
 SPACING_NEIGHBOURS: int
 
 # --- errors -------------------------------------------------------------------------------

@@ -8,14 +8,15 @@ and the keyed lights at any frame between the captured ones, as Blender interpol
   its per-frame error; a flicker the truth lacks scores its amplitude.
 - :func:`track`: frame ``t``'s lit VPLs are matched to the slots greedily by cost: the
   position's move plus :data:`NORMAL_WEIGHT` scene diagonals times ``1 - cos`` of the normals'
-  angle, in patch radii (the larger near-field radius of the pair, ``VplSet.radii``: the
-  surface patch each VPL stands for). Cheapest pair first, each slot's last lit VPL standing
-  for it; a pair dearer than :data:`MAX_MATCH_COST` (a move beyond the patch) is not matched:
-  that VPL opens a new slot (0 W before) and the slot goes dark (0 W) on that frame. A dark
-  slot keeps the position, normal, colour and disk of its nearest lit frame, so it fades in or
-  out where it stands. Why the patch: a light that moves within its patch keeps lighting what
-  it lit; one that moves farther sweeps its light, between the frames, over surfaces that
-  neither frame's layout lights (measured: README, "Keyed lights that do not sweep").
+  angle, in patch radii (the larger of the pair's: the radius of the surface patch each
+  VPL stands for, its disk's ``VplSet.radii`` over ``sqrt(DISK_PATCHES)``). Cheapest pair
+  first, each slot's last lit VPL standing for it; a pair dearer than :data:`MAX_MATCH_COST`
+  (a move beyond the patch) is not matched: that VPL opens a new slot (0 W before) and the
+  slot goes dark (0 W) on that frame. A dark slot keeps the position, normal, colour and disk
+  of its nearest lit frame, so it fades in or out where it stands. Why the patch: a light that
+  moves within its patch keeps lighting what it lit; one that moves farther sweeps its light,
+  between the frames, over surfaces that neither frame's layout lights (measured: README,
+  "Keyed lights that do not sweep").
 - :func:`shared_layout`: one set of VPL *positions* for every captured frame, with each frame's
   *powers* refitted on that frame's captures. Each frame lays out ``n // F`` VPLs for its own
   light (``vplace.job.lay_out``: fit, layout, refit); the union of the F layouts is the set (so
@@ -49,9 +50,10 @@ from vplace.coverage import captures_of
 #: in scene diagonals: a VPL turned by 90 degrees costs what one moved by half a diagonal does.
 NORMAL_WEIGHT = 0.5
 #: The dearest pair that is still matched, in patch radii (the move plus the normal term, over
-#: the larger near-field radius of the two, ``VplSet.radii``): a VPL that moves within the patch
-#: it stands for keeps its light where it was; one that moves farther would sweep its light
-#: over surfaces that neither frame lights, so it fades out where it stands and another fades in.
+#: the larger patch radius of the two, ``VplSet.radii`` over ``sqrt(DISK_PATCHES)``): a VPL
+#: that moves within the patch it stands for keeps its light where it was; one that moves
+#: farther would sweep its light over surfaces that neither frame lights, so it fades out where
+#: it stands and another fades in.
 MAX_MATCH_COST = 1.0
 #: The smallest patch radius of the matching cost, in scene diagonals (omni VPLs are points).
 MIN_PATCH_DIAGONALS = 0.01
@@ -138,10 +140,13 @@ def _cost(
     diagonal: float,
 ) -> np.ndarray:
     """(A, B) matching costs (see the module docs): the move plus the normal term, in patch
-    radii (the larger of the pair's, at least :data:`MIN_PATCH_DIAGONALS` of the diagonal)."""
+    radii (the larger of the pair's, at least :data:`MIN_PATCH_DIAGONALS` of the diagonal).
+    ``rad_a`` and ``rad_b`` are the disks' radii (``VplSet.radii``); a disk covers
+    ``vplace.DISK_PATCHES`` patches, so its patch's radius is that over their square root."""
     d = np.linalg.norm(pos_a[:, None, :] - pos_b[None, :, :], axis=2)
     turn = NORMAL_WEIGHT * diagonal * (1.0 - nrm_a @ nrm_b.T)
-    patch = np.maximum(np.maximum(rad_a[:, None], rad_b[None, :]), MIN_PATCH_DIAGONALS * diagonal)
+    disk = np.maximum(rad_a[:, None], rad_b[None, :])
+    patch = np.maximum(disk / np.sqrt(vplace.DISK_PATCHES), MIN_PATCH_DIAGONALS * diagonal)
     return (d + turn) / np.maximum(patch, 1e-12)
 
 
