@@ -147,6 +147,12 @@ def test_no_view_stands_beyond_the_rooms_window():
     assert coverage.reach(2.0, 1.0, inside=True) == coverage.WALL_MARGIN * 1.0
 
 
+def perspective(near: float, far: float, sx: float = 1.0, sy: float = 1.0) -> np.ndarray:
+    """An OpenGL perspective projection (Blender's) of clip start ``near`` and end ``far``."""
+    a, b = (far + near) / (near - far), 2 * far * near / (near - far)
+    return np.array([[sx, 0, 0, 0], [0, sy, 0, 0], [0, 0, a, b], [0, 0, -1.0, 0]])
+
+
 def test_a_views_eye_is_the_centre_of_its_near_clip_plane():
     eye, forward = np.array([1.0, -2.0, 0.5]), np.array([0.0, 0.6, 0.8])
     pose = coverage.Pose(eye, forward, np.array([0.0, 0.0, 1.0]))
@@ -158,9 +164,8 @@ def test_a_views_eye_is_the_centre_of_its_near_clip_plane():
     view[0, :3], view[1, :3], view[2, :3] = right, up, -f
     view[:3, 3] = -view[:3, :3] @ eye
     n, far = 1.5, 40.0  # a clip start of 1.5: that far along the axis, whatever the lens
-    a, b = (far + n) / (n - far), 2 * far * n / (n - far)
-    perspective = np.array([[3.0, 0, 0, 0], [0, 2.0, 0, 0], [0, 0, a, b], [0, 0, -1.0, 0]])
-    assert coverage.view_eye(perspective @ view) == pytest.approx(eye + n * forward, abs=1e-4)
+    lens = perspective(n, far, 3.0, 2.0)
+    assert coverage.view_eye(lens @ view) == pytest.approx(eye + n * forward, abs=1e-4)
     c, d = -2 / (far - n), -(far + n) / (far - n)
     ortho = np.array([[0.2, 0, 0, 0], [0, 0.2, 0, 0], [0, 0, c, d], [0, 0, 0, 1.0]])
     assert coverage.view_eye(ortho @ view) == pytest.approx(eye + n * forward, abs=1e-4)
@@ -178,9 +183,7 @@ def test_a_camera_stands_past_its_clip_start_only_where_that_passes_a_wall(scene
         """World-to-clip of a camera at ``eye`` looking along +x with clip start ``near``."""
         view = np.array([[0, -1.0, 0, 0], [0, 0, 1.0, 0], [-1.0, 0, 0, 0], [0, 0, 0, 1.0]])
         view[:3, 3] = -view[:3, :3] @ np.array(eye)
-        far = 50.0
-        a, b = (far + near) / (near - far), 2 * far * near / (near - far)
-        return np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, a, b], [0, 0, -1.0, 0]]) @ view
+        return perspective(near, 50.0) @ view
 
     # Outside the box's -x wall, its clip start 1 past it: it stands where its view begins.
     eye = coverage.camera_eye(scene, [-1.5, 0.2, 0.9], clip([-1.5, 0.2, 0.9], 1.0))
