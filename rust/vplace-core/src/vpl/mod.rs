@@ -153,8 +153,9 @@ mod tests {
 
     /// On a square grid of spacing `a`, an inner VPL's eighth neighbour is a diagonal one
     /// (`a sqrt 2`), so its patch radius is `a sqrt 2 / sqrt 8 = a / 2` and its disk, of
-    /// `DISK_PATCHES` (2) patches, `a / sqrt 2`; the set's radius bounds it below and `MAX_RADIUS_FACTOR` times it above; an isolated VPL gets the cap; radius 0 and
-    /// sets of one keep the radius.
+    /// `DISK_PATCHES` (2) patches, `a / sqrt 2`; the set's radius bounds it below and
+    /// `MAX_RADIUS_FACTOR` times it above; an isolated VPL gets the cap; radius 0 and sets of
+    /// one keep the radius.
     #[test]
     fn near_field_radii_follow_the_spacing() {
         let a = 0.1f32;
