@@ -229,10 +229,9 @@ impl PyVplSet {
 
     /// The near-field radius of each VPL (N,) float32, metres: the radius of a disk of
     /// `DISK_PATCHES` surface patches of the size it stands for (from the spacing of its
-    /// nearest VPLs), between `radius` and
-    /// `MAX_RADIUS_FACTOR * radius`, or the radii given to the constructor. The evaluator and
-    /// the refit shade a cosine VPL as a disk of this radius, and the write-back writes it (AREA
-    /// disk of diameter `2 R_j`). Omni VPLs are points: all 0.
+    /// nearest VPLs), between `radius` and `MAX_RADIUS_FACTOR * radius`, or the radii given to
+    /// the constructor. The evaluator and the refit shade a cosine VPL as a disk of this radius,
+    /// and the write-back writes it (AREA disk of diameter `2 R_j`). Omni VPLs are points: all 0.
     #[getter]
     fn radii<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
         let radii = match (&self.given_radii, self.profile) {
