@@ -170,6 +170,52 @@ def _configure_output(g: SettingsGuard, scene: bpy.types.Scene, path: Path) -> N
     g.set(ims, "exr_codec", "NONE")
 
 
+def _platform() -> str | None:
+    import gpu
+
+    try:
+        p = gpu.platform
+        return f"{p.backend_type_get()} {p.vendor_get()} {p.renderer_get()} {p.version_get()}"
+    except (SystemError, RuntimeError, AttributeError):  # no GPU context (yet)
+        return None
+
+
+def _start_gpu() -> None:
+    """Makes Blender start its GPU context: a one-pixel Workbench render of a temporary empty
+    scene (0.4 s on llvmpipe), removed afterwards with its camera."""
+    scene = bpy.data.scenes.new("vplace GPU probe")
+    cam_data = bpy.data.cameras.new("vplace GPU probe")
+    cam = bpy.data.objects.new("vplace GPU probe", cam_data)
+    try:
+        scene.collection.objects.link(cam)
+        scene.camera = cam
+        scene.render.engine = "BLENDER_WORKBENCH"
+        scene.render.resolution_x = scene.render.resolution_y = 1
+        bpy.ops.render.render(scene=scene.name)
+    except RuntimeError:
+        pass  # no GPU to start: EEVEE will say so when it renders
+    finally:
+        bpy.data.objects.remove(cam)
+        bpy.data.cameras.remove(cam_data)
+        bpy.data.scenes.remove(scene)
+
+
+def gpu_renderer() -> str | None:
+    """The GPU and driver that EEVEE renders on (the backend, vendor, renderer and version
+    strings Blender reports), or None where Blender has no GPU. In background mode Blender
+    starts its GPU context only when something renders, so this starts it (:func:`_start_gpu`).
+
+    Why it keys EEVEE's renders: two GPUs render the same scene differently (EEVEE's shadows
+    and direct light in the sky room differed by up to .08 RMSE between an NVIDIA H100 and
+    Mesa's llvmpipe), so a cache that holds renders from two machines must not hand one
+    machine's image to the other."""
+    found = _platform()
+    if found is None and bpy.app.background:
+        _start_gpu()
+        found = _platform()
+    return found
+
+
 def _key(
     scene: bpy.types.Scene,
     camera: bpy.types.Object,
@@ -178,10 +224,11 @@ def _key(
     engine: str,
     setup: Setup | None,
     seed: int,
+    renderer: str | None,
 ) -> str:
     """What a render depends on: what the engine reads to render the scene (:mod:`render_key`),
-    vplace's lights included unless the set-up hides them, the camera, the size, the samples
-    and the set-up."""
+    vplace's lights included unless the set-up hides them, the camera, the size, the samples,
+    the set-up and, for EEVEE, the GPU that renders it (:func:`gpu_renderer`)."""
     h = hashlib.sha256()
     with_vpls = setup is None or setup.vpls
     skip = () if with_vpls else vpl_objects(scene)
@@ -191,7 +238,7 @@ def _key(
     h.update(repr([list(r) for r in camera.matrix_world]).encode())
     h.update(repr(render_key.plain_values(camera.data)).encode())
     name = setup.name if setup is not None else "scene"
-    h.update(repr((resolution, samples, engine, name, seed, RENDER_VERSION)).encode())
+    h.update(repr((resolution, samples, engine, name, seed, RENDER_VERSION, renderer)).encode())
     return h.hexdigest()[:24]
 
 
@@ -207,16 +254,22 @@ def render(
 ) -> EeveeImage:
     """Renders ``scene`` from ``camera`` (default: the scene camera) with ``setup`` (default: the
     scene's own EEVEE settings) to a float image. ``samples``: EEVEE's render samples or Cycles'
-    (default: the scene's). With ``cache_dir``, an identical earlier render is loaded instead."""
+    (default: the scene's). With ``cache_dir``, an identical earlier render on the same GPU is
+    loaded instead."""
     camera = camera if camera is not None else scene.camera
     if camera is None or camera.type != "CAMERA":
         raise AddonError("the render needs a camera object")
     engine = setup.engine if setup is not None else eevee_engine()
+    on_gpu = engine != "CYCLES"
+    renderer = gpu_renderer() if on_gpu else None
     cached = None
     if cache_dir is not None:
-        key = _key(scene, camera, resolution, samples, engine, setup, seed)
+        key = _key(scene, camera, resolution, samples, engine, setup, seed, renderer)
         cached = Path(cache_dir) / f"render-{key}.npz"
-        if cached.exists():
+        if on_gpu and renderer is None:
+            # No GPU context to ask: render, then file the image under the GPU that rendered it.
+            cached = None
+        elif cached.exists():
             with np.load(cached) as data:
                 found = EeveeImage(data["image"], float(data["seconds"]))
             render_key.touch(cached)
@@ -248,6 +301,9 @@ def render(
         if not path.exists():
             raise AddonError(f"{what}: Blender wrote no image")
         out = EeveeImage(read_exr_rgb(path), seconds)
+    if cache_dir is not None and cached is None and (renderer := gpu_renderer()) is not None:
+        key = _key(scene, camera, resolution, samples, engine, setup, seed, renderer)
+        cached = Path(cache_dir) / f"render-{key}.npz"
     if cached is not None:
         cached.parent.mkdir(parents=True, exist_ok=True)
         tmp_path = cached.with_suffix(".tmp.npz")

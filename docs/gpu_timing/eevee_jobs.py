@@ -11,7 +11,12 @@ EEVEE rows for the rooms were rarely rendered. This runs the report three times 
 2. On the GPU machine, ``render_jobs.py`` (bpy alone) renders each file to an EXR.
 3. ``ingest JOBS EXRS CACHE``: each EXR becomes the cache entry of its key (the GPU's seconds as
    the frame time); then ``strict JOBS -- REPORT ARGS`` runs the report again, every EEVEE
-   render now a cache hit (a miss is an error, never a slow render here). EEVEE renders the
+   render now a cache hit (a miss is an error, never a slow render here).
+
+The cache keys an EEVEE render by the GPU that renders it (``eevee_render.gpu_renderer``), so
+``collect`` and ``strict`` key theirs by ``--gpu LABEL`` (default ``gpu-job``) instead of this
+machine's: the GPU's images never answer for this machine's own renders, nor the other way
+round. ``render_jobs.py`` writes the GPU's own name beside each render's time. EEVEE renders the
    add-on does not cache (the animation's volume rows) are cached in ``JOBS/uncached`` for
    this; ingest those there.
 
@@ -45,7 +50,11 @@ def main() -> int:
     mode, jobs = sys.argv[1], Path(sys.argv[2])
     if mode == "ingest":
         return ingest(jobs, Path(sys.argv[3]), Path(sys.argv[4]))
-    rest = sys.argv[sys.argv.index("--") + 1 :]
+    split = sys.argv.index("--")
+    own, rest = sys.argv[3:split], sys.argv[split + 1 :]
+    label = own[own.index("--gpu") + 1] if "--gpu" in own else "gpu-job"
+    renderer = f"GPU job {label}"
+    er.gpu_renderer = lambda: renderer
     jobs.mkdir(parents=True, exist_ok=True)
     original_render, original_op = er.render, er.run_operator
     current: dict = {}
@@ -82,7 +91,7 @@ def main() -> int:
         if engine == "CYCLES" or cache_dir is None:
             return original_render(scene, cache_dir=cache_dir, **kw)
         cam = camera if camera is not None else scene.camera
-        key = er._key(scene, cam, resolution, samples, engine, setup, seed)
+        key = er._key(scene, cam, resolution, samples, engine, setup, seed, renderer)
         if (Path(cache_dir) / f"render-{key}.npz").exists():
             return original_render(scene, cache_dir=cache_dir, **kw)
         if mode == "strict":
@@ -102,10 +111,11 @@ def main() -> int:
 
 def ingest(jobs: Path, exrs: Path, cache: Path) -> int:
     """Each ``exrs/<key>.exr`` (with ``exrs/times.jsonl``) as the cache entry ``render-<key>``."""
-    seconds = {}
+    seconds, gpus = {}, set()
     for line in (exrs / "times.jsonl").read_text().splitlines():
         d = json.loads(line)
         seconds[d["key"]] = d["seconds"]
+        gpus.add(d.get("gpu", "?"))
     n = 0
     for exr in sorted(exrs.glob("*.exr")):
         key = exr.stem
@@ -115,6 +125,7 @@ def ingest(jobs: Path, exrs: Path, cache: Path) -> int:
         np.savez(cache / f"render-{key}.npz", image=image, seconds=seconds[key])
         n += 1
     print(f"ingested {n} of {len(list((jobs).glob('*.blend')))} jobs into {cache}")
+    print(f"rendered on: {'; '.join(sorted(gpus))}")
     return 0
 
 

@@ -3,8 +3,8 @@
 Usage (the bundle's bpy): ``python render_jobs.py JOBS OUT SECONDS``. Renders the jobs in the
 order of ``JOBS/jobs.jsonl``, grouped by scene so that its shaders compile once, until SECONDS
 have passed; writes ``OUT/<key>.exr`` and a line per render in ``OUT/times.jsonl`` (the render's
-seconds; the first render of each group is rendered twice and timed the second time, so that no
-time holds shader compilation).
+seconds and the GPU's name; the first render of each group is rendered twice and timed the second
+time, so that no time holds shader compilation).
 """
 
 from __future__ import annotations
@@ -15,6 +15,13 @@ import time
 from pathlib import Path
 
 import bpy
+
+
+def _gpu() -> str:
+    import gpu
+
+    p = gpu.platform
+    return f"{p.backend_type_get()} {p.vendor_get()} {p.renderer_get()} {p.version_get()}"
 
 
 def main() -> int:
@@ -43,8 +50,9 @@ def main() -> int:
             bpy.ops.render.render(write_still=True, scene=scene.name)
             seconds = time.perf_counter() - start
         done += 1
+        gpu = _gpu()
         with open(out / "times.jsonl", "a") as f:
-            f.write(json.dumps({"key": key, "seconds": seconds, "reps": reps}) + "\n")
+            f.write(json.dumps({"key": key, "seconds": seconds, "reps": reps, "gpu": gpu}) + "\n")
         print(f"{done}/{len(jobs)} {job['setup']:<10} {group} {seconds:6.2f} s", flush=True)
     print(f"{done} renders in {time.perf_counter() - t0:.1f} s", flush=True)
     return 0

@@ -1,6 +1,9 @@
 """The scored renders filter their pixels as the truth does (a one-pixel box in Cycles, EEVEE's
 Gaussian of the same spread) and give the user's own filter back."""
 
+from functools import partial
+
+import numpy as np
 import pytest
 from blender_util import cornell
 
@@ -31,3 +34,40 @@ def test_eevees_filter_has_the_spread_of_the_truths_box():
     # (its film_filter_weight); a one-pixel box has standard deviation sqrt(1 / 12) per axis.
     sigma = 0.284 * eevee.FILM_FILTER_SIZE
     assert sigma == pytest.approx((1 / 12) ** 0.5, rel=0.03)
+
+
+def test_a_cached_eevee_render_is_reused_only_on_the_gpu_that_rendered_it(tmp_path, monkeypatch):
+    # Two GPUs render the same scene differently, so the cache files EEVEE's image under the
+    # GPU that rendered it. The render itself is faked (a flat EXR of the render's number): what
+    # is tested is which calls render and which load.
+    import OpenEXR
+
+    scene = cornell()
+    renders: list[str] = []
+    gpu = {"now": None}
+
+    def fake_render(name, what, **kwargs):
+        renders.append(gpu["now"] or "?")
+        gpu["now"] = gpu["now"] or "GPU A"  # Blender knows its GPU once it has rendered
+        px = np.full((4, 4, 3), float(len(renders)), np.float32)
+        OpenEXR.File({"type": OpenEXR.scanlineimage}, {"RGB": px}).write(scene.render.filepath)
+        return {"FINISHED"}
+
+    monkeypatch.setattr(eevee, "run_operator", fake_render)
+    monkeypatch.setattr(eevee, "gpu_renderer", lambda: gpu["now"])
+    go = partial(eevee.render, scene, resolution=(4, 4), samples=1, cache_dir=tmp_path)
+    # Background mode, first EEVEE render: the GPU is not known, so it renders, and the image
+    # is filed under the GPU it rendered on.
+    assert go().image[0, 0, 0] == 1.0
+    assert len(list(tmp_path.glob("render-*.npz"))) == 1
+    assert go().image[0, 0, 0] == 1.0 and renders == ["?"]  # the same GPU: loaded
+    gpu["now"] = "GPU B"
+    assert go().image[0, 0, 0] == 2.0 and renders == ["?", "GPU B"]  # another GPU: rendered
+    assert go().image[0, 0, 0] == 2.0
+    gpu["now"] = "GPU A"
+    assert go().image[0, 0, 0] == 1.0 and len(renders) == 2
+    # Cycles renders on the CPU here: its key does not name a GPU, even before one is known.
+    gpu["now"] = None
+    cycles = eevee.SETUPS["cycles+oidn"]
+    assert go(setup=cycles).image[0, 0, 0] == 3.0
+    assert go(setup=cycles).image[0, 0, 0] == 3.0 and len(renders) == 3
