@@ -275,6 +275,7 @@ def key_lights(
                 emitters=prepared[0].stand_ins.emitters,
                 suns=[p.stand_ins.sun for p in prepared],
                 portals=[p.stand_ins.portals for p in prepared],
+                closed=all(p.stand_ins.closed for p in prepared),
             )
     return tracked
 
@@ -573,6 +574,7 @@ def _score_eevee_still(
         specular=p.vpl_specular,
         emitters=p.stand_ins.emitters,
         sun=p.stand_ins.sun,
+        closed=p.stand_ins.closed,
     )
     height, width = run.reference.gi.shape[:2]
     with timer.stage(f"EEVEE + still VPLs, frame {run.frame}"):

@@ -419,6 +419,7 @@ def summary(
         lights_written=int((computed.vpls.blender_power.max(axis=1) > 0).sum()),
         emitter_lights_written=len(emitters) - portals,
         portals_written=portals,
+        world_closed=written.closed,
         sun_written=written.sun is not None,
         method=job.method,
         alpha=job.alpha,

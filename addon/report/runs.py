@@ -636,6 +636,7 @@ class _EeveeRun:
             specular=prepared.vpl_specular,
             emitters=[e for e in prepared.stand_ins.emitters if portals or not e.portal],
             sun=prepared.stand_ins.sun,
+            closed=prepared.stand_ins.closed,
         )
         try:
             if not self.direct:
@@ -664,15 +665,17 @@ class _EeveeRun:
     def methods(self, chosen: dict[str, LaidSet]) -> None:
         """The chosen methods' lights, with the world's probe volume baked once for all."""
         # Sky portals where the world can be kept from lighting EEVEE (else, as without them,
-        # the world's volume).
-        portals = bool(self.data.prepared.stand_ins.portals)
-        portals = portals and eevee_setup.camera_only_blocker(self.bl_scene.world) is None
+        # the world's volume); in a closed room the world lights nothing, as in Cycles.
+        lights = self.data.prepared.stand_ins
+        shut = bool(lights.portals) or lights.closed
+        shut = shut and eevee_setup.camera_only_blocker(self.bl_scene.world) is None
+        portals = bool(lights.portals) and shut
         with contextlib.ExitStack() as stack:
             world_bake = 0.0
             if chosen:  # the world's light, occluded, as eevee_setup.set_up bakes it
                 world_bake = stack.enter_context(
                     eevee_setup.world_for_render(
-                        self.bl_scene, probes=self.config.volume_resolution, portals=portals
+                        self.bl_scene, probes=self.config.volume_resolution, portals=shut
                     )
                 )
             if world_bake:

@@ -208,6 +208,7 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
             specular=self.prepared.vpl_specular,
             emitters=self.prepared.stand_ins.emitters,
             sun=self.prepared.stand_ins.sun,
+            closed=self.prepared.stand_ins.closed,
         )
         summary = pipeline.summary(scene, self.job, self.prepared, computed, self.timer)
         summary.eevee_matched = self.matched

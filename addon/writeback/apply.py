@@ -73,6 +73,10 @@ COLLECTION_NAME = "vplace VPLs"
 #: (``vplace.Scene.region``: min x, y, z, max x, y, z), where it set the working scale: the EEVEE
 #: set-up fits its probe volume and lamp reach to it (``eevee_setup.scene_bounds``).
 REGION_KEY = "vplace_region"
+#: The VPL collection's custom property that says the cameras work in a closed room
+#: (``stand_ins.StandIns.closed``): EEVEE's world must light nothing
+#: (``eevee_setup.world_shut_out``).
+CLOSED_KEY = "vplace_closed"
 #: EEVEE renders 8,192 lights; beyond 65,536 it drops them (DESIGN). We refuse more than this.
 MAX_VPLS = 8192
 #: The custom cutoff distance of every VPL light, in scene diagonals (see the module docs).
@@ -298,13 +302,15 @@ def world_sun_light(scene: bpy.types.Scene) -> bpy.types.Object | None:
 Region = tuple[Sequence[float], Sequence[float]]
 
 
-def new_collection(name: str, region: Region | None) -> bpy.types.Collection:
+def new_collection(name: str, region: Region | None, closed: bool = False) -> bpy.types.Collection:
     """A new, unlinked VPL collection to write ``name`` into, marked as vplace's, with
-    ``region`` under :data:`REGION_KEY` when given."""
+    ``region`` under :data:`REGION_KEY` when given and ``closed`` under :data:`CLOSED_KEY`."""
     coll = bpy.data.collections.new(name + " (writing)")
     coll[VPL_MARKER] = True
     if region is not None:
         coll[REGION_KEY] = [float(v) for corner in region for v in corner]
+    if closed:
+        coll[CLOSED_KEY] = True
     return coll
 
 
@@ -318,6 +324,13 @@ def stored_region(name: str = COLLECTION_NAME) -> Region | None:
     return (v[:3], v[3:])
 
 
+def stored_closed(name: str = COLLECTION_NAME) -> bool:
+    """Whether the VPL collection ``name`` says its lights light a closed room
+    (:data:`CLOSED_KEY`)."""
+    coll = bpy.data.collections.get(name)
+    return bool(coll is not None and coll.get(VPL_MARKER, False) and coll.get(CLOSED_KEY, False))
+
+
 def write_vpls(
     scene: bpy.types.Scene,
     vpls: vplace.VplSet,
@@ -328,6 +341,7 @@ def write_vpls(
     emitters: Sequence[EmitterLight] = (),
     sun: SunLight | None = None,
     region: Region | None = None,
+    closed: bool = False,
     name: str = COLLECTION_NAME,
 ) -> bpy.types.Collection:
     """Writes the VPLs of ``vpls`` that carry power as lights (by its profile and near-field
@@ -336,7 +350,8 @@ def write_vpls(
     (``Prepared.vpl_specular``); ``emitters`` are written beside them, lights that stand in
     for emissive meshes EEVEE does not light with (``emitter_lights``), and ``sun``, a SUN light
     for the world's sun (``emitter_lights.world_sun``). ``region`` (``vplace.Scene.region``)
-    is kept on the collection (:data:`REGION_KEY`). See the module docs."""
+    is kept on the collection (:data:`REGION_KEY`), and ``closed``, a closed room
+    (``StandIns.closed``; :data:`CLOSED_KEY`). See the module docs."""
     n = len(vpls)
     if n > MAX_VPLS:
         raise WriteBackError(
@@ -348,7 +363,7 @@ def write_vpls(
     position, normal, flux = vpls.position, vpls.normal, vpls.flux
     power = vpls.blender_power
     # Build the new collection unlinked; only a complete one replaces the old one.
-    coll = new_collection(name, region)
+    coll = new_collection(name, region, closed)
     lum = power @ np.asarray(vplace.LUMINANCE, dtype=np.float64)
     lit = np.flatnonzero(power.max(axis=1) > 0)
     shadowed = set(lit[np.argsort(-lum[lit], kind="stable")[:MAX_SHADOWED_VPLS]].tolist())

@@ -25,6 +25,14 @@ settings that fix it:
   its nodes marked ``vplace_world``) that shows the world's own surface to camera rays and black
   to every other ray (EEVEE's probes), so the windows still show the sky and Cycles renders the
   world as before. No probe volume is needed then;
+- **a closed room**: where no ray from the cameras' eyes leaves the scene (``apply.CLOSED_KEY``,
+  ``stand_ins.StandIns.closed``), none of the world's light gets in, in Cycles; EEVEE's world
+  gets the same EEVEE-only World Output as with portals (:func:`world_shut_out`). The volume
+  does not stop the world where the walls are single faces: in a box room of my own (a default
+  cube scaled up, a spot and an emissive panel inside, the world 0.02 grey) EEVEE lit the
+  inside with the world at 0.55x Cycles' whole direct light with the volume baked (0.42x-0.53x
+  with its validity threshold at 0, its faces turned inward, 24 probes a side or a volume
+  inside the walls), 0.83x without;
 - each VPL light keeps its custom distance (then ``light_threshold`` does not cut it) and its
   shadow (written by :mod:`apply`); a user's edit that removes either is named;
 - **the user's own lamps fade out**: a lamp without a custom distance is faded by
@@ -198,6 +206,12 @@ def world_emits(scene: bpy.types.Scene) -> bool:
 def portal_lights(scene: bpy.types.Scene) -> list[bpy.types.Object]:
     """The sky portals vplace wrote into ``scene`` (``portals``) that render."""
     return [o for o in scene.objects if o.get("vplace_portal", False) and not o.hide_render]
+
+
+def world_shut_out(scene: bpy.types.Scene) -> bool:
+    """Whether EEVEE's world must light nothing: vplace's sky portals carry its light in, or
+    vplace's lights light a closed room, which none of it reaches (``apply.stored_closed``)."""
+    return bool(portal_lights(scene)) or apply.stored_closed()
 
 
 #: The custom property that marks the world nodes :func:`camera_only` adds.
@@ -430,6 +444,16 @@ def problems(scene: bpy.types.Scene) -> list[Problem]:
                     "must light nothing but show to the camera",
                 )
             )
+    elif apply.stored_closed() and world_emits(scene):
+        if not is_camera_only(world):
+            found.append(
+                Problem(
+                    "world",
+                    "the cameras are in a closed room, which the world does not light in "
+                    "Cycles, and EEVEE lights it with the world through the walls: the world "
+                    "must light nothing but show to the camera",
+                )
+            )
     elif is_camera_only(world):
         found.append(
             Problem(
@@ -625,14 +649,15 @@ def world_for_render(
     region: apply.Region | None = None,
 ) -> Iterator[float]:
     """For a render of the written lights as :func:`set_up` would leave the scene: with sky
-    portals, the world for the camera only (:func:`camera_only`) for the block; else, when the
-    world emits and vplace has baked no volume, a temporary one without indirect light (the
-    world's light, occluded). ``portals``: whether the lights rendered in the block have sky
-    portals (None: whether the scene has them now); the volume spans :func:`scene_bounds`
+    portals or in a closed room, the world for the camera only (:func:`camera_only`) for the
+    block; else, when the world emits and vplace has baked no volume, a temporary one without
+    indirect light (the world's light, occluded). ``portals``: whether the lights rendered in
+    the block have sky portals or light a closed room (None: :func:`world_shut_out` of the
+    scene now); the volume spans :func:`scene_bounds`
     (``region``). Yields the volume's bake seconds (0.0 when none is baked)."""
     world = scene.world
     if portals is None:
-        portals = bool(portal_lights(scene))
+        portals = world_shut_out(scene)
     if portals and world is not None:
         if is_camera_only(world):
             yield 0.0
@@ -681,9 +706,9 @@ def _probe_collection(scene: bpy.types.Scene) -> bpy.types.Collection:
 
 def set_up(scene: bpy.types.Scene, *, bake_volume: bool = True) -> list[str]:
     """Applies the settings of the module docs to ``scene`` (EEVEE settings; with sky portals
-    an EEVEE-only World Output, :func:`camera_only`; else a probe volume in its own collection
-    when the world emits, baked unless ``bake_volume`` is false) and returns what it changed,
-    in words. The user's own objects are not touched."""
+    or in a closed room an EEVEE-only World Output, :func:`camera_only`; else a probe volume in
+    its own collection when the world emits, baked unless ``bake_volume`` is false) and returns
+    what it changed, in words. The user's own objects are not touched."""
     e = scene.eevee
     changed: list[str] = []
 
@@ -703,21 +728,25 @@ def set_up(scene: bpy.types.Scene, *, bake_volume: bool = True) -> list[str]:
     put(e, "fast_gi_method", "AMBIENT_OCCLUSION_ONLY", "scene.eevee.fast_gi_method")
     if scene.world is not None and apply.world_sun_light(scene):
         put(scene.world, "sun_threshold", 0.0, "world.sun_threshold")
-    if not portal_lights(scene) and is_camera_only(scene.world):
+    shut = world_shut_out(scene)
+    if not shut and is_camera_only(scene.world):
         remove_camera_only(scene.world)
         changed.append("the world lights EEVEE again (vplace wrote no sky portals)")
-    if portal_lights(scene) and scene.world is not None and not is_camera_only(scene.world):
+    if shut and scene.world is not None and not is_camera_only(scene.world):
         why = camera_only(scene.world)
         if why is None:
             changed.append(
                 "the world lights EEVEE through vplace's sky portals only (an EEVEE World "
                 "Output that shows it to the camera)"
+                if portal_lights(scene)
+                else "the world lights nothing in EEVEE, as in Cycles, since the cameras are "
+                "in a closed room (an EEVEE World Output that shows it to the camera)"
             )
         else:  # as before the portals: they are hidden, the world's volume occludes it
             for obj in portal_lights(scene):
                 obj.hide_render = True
             changed.append(f"hid the sky portals ({why}: the world would count twice)")
-    portals = bool(portal_lights(scene)) and is_camera_only(scene.world)
+    portals = shut and is_camera_only(scene.world)
     if world_emits(scene) and not portals:
         coll = _probe_collection(scene)
         volume = new_volume(scene, coll, margin=VOLUME_MARGIN, capture_indirect=False)

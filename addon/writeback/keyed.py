@@ -94,6 +94,7 @@ def write_keyed(
     suns: Sequence[SunLight | None] = (),
     portals: Sequence[Sequence[EmitterLight]] = (),
     region: apply.Region | None = None,
+    closed: bool = False,
     name: str = apply.COLLECTION_NAME,
 ) -> bpy.types.Collection:
     """Writes the slots of ``keyed`` (one per light, keyed on ``frames``), the world's sun of
@@ -102,7 +103,8 @@ def write_keyed(
     into a fresh VPL collection
     linked to ``scene`` (see the module docs); the :data:`apply.MAX_SHADOWED_VPLS` slots
     brightest on some frame cast shadows; ``region`` is kept on the collection
-    (``apply.REGION_KEY``). The scene's current frame is kept."""
+    (``apply.REGION_KEY``), and ``closed`` (``apply.CLOSED_KEY``). The scene's current frame is
+    kept."""
     slots = keyed.position.shape[1]
     if len(frames) != keyed.position.shape[0]:
         raise WriteBackError(f"{len(frames)} frames for {keyed.position.shape[0]} keyed frames")
@@ -120,7 +122,7 @@ def write_keyed(
     shadowed = set(np.argsort(-brightest, kind="stable")[: apply.MAX_SHADOWED_VPLS].tolist())
     energy, color = keyed.energy, keyed.color
     current = scene.frame_current
-    coll = apply.new_collection(name, region)
+    coll = apply.new_collection(name, region, closed)
     try:
         for s in range(slots):
             if brightest[s] <= 0.0:

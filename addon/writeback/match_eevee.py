@@ -85,11 +85,12 @@ def refit_views(
             region=region,
             emitters=stand_ins.emitters,
             sun=stand_ins.sun,
+            closed=stand_ins.closed,
             name=COLLECTION,
         )
         try:
             with eevee_setup.world_for_render(
-                bl_scene, portals=bool(stand_ins.portals), region=region
+                bl_scene, portals=bool(stand_ins.portals) or stand_ins.closed, region=region
             ):
                 for i, cap in enumerate(captures):
                     camera = bpy.data.objects.get(cap.camera)

@@ -58,6 +58,7 @@ def write_back(
             specular=specular,
             emitters=lights.emitters,
             sun=lights.sun,
+            closed=lights.closed,
         )
         if blend_path is not None:
             run_operator(

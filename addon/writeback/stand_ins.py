@@ -367,6 +367,13 @@ class StandIns:
     sun: SunLight | None
     #: The share of the eyes' rays that leave the scene (``portals.openings``).
     open_share: float = 0.0
+    #: The world emits, but no ray from any eye leaves the scene: a closed room, which the
+    #: world lights nowhere (in Cycles none of its light gets in). EEVEE's world must then
+    #: light nothing (``eevee_setup.world_shut_out``), as with sky portals: EEVEE lights
+    #: with the world through walls, and a probe volume does not stop it where the walls are
+    #: single faces (a closed box room of my own: EEVEE's world light inside was 0.55x
+    #: Cycles' whole direct light with vplace's volume baked, 0.83x without).
+    closed: bool = False
 
     @property
     def portals(self) -> list[EmitterLight]:
@@ -389,10 +396,11 @@ def stand_ins(
         lit = max(sun_lit_fraction(scene, p, n, c, sun) for p, n, c in surfaces)
         sun = sun if lit >= SUN_MIN_LIT else None
     lights = emitter_lights(exported, scene)
-    share = 0.0
+    share, closed = 0.0, False
     world = exported.world
     if eyes and world is not None and world.emits:
         found, share = portals.openings(scene, eyes)
+        closed = share == 0.0
         # The sun's pixels have their own light (the sun's stand-in, or none where the sun
         # reaches nothing the views see): the portals carry the rest of the sky.
         radiance = portals.sky_radiance(world, sun_pixels(world))
@@ -417,4 +425,4 @@ def stand_ins(
                         portal=True,
                     )
                 )
-    return StandIns(lights, sun, share)
+    return StandIns(lights, sun, share, closed)

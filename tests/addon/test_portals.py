@@ -281,3 +281,56 @@ def test_a_world_of_its_own_eevee_output_is_left_alone(sky_scene):
     changed = eevee_setup.set_up(scene, bake_volume=False)
     assert any("hid the sky portals" in c for c in changed) and portal.hide_render
     assert eevee_setup.vplace_volume(scene) is not None
+
+
+def _box_room(scene, *, open_top: bool = False):
+    """A 4 x 3 x 2.5 m box of single faces around :data:`EYE` (a default cube scaled, as users
+    model a room), its top face left out with ``open_top``."""
+    mesh = bpy.data.meshes.new("room")
+    v = [(x, y, z) for x in (-2, 2) for y in (-1.5, 1.5) for z in (0, 2.5)]
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4)]
+    quads += [] if open_top else [(1, 5, 7, 3)]
+    mesh.from_pydata(v, [], quads)
+    scene.collection.objects.link(bpy.data.objects.new("room", mesh))
+
+
+def test_a_closed_room_shuts_the_world_out_of_eevee(sky_scene):
+    """No ray from the eyes leaves a closed room: the world lights nothing inside in Cycles, so
+    EEVEE's world lights nothing either (as with sky portals), never through the walls."""
+    from addon.scene import export
+    from addon.scene.convert import build_scene
+    from addon.writeback.stand_ins import stand_ins
+
+    scene, world = sky_scene, sky_scene.world
+    _box_room(scene)
+    exported = export.export_scene(scene)
+    lights = stand_ins(exported, build_scene(exported), [], [EYE])
+    assert lights.closed and not lights.portals and lights.open_share == 0.0
+    bpy.data.objects.remove(bpy.data.objects["room"])
+    _box_room(scene, open_top=True)
+    exported = export.export_scene(scene)
+    assert not stand_ins(exported, build_scene(exported), [], [EYE]).closed
+    # Written with the lights, the closed room keeps the world from lighting EEVEE.
+    vpls = vplace.VplSet(
+        np.zeros((1, 3), np.float32),
+        np.array([[0, 0, 1]], np.float32),
+        np.ones((1, 3), np.float32),
+        radius=0.01,
+    )
+    apply.write_vpls(scene, vpls, closed=True)
+    assert apply.stored_closed() and eevee_setup.world_shut_out(scene)
+    assert any("closed room" in p.message for p in eevee_setup.problems(scene))
+    with eevee_setup.world_for_render(scene) as bake:
+        assert bake == 0.0 and eevee_setup.is_camera_only(world)
+        assert not any(o.type == "LIGHT_PROBE" for o in scene.objects)  # no volume
+    assert not eevee_setup.is_camera_only(world)
+    changed = eevee_setup.set_up(scene, bake_volume=False)
+    assert any("closed room" in c for c in changed) and eevee_setup.is_camera_only(world)
+    assert eevee_setup.vplace_volume(scene) is None
+    assert not any(p.setting == "world" for p in eevee_setup.problems(scene))
+    # Lights written for an open scene: the world lights EEVEE again, through a volume.
+    apply.write_vpls(scene, vpls)
+    assert not apply.stored_closed() and not eevee_setup.world_shut_out(scene)
+    changed = eevee_setup.set_up(scene, bake_volume=False)
+    assert any("lights EEVEE again" in c for c in changed)
+    assert eevee_setup.vplace_volume(scene) is not None

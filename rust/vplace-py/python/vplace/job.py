@@ -635,6 +635,9 @@ class JobSummary:
     #: Sky portals written (``addon.writeback.portals``): AREA lights in the openings that
     #: carry the sky in for EEVEE.
     portals_written: int = 0
+    #: The cameras work in a closed room (no ray from their eyes leaves the scene): EEVEE's
+    #: world lights nothing, as Cycles' lights nothing inside (``addon.writeback.stand_ins``).
+    world_closed: bool = False
     #: Whether a SUN light stands in for the world's sun (``addon.writeback.stand_ins``).
     sun_written: bool = False
     #: The scene's working scale and its bounds' diagonal, metres (``Scene.scale``,
@@ -880,7 +883,15 @@ def _stand_in_lines(report: JobSummary) -> list[str]:
             f"{n} sky portal{'s' * (n != 1)} (AREA lights in the openings that carry the sky's "
             "light in; EEVEE's world then lights nothing but shows to the camera)"
         )
-    return [f"Written beside the VPLs: {'; '.join(parts)}.", ""] if parts else []
+    lines = [f"Written beside the VPLs: {'; '.join(parts)}.", ""] if parts else []
+    if report.world_closed:
+        lines += [
+            "The cameras are in a closed room (no ray from them leaves the scene): the world "
+            "lights nothing inside, in Cycles, so EEVEE's world lights nothing either and shows "
+            "only to the camera (EEVEE would light the room with it through the walls).",
+            "",
+        ]
+    return lines
 
 
 def unwritten_vpls(report: JobSummary) -> int:
