@@ -347,6 +347,8 @@ def run(args: argparse.Namespace) -> None:
     else:
         blend = builtin_scene(args.scene)
     open_blend(blend)
+    from .scene.export import unit_scale
+
     job = Job(
         n_vpls=args.vpls,
         size=args.size,
@@ -361,7 +363,7 @@ def run(args: argparse.Namespace) -> None:
         iterations=args.iterations,
         feature_mode=args.feature_mode,
         match_eevee=args.match_eevee,
-    )
+    ).in_scene_units(unit_scale(bpy.context.scene))
     extra = (
         args.score_between,
         args.cycles_samples,

@@ -18,6 +18,7 @@ Every stage is timed and announced through a :class:`StageTimer`.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import math
 import time
@@ -99,8 +100,23 @@ class Job(vplace.job.LayoutSettings):
         if self.iterations < 0:
             raise AddonError(f"layout iterations must be 0 (off) or more, got {self.iterations}")
         if self.radius is not None and not (self.radius >= 0 and math.isfinite(self.radius)):
-            raise AddonError(f"the near-field radius must be 0 or more metres, got {self.radius:g}")
+            raise AddonError(f"the near-field radius must be 0 or more, got {self.radius:g}")
         self.views.validate()
+
+    def in_scene_units(self, metres_per_unit: float) -> Job:
+        """This job with its lengths given in metres (the command line's ``--radius``,
+        ``--region-radius``, an orbit's radius) turned into the scene's units (Blender's Unit
+        Scale: ``export.unit_scale``); the panel's are in scene units already."""
+        if metres_per_unit == 1.0:
+            return self
+        k = 1.0 / metres_per_unit
+        views = dataclasses.replace(
+            self.views,
+            orbit_radius=self.views.orbit_radius * k,
+            region_radius=self.views.region_radius * k,
+        )
+        radius = None if self.radius is None else self.radius * k
+        return dataclasses.replace(self, views=views, radius=radius)
 
     def capture_resolution(self, scene: bpy.types.Scene) -> tuple[int, int]:
         """The capture's (W, H) in ``scene``."""
@@ -429,6 +445,7 @@ def summary(
         seed=job.seed,
         working_scale=prepared.scene.scale,
         bounds_diagonal=prepared.scene.diagonal,
+        unit_scale=prepared.exported.unit_scale,
         stage_seconds=dict(timer.seconds),
         evaluator=evaluator,
         metrics=computed.metrics,

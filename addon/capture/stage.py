@@ -140,7 +140,7 @@ def capture_views(
                 profile=profile,
                 radius=radius,
             )
-        log(f"[vplace] {cover.describe()}")
+        log(f"[vplace] {cover.describe(exported.unit_scale)}")
     return Captured(captures, views, gloss, skipped, cover)
 
 

@@ -45,13 +45,15 @@ class ViewSet:
     frame_end: int = 1
     frame_step: int = 1
     orbit_count: int = 4
-    #: Metres from the camera to the orbit's pivot; 0: the distance to the scene's centre.
+    #: From the camera to the orbit's pivot, scene units (metres at Unit Scale 1; the command
+    #: line's metres are converted, `Job.in_scene_units`); 0: the distance to the scene's centre.
     orbit_radius: float = 0.0
     orbit_angle: float = 30.0
     #: Coverage views added for the region around these views (``vplace.coverage``; 0: none).
     #: The layout places for them; the refit fits the captures only.
     coverage: int = vplace.coverage.DEFAULT_COUNT
-    #: The region's radius around each camera, metres; 0: from the room the camera stands in.
+    #: The region's radius around each camera, scene units; 0: from the room the camera stands
+    #: in.
     region_radius: float = 0.0
 
     def region(self) -> vplace.coverage.Region:

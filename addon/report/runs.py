@@ -52,6 +52,7 @@ from ..capture.native_view import gloss_mask, view_of
 from ..capture.views import ViewSet, ViewSpec, eye_positions
 from ..errors import ReportError, output_folder
 from ..native import vplace
+from ..scene import export
 from ..scenes import registry as default_scene
 from ..settings import override
 from ..writeback import apply, eevee_setup
@@ -158,7 +159,12 @@ def generate_held_out(
     through_wall = moved > 0.5 * camera.data.clip_start
     forward = list(camera.matrix_world.to_3x3() @ Vector((0.0, 0.0, -1.0)))
     poses = vplace.coverage.held_out_poses(
-        prepared.scene, eye, forward, count, seed=0, radius=config.region_radius
+        prepared.scene,
+        eye,
+        forward,
+        count,
+        seed=0,
+        radius=config.region_radius / export.unit_scale(bl_scene),
     )
     if len(poses) < count:
         raise ReportError(
@@ -209,7 +215,7 @@ def load_scene(
         cache_dir=cache_dir,
         views=ViewSet(coverage=config.coverage, region_radius=config.region_radius),
         radius=config.radius,
-    )
+    ).in_scene_units(export.unit_scale(bl_scene))
     cams = {}
     for name in (*preset.fit_views, *preset.held_out_views):
         cam = bpy.data.objects.get(name)

@@ -182,9 +182,10 @@ def export_native(
     with stage("build BVH"):
         scene = build_scene(exported, eyes)
     if scene.scale < scene.diagonal:
+        m = exported.unit_scale
         log(
             f"[vplace] VPL sizes and the sun's and the world's light follow the region the "
-            f"cameras see ({scene.scale:.3g} m), not the scene's bounds ({scene.diagonal:.3g} m "
-            "across: geometry no camera sees)"
+            f"cameras see ({scene.scale * m:.3g} m), not the scene's bounds "
+            f"({scene.diagonal * m:.3g} m across: geometry no camera sees)"
         )
     return exported, scene

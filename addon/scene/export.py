@@ -26,8 +26,9 @@ vplace (a warning says so).
 **Unsupported things** are left out with one warning naming the object, and the rest is
 exported: volume objects and volume-only materials, hair curves, point clouds and hair
 particles. A material with true displacement keeps its undisplaced surface (with a warning),
-which is nearer to what Cycles renders than leaving the object out. Warnings are collected in
-``ExportedScene.warnings``.
+which is nearer to what Cycles renders than leaving the object out. Light and shadow linking
+(an object's Light Linking collections) is exported as if absent, with a warning: the captures
+follow it, the light paths do not. Warnings are collected in ``ExportedScene.warnings``.
 """
 
 from __future__ import annotations
@@ -185,6 +186,8 @@ class ExportedScene:
     #: The reflections Cycles follows, ``(diffuse, glossy, total)`` (:func:`light_bounces`);
     #: None: no limits known.
     light_bounces: tuple[int, int, int] | None = None
+    #: Metres per Blender unit (:func:`unit_scale`): every length here is in Blender units.
+    unit_scale: float = 1.0
 
     @property
     def albedo(self) -> np.ndarray:
@@ -592,6 +595,7 @@ class _Exporter:
             return
         if not inst.is_instance and not inst.show_self:
             return  # an emitter whose particle settings hide it
+        self._check_linking(original)
         if obj.type == "LIGHT":
             self.lights.append(light_info(original.name, obj.data, inst.matrix_world))
             return
@@ -616,6 +620,22 @@ class _Exporter:
         if part is not None:
             self.parts.append(part)
             self.names.append(original.name)
+
+    def _check_linking(self, obj: bpy.types.Object) -> None:
+        """A warning for light or shadow linking (Blender 4.0 on): Cycles' captures follow it;
+        vplace's light paths light and shadow every object."""
+        linking = getattr(obj, "light_linking", None)
+        if linking is None:
+            return
+        for attr, what in (("receiver_collection", "light"), ("blocker_collection", "shadow")):
+            coll = getattr(linking, attr, None)
+            if coll is not None:
+                self.warn(
+                    f"object {obj.name!r} links its {what} to collection {coll.name!r} "
+                    f"({what.capitalize()} Linking): the captures follow it, vplace's light "
+                    "paths do not (they reach every object), so where no capture looks its "
+                    "bounce may differ from Cycles'"
+                )
 
     def _check_particles(self, obj: bpy.types.Object, name: str) -> None:
         for ps in getattr(obj, "particle_systems", ()):
@@ -773,6 +793,7 @@ class _Exporter:
             texture_names=names,
             warnings=self.warnings,
             light_bounces=self.bounces(scene),
+            unit_scale=unit_scale(scene),
         )
 
     def bounces(self, scene: bpy.types.Scene) -> tuple[int, int, int]:
@@ -785,6 +806,17 @@ class _Exporter:
                 "first bounce"
             )
         return diffuse, glossy, total
+
+
+def unit_scale(scene: bpy.types.Scene) -> float:
+    """Metres per Blender unit: the scene's Units > Unit Scale (1 without a unit system).
+    Cycles and EEVEE render in Blender units whatever the scale, and so does vplace; the lengths
+    it reads from the user (``--radius``, ``--region-radius``, an orbit's radius) and writes
+    into its reports are in metres, converted with this."""
+    u = scene.unit_settings
+    if u.system == "NONE" or not u.scale_length > 0.0:
+        return 1.0
+    return float(u.scale_length)
 
 
 def light_bounces(scene: bpy.types.Scene) -> tuple[int, int, int]:

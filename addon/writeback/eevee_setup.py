@@ -63,7 +63,7 @@ from mathutils import Vector
 
 from ..compat import eevee_engine, uses_nodes
 from ..errors import AddonError
-from ..scene.export import VPL_MARKER
+from ..scene.export import VPL_MARKER, unit_scale
 from ..settings import SettingsGuard, override
 from . import apply, keyed
 from .stand_ins import SunLight
@@ -397,9 +397,10 @@ def problems(scene: bpy.types.Scene) -> list[Problem]:
         found.append(
             Problem(
                 "scene.eevee.light_threshold",
-                f"EEVEE fades {len(faded)} lamp(s) out within the scene (e.g. {name!r} reaches "
-                f"{reach:.3g} m; Cycles does not fade): their light comes out too dark away "
-                f"from them; a threshold of {threshold_for(scene):.3g} lets them reach",
+                f"EEVEE fades {len(faded)} lamp(s) out within the scene (e.g. {name!r} "
+                f"reaches {reach * unit_scale(scene):.3g} m; Cycles does not fade): their "
+                "light comes out too dark away from them; a threshold of "
+                f"{threshold_for(scene):.3g} lets them reach",
             )
         )
     # Blender 4.2 has no use_fast_gi switch: its fast GI is on whenever ray tracing is.

@@ -50,6 +50,26 @@ def test_hidden_objects_and_fingerprint():
     assert export.export_scene(scene).fingerprint() != a.fingerprint()
 
 
+def test_light_and_shadow_linking_are_named():
+    # Cycles' captures follow an object's Light Linking collections; vplace's light paths reach
+    # every object, so the export says so, once per object and kind.
+    scene = cornell()
+    assert not any("Linking" in w for w in export.export_scene(scene).warnings)
+    lamp = bpy.data.objects["light"]
+    receivers = bpy.data.collections.new("lit by the lamp")
+    receivers.objects.link(bpy.data.objects["tallBox"])
+    lamp.light_linking.receiver_collection = receivers
+    lamp.light_linking.blocker_collection = receivers
+    try:
+        warned = [w for w in export.export_scene(scene).warnings if "Linking" in w]
+        assert len(warned) == 2 and all("'light'" in w and "lit by the lamp" in w for w in warned)
+        assert "(Light Linking)" in warned[0] and "(Shadow Linking)" in warned[1]
+    finally:
+        lamp.light_linking.receiver_collection = None
+        lamp.light_linking.blocker_collection = None
+        bpy.data.collections.remove(receivers)
+
+
 def test_light_paths_stop_where_cycles_does():
     # Cycles follows Light Paths > Max Bounces (Diffuse, Glossy, each at most Total); light that
     # needs more reflections (a room lit through a doorway) is not in its renders, so the light
@@ -130,3 +150,28 @@ def test_emissive_materials_and_what_emits():
     check_lights(ex)
     native = build_scene(ex)
     assert native.light_count == 0 and native.emissive_triangle_count > 0
+
+
+def test_lengths_in_metres_are_turned_into_scene_units():
+    # Blender renders in its units whatever the Unit Scale; vplace reads the command line's
+    # metres into them and writes metres back.
+    from addon.capture.views import ViewSet
+    from addon.job import Job
+
+    scene = cornell()
+    assert export.unit_scale(scene) == 1.0
+    scene.unit_settings.scale_length = 0.01  # a scene modelled in centimetres
+    try:
+        assert export.unit_scale(scene) == pytest.approx(0.01)
+        assert export.export_scene(scene).unit_scale == pytest.approx(0.01)
+        job = Job(radius=0.05, views=ViewSet(mode="orbit", orbit_radius=2.0, region_radius=1.5))
+        cm = job.in_scene_units(export.unit_scale(scene))
+        assert cm.radius == pytest.approx(5.0)
+        assert (cm.views.orbit_radius, cm.views.region_radius) == pytest.approx((200.0, 150.0))
+        assert Job().in_scene_units(0.01).radius is None
+        assert job.in_scene_units(1.0) is job
+        scene.unit_settings.system = "NONE"  # no units: a scene unit is a metre
+        assert export.unit_scale(scene) == 1.0
+    finally:
+        scene.unit_settings.system = "METRIC"
+        scene.unit_settings.scale_length = 1.0

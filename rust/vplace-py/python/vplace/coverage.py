@@ -161,11 +161,11 @@ class Coverage:
     radius: list[float] = field(default_factory=list)
     seconds: float = 0.0
 
-    def describe(self) -> str:
-        """One line for the log and the report."""
+    def describe(self, unit_scale: float = 1.0) -> str:
+        """One line for the log and the report; ``unit_scale``: metres per scene unit."""
         return (
             f"{len(self.views)} coverage views (region radius "
-            + ", ".join(f"{r:.2f}" for r in self.radius)
+            + ", ".join(f"{r * unit_scale:.3g}" for r in self.radius)
             + f" m): the region's surfaces {self.covered_before:.0%} covered by the captures, "
             f"{self.covered_after:.0%} with them ({self.seconds:.2f} s)"
         )

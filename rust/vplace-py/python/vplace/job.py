@@ -71,8 +71,8 @@ class LayoutSettings:
     n_vpls: int = 128
     seed: int = 0
     profile: str = "cosine"
-    #: Near-field radius of the VPLs (m); None: the scene's (``NEAR_FIELD_FRACTION`` of its
-    #: working scale, ``Scene.scale``: VPL spacing grows with the scene).
+    #: Near-field radius of the VPLs (scene units); None: the scene's (``NEAR_FIELD_FRACTION``
+    #: of its working scale, ``Scene.scale``: VPL spacing grows with the scene).
     radius: float | None = None
     cell_px: int = 16
     #: One of :data:`METHODS`. The default is ``vplace+refit``: it beats the others in the
@@ -640,10 +640,12 @@ class JobSummary:
     world_closed: bool = False
     #: Whether a SUN light stands in for the world's sun (``addon.writeback.stand_ins``).
     sun_written: bool = False
-    #: The scene's working scale and its bounds' diagonal, metres (``Scene.scale``,
+    #: The scene's working scale and its bounds' diagonal, scene units (``Scene.scale``,
     #: ``Scene.diagonal``): the scale is less where the cameras see a small part of the scene.
     working_scale: float = 0.0
     bounds_diagonal: float = 0.0
+    #: Metres per scene unit (Blender's Unit Scale): the report writes lengths in metres.
+    unit_scale: float = 1.0
     fit: FitSummary | None = None
     #: "Match EEVEE's direct light": per captured view the refit made up for, the mean of
     #: :func:`eevee_deficit` over the mean of Cycles' direct light (luminance; negative where
@@ -917,9 +919,10 @@ def _region(report: JobSummary) -> str:
     scene's bounds (``Scene.scale``)."""
     if not 0.0 < report.working_scale < report.bounds_diagonal:
         return ""
+    m = report.unit_scale
     return (
-        f"; VPL sizes follow the region the cameras see ({report.working_scale:.3g} m), not "
-        f"the scene's bounds ({report.bounds_diagonal:.3g} m across)"
+        f"; VPL sizes follow the region the cameras see ({report.working_scale * m:.3g} m), "
+        f"not the scene's bounds ({report.bounds_diagonal * m:.3g} m across)"
     )
 
 
@@ -957,7 +960,8 @@ def job_report(report: JobSummary) -> str:
         f"{report.triangles} triangles, {report.lights} lights, "
         f"{report.resolution[0]}x{report.resolution[1]} px, {report.samples} spp Cycles, "
         f"{report.n_vpls} VPLs by {report.method} ({report.profile}, "
-        f"near-field radius {report.radius:.3g} m){_unwritten(report)}{_region(report)}",
+        f"near-field radius {report.radius * report.unit_scale:.3g} m){_unwritten(report)}"
+        f"{_region(report)}",
         "",
         *markdown.table(
             ["stage", "seconds"], [[k, f"{v:.2f}"] for k, v in report.stage_seconds.items()]
