@@ -116,6 +116,9 @@ class MaterialInfo:
     #: Only a volume (left out); true displacement (exported undisplaced).
     volume_only: bool = False
     displaced: bool = False
+    #: Light passes through it (glass; :mod:`.materials`): it blocks vplace's rays all the
+    #: same, but a room seen through it is not closed (``stand_ins.StandIns.closed``).
+    transmits: bool = False
     warnings: list[str] = field(default_factory=list)
 
 
@@ -352,6 +355,7 @@ def _apply_surface(
     info.albedo = _rgb(np.clip(surface.albedo.mean(images), 0.0, 1.0))
     info.textured = surface.albedo.tex is not None
     info.volume_only, info.displaced = surface.volume_only, surface.displaced
+    info.transmits = surface.transmits
     info.gloss_roughness = surface.gloss_roughness
     info.warnings = list(surface.warnings)
 

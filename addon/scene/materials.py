@@ -94,6 +94,8 @@ NON_DIFFUSE = {
     "BSDF_REFRACTION",
     "HOLDOUT",
 }
+#: Shader nodes that let light through (a window's glass: ``Surface.transmits``).
+TRANSMITTING = {"BSDF_GLASS", "BSDF_REFRACTION"}
 #: Shader nodes whose only layer is glossy (their Roughness input is the layer's).
 GLOSSY = {"BSDF_GLOSSY", "BSDF_ANISOTROPIC", "BSDF_METALLIC"}
 #: Image Texture extension -> the core's wrap mode (Clip reads like Extend inside [0, 1]).
@@ -302,6 +304,9 @@ class Surface:
     #: The glossy layers' reflectance (their mean over incident directions; see the module's
     #: rule), which the light paths reflect off besides the albedo; None: no layer.
     gloss: Lin | None = None
+    #: Light passes through it (a Glass or Refraction BSDF, a Principled BSDF's transmission):
+    #: the sky seen through a glass window still lights the room in Cycles.
+    transmits: bool = False
     warnings: list[str] = field(default_factory=list)
 
     @property
@@ -625,7 +630,10 @@ class _Evaluator:
                     Lin.constant(w * (1.0 - m) * e + w * m / 21.0), self.images, self.warnings
                 )
             albedo = base.scaled(k * (1.0 - e))
-            return Surface(albedo, alpha, cutoff, gloss_roughness=rough, gloss=layer)
+            transmits = w > 0.0 and trans > 0.0 and metallic < 1.0
+            return Surface(
+                albedo, alpha, cutoff, gloss_roughness=rough, gloss=layer, transmits=transmits
+            )
         if kind in {"BSDF_DIFFUSE", "SUBSURFACE_SCATTERING"}:
             return Surface(self.color(node.inputs["Color"], stack).scaled(w), Lin.constant(1.0))
         if kind in NON_DIFFUSE:
@@ -636,7 +644,13 @@ class _Evaluator:
                 col = _named_input(node, "Color", "Base Color")
                 if col is not None:
                     layer = self.color(col, stack).scaled(w)
-            return Surface(Lin.constant(0.0), Lin.constant(1.0), gloss_roughness=rough, gloss=layer)
+            return Surface(
+                Lin.constant(0.0),
+                Lin.constant(1.0),
+                gloss_roughness=rough,
+                gloss=layer,
+                transmits=kind in TRANSMITTING and w > 0.0,
+            )
         if kind == "BSDF_TRANSPARENT":
             return Surface(Lin.constant(0.0), Lin.constant(0.0), transparent=True)
         if kind == "MIX_SHADER":
@@ -652,6 +666,7 @@ class _Evaluator:
                 min(a.cutoff, b.cutoff),
                 gloss_roughness=_sharpest(a, b),
                 gloss=self.mixed_gloss(a, b, 1.0, 1.0),
+                transmits=a.transmits or b.transmits,
             )
         raise Unsupported(f"shader node {node.name!r} ({kind})")
 
@@ -686,6 +701,7 @@ class _Evaluator:
                 keep.cutoff,
                 gloss_roughness=keep.gloss_roughness,
                 gloss=keep.gloss,
+                transmits=keep.transmits,
             )
         f = min(max(float(fac.mean(self.images)[0]), 0.0), 1.0)
         return Surface(
@@ -694,6 +710,7 @@ class _Evaluator:
             min(a.cutoff, b.cutoff),
             gloss_roughness=_sharpest(a if f < 1.0 else None, b if f > 0.0 else None),
             gloss=self.mixed_gloss(a, b, 1.0 - f, f),
+            transmits=(a.transmits and f < 1.0) or (b.transmits and f > 0.0),
         )
 
     def mixed_gloss(self, a: Surface, b: Surface, ka: float, kb: float) -> Lin | None:

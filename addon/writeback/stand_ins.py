@@ -357,6 +357,38 @@ def sun_lit_fraction(
     return float((~blocked).sum()) / len(ys)
 
 
+#: Glass surfaces a ray from an eye passes through before :func:`sky_through_glass` gives up.
+GLASS_PASSES = 4
+
+
+def sky_through_glass(
+    scene: vplace.Scene, exported: ExportedScene, eyes: Sequence[Sequence[float]]
+) -> bool:
+    """Whether a ray from one of ``eyes`` leaves the scene through surfaces that let light
+    through (``MaterialInfo.transmits``: a glass window), at most :data:`GLASS_PASSES` of them:
+    then the world lights the room in Cycles, and it is not closed. The rays of
+    ``portals.openings``, each cast again past the glass it meets."""
+    transmits = np.array([m.transmits for m in exported.materials], dtype=bool)
+    if not transmits.any():
+        return False
+    directions = vplace.coverage.fibonacci_sphere(portals.DIRECTIONS)
+    step = np.float32(1e-4 * scene.scale)
+    for eye in eyes:
+        d = directions
+        o = np.repeat(np.asarray(eye, dtype=np.float32)[None], len(d), axis=0)
+        for k in range(GLASS_PASSES + 1):
+            t, tri, _ = scene.intersect(np.ascontiguousarray(o), np.ascontiguousarray(d))
+            missed = ~np.isfinite(t)
+            glass = ~missed & transmits[exported.material_ids[np.maximum(tri, 0)]]
+            if k > 0 and missed.any():  # past glass (the first pass's misses are openings)
+                return True
+            if not glass.any():
+                break
+            o = (o + d * (t[:, None] + step))[glass].astype(np.float32)
+            d = d[glass]
+    return False
+
+
 @dataclass(frozen=True)
 class StandIns:
     """The lights that stand in for what EEVEE does not light with: the emissive meshes and the
@@ -400,7 +432,7 @@ def stand_ins(
     world = exported.world
     if eyes and world is not None and world.emits:
         found, share = portals.openings(scene, eyes)
-        closed = share == 0.0
+        closed = share == 0.0 and not sky_through_glass(scene, exported, eyes)
         # The sun's pixels have their own light (the sun's stand-in, or none where the sun
         # reaches nothing the views see): the portals carry the rest of the sky.
         radiance = portals.sky_radiance(world, sun_pixels(world))

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from blender_util import empty_file
 
-from addon.compat import new_world
+from addon.compat import new_material, new_world
 from addon.native import vplace
 from addon.scene.world import WorldInfo
 from addon.writeback import apply, eevee_setup, portals
@@ -306,8 +306,21 @@ def test_a_closed_room_shuts_the_world_out_of_eevee(sky_scene):
     exported = export.export_scene(scene)
     lights = stand_ins(exported, build_scene(exported), [], [EYE])
     assert lights.closed and not lights.portals and lights.open_share == 0.0
+    # A glass ball in the room leaves it closed; a glass pane over an open top does not: the
+    # sky lights the room through it in Cycles.
+    glass = new_material("glass")
+    glass.node_tree.nodes["Principled BSDF"].inputs["Transmission Weight"].default_value = 1.0
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.3, location=(0.5, 0.0, 1.0))
+    bpy.context.object.data.materials.append(glass)
+    exported = export.export_scene(scene)
+    assert [m.name for m in exported.materials if m.transmits] == ["glass"]
+    assert stand_ins(exported, build_scene(exported), [], [EYE]).closed
     bpy.data.objects.remove(bpy.data.objects["room"])
     _box_room(scene, open_top=True)
+    exported = export.export_scene(scene)
+    assert not stand_ins(exported, build_scene(exported), [], [EYE]).closed
+    bpy.ops.mesh.primitive_plane_add(size=6.0, location=(0.0, 0.0, 2.5))
+    bpy.context.object.data.materials.append(glass)
     exported = export.export_scene(scene)
     assert not stand_ins(exported, build_scene(exported), [], [EYE]).closed
     # Written with the lights, the closed room keeps the world from lighting EEVEE.
