@@ -357,35 +357,76 @@ def sun_lit_fraction(
     return float((~blocked).sum()) / len(ys)
 
 
-#: Glass surfaces a ray from an eye passes through before :func:`sky_through_glass` gives up.
+#: Glass surfaces a ray passes through before :func:`sky_seen` gives up on it.
 GLASS_PASSES = 4
+#: Rays from the captured views' surfaces that :func:`sky_seen` casts, all views together.
+SKY_SURFACE_RAYS = 4096
 
 
-def sky_through_glass(
-    scene: vplace.Scene, exported: ExportedScene, eyes: Sequence[Sequence[float]]
+def _escapes(
+    scene: vplace.Scene,
+    transmits: np.ndarray,
+    material_ids: np.ndarray,
+    o: np.ndarray,
+    d: np.ndarray,
 ) -> bool:
-    """Whether a ray from one of ``eyes`` leaves the scene through surfaces that let light
-    through (``MaterialInfo.transmits``: a glass window), at most :data:`GLASS_PASSES` of them:
-    then the world lights the room in Cycles, and it is not closed. The rays of
-    ``portals.openings``, each cast again past the glass it meets."""
-    transmits = np.array([m.transmits for m in exported.materials], dtype=bool)
-    if not transmits.any():
-        return False
-    directions = vplace.coverage.fibonacci_sphere(portals.DIRECTIONS)
+    """Whether one of the rays ``o + t d`` leaves the scene, passing through at most
+    :data:`GLASS_PASSES` surfaces that let light through (``transmits``, per material)."""
     step = np.float32(1e-4 * scene.scale)
+    for _ in range(GLASS_PASSES + 1):
+        if len(o) == 0:
+            return False
+        t, tri, _ = scene.intersect(np.ascontiguousarray(o), np.ascontiguousarray(d))
+        missed = ~np.isfinite(t)
+        if missed.any():
+            return True
+        glass = transmits[material_ids[np.maximum(tri, 0)]]
+        o = (o + d * (t[:, None] + step))[glass].astype(np.float32)
+        d = d[glass]
+    return False
+
+
+def sky_seen(
+    scene: vplace.Scene,
+    exported: ExportedScene,
+    surfaces: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+    eyes: Sequence[Sequence[float]],
+) -> bool:
+    """Whether the world reaches what the cameras work in: a ray leaves the scene, past at most
+    :data:`GLASS_PASSES` surfaces that let light through (``MaterialInfo.transmits``: a glass
+    window), from one of ``eyes`` (the directions of ``portals.openings``) or from the captured
+    views' surfaces (``surfaces``: position, normal, covered; :data:`SKY_SURFACE_RAYS` cosine
+    directions about the normal from random covered pixels, so that a window round a corner,
+    which no eye sees but a wall the camera sees does, counts). Where none does, the world lights
+    no surface a view sees directly, in Cycles, and its bounce off what it lights elsewhere is
+    the light paths' VPLs (the world is one of their emitters): the room is closed."""
+    transmits = np.array([m.transmits for m in exported.materials], dtype=bool)
+    ids = exported.material_ids
+    directions = vplace.coverage.fibonacci_sphere(portals.DIRECTIONS).astype(np.float32)
     for eye in eyes:
-        d = directions
-        o = np.repeat(np.asarray(eye, dtype=np.float32)[None], len(d), axis=0)
-        for k in range(GLASS_PASSES + 1):
-            t, tri, _ = scene.intersect(np.ascontiguousarray(o), np.ascontiguousarray(d))
-            missed = ~np.isfinite(t)
-            glass = ~missed & transmits[exported.material_ids[np.maximum(tri, 0)]]
-            if k > 0 and missed.any():  # past glass (the first pass's misses are openings)
-                return True
-            if not glass.any():
-                break
-            o = (o + d * (t[:, None] + step))[glass].astype(np.float32)
-            d = d[glass]
+        o = np.repeat(np.asarray(eye, dtype=np.float32)[None], len(directions), axis=0)
+        if _escapes(scene, transmits, ids, o, directions):
+            return True
+    rng = np.random.default_rng([0, 47])
+    per_view = SKY_SURFACE_RAYS // max(len(surfaces), 1)
+    eps = np.float32(1e-4 * scene.scale)
+    for position, normal, covered in surfaces:
+        ys, xs = np.nonzero(covered)
+        if len(ys) == 0:
+            continue
+        pick = rng.integers(0, len(ys), per_view)
+        p = position[ys[pick], xs[pick]].astype(np.float32)
+        n = normal[ys[pick], xs[pick]].astype(np.float32)
+        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+        a = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+        u = np.cross(n, a)
+        u /= np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-12)
+        w = np.cross(n, u)
+        r1, r2 = rng.random(per_view), rng.random(per_view)
+        rad, phi = np.sqrt(r1)[:, None], (2.0 * np.pi * r2)[:, None]
+        d = (rad * np.cos(phi)) * u + (rad * np.sin(phi)) * w + np.sqrt(1.0 - r1)[:, None] * n
+        if _escapes(scene, transmits, ids, p + eps * n, d.astype(np.float32)):
+            return True
     return False
 
 
@@ -432,7 +473,7 @@ def stand_ins(
     world = exported.world
     if eyes and world is not None and world.emits:
         found, share = portals.openings(scene, eyes)
-        closed = share == 0.0 and not sky_through_glass(scene, exported, eyes)
+        closed = share == 0.0 and not sky_seen(scene, exported, surfaces, eyes)
         # The sun's pixels have their own light (the sun's stand-in, or none where the sun
         # reaches nothing the views see): the portals carry the rest of the sky.
         radiance = portals.sky_radiance(world, sun_pixels(world))

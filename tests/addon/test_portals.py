@@ -299,6 +299,7 @@ def test_a_closed_room_shuts_the_world_out_of_eevee(sky_scene):
     EEVEE's world lights nothing either (as with sky portals), never through the walls."""
     from addon.scene import export
     from addon.scene.convert import build_scene
+    from addon.writeback import stand_ins as stand_ins_module
     from addon.writeback.stand_ins import stand_ins
 
     scene, world = sky_scene, sky_scene.world
@@ -319,10 +320,22 @@ def test_a_closed_room_shuts_the_world_out_of_eevee(sky_scene):
     _box_room(scene, open_top=True)
     exported = export.export_scene(scene)
     assert not stand_ins(exported, build_scene(exported), [], [EYE]).closed
+    # No eye needed: a floor that sees the sky through the open top keeps the room open (a
+    # window round a corner, which a wall the camera sees sees), as the eye does.
+    native = build_scene(exported)
+    floor = np.zeros((4, 4, 3), np.float32) + np.array([0.0, 0.0, 0.01], np.float32)
+    up = np.zeros((4, 4, 3), np.float32) + np.array([0.0, 0.0, 1.0], np.float32)
+    seen = np.ones((4, 4), bool)
+    assert stand_ins_module.sky_seen(native, exported, [(floor, up, seen)], [])
     bpy.ops.mesh.primitive_plane_add(size=6.0, location=(0.0, 0.0, 2.5))
     bpy.context.object.data.materials.append(glass)
     exported = export.export_scene(scene)
     assert not stand_ins(exported, build_scene(exported), [], [EYE]).closed
+    assert stand_ins_module.sky_seen(build_scene(exported), exported, [(floor, up, seen)], [])
+    glass.node_tree.nodes["Principled BSDF"].inputs["Transmission Weight"].default_value = 0.0
+    exported = export.export_scene(scene)  # the pane is opaque now: the room is closed
+    assert not stand_ins_module.sky_seen(build_scene(exported), exported, [(floor, up, seen)], [])
+    assert stand_ins(exported, build_scene(exported), [(floor, up, seen)], [EYE]).closed
     # Written with the lights, the closed room keeps the world from lighting EEVEE.
     vpls = vplace.VplSet(
         np.zeros((1, 3), np.float32),
