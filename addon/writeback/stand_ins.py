@@ -376,7 +376,7 @@ def _escapes(
     for _ in range(GLASS_PASSES + 1):
         if len(o) == 0:
             return False
-        t, tri, _ = scene.intersect(np.ascontiguousarray(o), np.ascontiguousarray(d))
+        t, tri, _bary = scene.intersect(np.ascontiguousarray(o), np.ascontiguousarray(d))
         missed = ~np.isfinite(t)
         if missed.any():
             return True
@@ -440,12 +440,13 @@ class StandIns:
     sun: SunLight | None
     #: The share of the eyes' rays that leave the scene (``portals.openings``).
     open_share: float = 0.0
-    #: The world emits, but no ray from any eye leaves the scene: a closed room, which the
-    #: world lights nowhere (in Cycles none of its light gets in). EEVEE's world must then
-    #: light nothing (``eevee_setup.world_shut_out``), as with sky portals: EEVEE lights
-    #: with the world through walls, and a probe volume does not stop it where the walls are
-    #: single faces (a closed box room of my own: EEVEE's world light inside was 0.55x
-    #: Cycles' whole direct light with vplace's volume baked, 0.83x without).
+    #: The world emits, but no ray from the eyes or the captured surfaces leaves the scene, not
+    #: even through glass (:func:`sky_seen`): a closed room, whose surfaces the world does not
+    #: light directly in Cycles. EEVEE's world must then light nothing
+    #: (``eevee_setup.world_shut_out``), as with sky portals: EEVEE lights with the world
+    #: through walls, and a probe volume does not stop it where the walls are single faces (a
+    #: closed box room of my own: EEVEE's world light inside was 0.55x Cycles' whole direct
+    #: light with vplace's volume baked, 0.83x without).
     closed: bool = False
 
     @property
