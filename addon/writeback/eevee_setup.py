@@ -25,10 +25,10 @@ settings that fix it:
   its nodes marked ``vplace_world``) that shows the world's own surface to camera rays and black
   to every other ray (EEVEE's probes), so the windows still show the sky and Cycles renders the
   world as before. No probe volume is needed then;
-- **a closed room**: where no ray from the cameras' eyes leaves the scene, not even through
-  glass (``apply.CLOSED_KEY``, ``stand_ins.StandIns.closed``), none of the world's light gets
-  in, in Cycles; EEVEE's world
-  gets the same EEVEE-only World Output as with portals (:func:`world_shut_out`). The volume
+- **a closed room**: where no ray from the cameras' eyes or the surfaces they see leaves the
+  scene, not even through glass (``stand_ins.sky_seen``; ``apply.CLOSED_KEY``), the world
+  lights nothing they see directly in Cycles (its bounce is the light paths' VPLs); EEVEE's
+  world gets the same EEVEE-only World Output as with portals (:func:`world_shut_out`). The volume
   does not stop the world where the walls are single faces: in a box room of my own (a default
   cube scaled up, a spot and an emissive panel inside, the world 0.02 grey) EEVEE lit the
   inside with the world at 0.55x Cycles' whole direct light with the volume baked (0.42x-0.53x
