@@ -32,8 +32,8 @@ settings that fix it:
   does not stop the world where the walls are single faces: in a box room of my own (a default
   cube scaled up, a spot and an emissive panel inside, the world 0.02 grey) EEVEE lit the
   inside with the world at 0.55x Cycles' whole direct light with the volume baked (0.42x-0.53x
-  with its validity threshold at 0, its faces turned inward, 24 probes a side or a volume
-  inside the walls), 0.83x without;
+  with its validity threshold at 0, its faces turned inward or 24 probes a side; 0.81x with a
+  volume inside the walls), 0.83x without;
 - each VPL light keeps its custom distance (then ``light_threshold`` does not cut it) and its
   shadow (written by :mod:`apply`); a user's edit that removes either is named;
 - **the user's own lamps fade out**: a lamp without a custom distance is faded by
