@@ -44,7 +44,8 @@ settings that fix it:
   inside the scene);
 - at most :data:`MAX_LIGHTS` lights (EEVEE drops the rest).
 
-What is not vplace's and is the user's to change, :func:`lamp_notes` names: **the user's lamps'
+What is not vplace's and is the user's to change, :func:`lamp_notes` names: **an area light's
+Spread**, which EEVEE ignores (:func:`spread_lamps`), and **the user's lamps'
 soft shadows without jitter**. EEVEE then blurs one shadow map per lamp with a noisy filter: on the
 Cornell box at 16 samples its direct light scored SSIM 0.978 and 0.941 against Cycles' (two
 cameras), 0.989 and 0.976 with the lamp's jitter on (``docs/EEVEE_NOTES.md``, Q7). vplace turns
@@ -498,17 +499,41 @@ def unjittered_lamps(scene: bpy.types.Scene) -> list[str]:
     return sorted(out)
 
 
+def spread_lamps(scene: bpy.types.Scene) -> list[tuple[str, float]]:
+    """The user's render-visible AREA lights whose Spread is under 180 degrees, with it
+    (degrees). EEVEE renders an area light as if its spread were 180 degrees (measured on the
+    attic of stop 45: a rectangle light of spread 60 degrees gave EEVEE's view the light it gives
+    at 180, Cycles' none; ``tests/render/test_eevee.py``), so it lights wider than in Cycles."""
+    out = []
+    for obj in scene.objects:
+        if obj.type != "LIGHT" or obj.hide_render or obj.get(VPL_MARKER, False):
+            continue
+        light = obj.data
+        if light.type == "AREA" and light.spread < math.pi - 1e-4:
+            out.append((obj.name, math.degrees(light.spread)))
+    return sorted(out)
+
+
 def lamp_notes(scene: bpy.types.Scene) -> list[str]:
     """One line each on what EEVEE shows of the user's own lamps differently from Cycles, that
     the user can change and vplace does not (the module docs)."""
+    notes = []
     lamps = unjittered_lamps(scene)
-    if not lamps:
-        return []
-    return [
-        f"EEVEE's soft shadows of {len(lamps)} of your lamps (e.g. {lamps[0]!r}) are noisier "
-        "than Cycles' without jitter (Light > Shadow > Jitter, slower to render); vplace "
-        "jitters only its own stand-in lights"
-    ]
+    if lamps:
+        notes.append(
+            f"EEVEE's soft shadows of {len(lamps)} of your lamps (e.g. {lamps[0]!r}) are "
+            "noisier than Cycles' without jitter (Light > Shadow > Jitter, slower to render); "
+            "vplace jitters only its own stand-in lights"
+        )
+    spread = spread_lamps(scene)
+    if spread:
+        name, degrees = spread[0]
+        notes.append(
+            f"EEVEE ignores the Spread of {len(spread)} of your area lights (e.g. {name!r}, "
+            f"{degrees:.0f} degrees): they light wider in EEVEE than in Cycles, whose light "
+            "vplace's VPLs carry on"
+        )
+    return notes
 
 
 def scene_bounds(

@@ -2,6 +2,8 @@
 named, "Set up EEVEE for vplace" fixes it without touching the user's objects, and the written
 lights carry the shadow settings that keep the pool from overflowing."""
 
+import math
+
 import bpy
 import numpy as np
 import pytest
@@ -192,3 +194,15 @@ def test_a_ground_no_camera_sees_neither_stretches_the_volume_nor_the_lamps_reac
     write(scene, 8)
     assert apply.stored_region() is None
     assert eevee_setup.scene_bounds(scene) == plain
+
+
+def test_an_area_lights_spread_is_noted_as_what_eevee_ignores(scene):
+    lamp = scene.objects["light"]  # the box's area light, spread 180 degrees as Blender makes it
+    lamp.data.use_shadow_jitter = True
+    assert eevee_setup.spread_lamps(scene) == [] and eevee_setup.lamp_notes(scene) == []
+    lamp.data.spread = math.radians(60.0)
+    assert eevee_setup.spread_lamps(scene) == [("light", pytest.approx(60.0))]
+    (note,) = eevee_setup.lamp_notes(scene)
+    assert "Spread of 1 of your area lights (e.g. 'light', 60 degrees)" in note
+    lamp.hide_render = True
+    assert eevee_setup.lamp_notes(scene) == []
