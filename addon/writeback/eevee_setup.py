@@ -14,11 +14,14 @@ settings that fix it:
   probe volume that captures indirect light, adds the lamps' bounce again (x2 the direct light in
   a test room): ray tracing is kept for reflections with fast GI set to ambient occlusion only,
   and a volume vplace bakes captures no indirect light;
-- **the world in closed rooms**: EEVEE lights surfaces with the world unoccluded (+10 % of the
-  direct light in a closed room with the default grey world). When the world emits, a light
-  probe volume enclosing the scene (:data:`VOLUME_MARGIN` times its bounds) is baked with
-  ``capture_indirect`` off, so the world reaches only what sees it (4 % left in the test room,
-  2 % with ray-traced ambient occlusion);
+- **the world where it is partly kept out**: EEVEE lights surfaces with the world unoccluded
+  (+10 % of the direct light in a closed room with the default grey world). When the world
+  emits and neither portals nor a closed room (below) shut it out, a light probe volume
+  enclosing the scene (:data:`VOLUME_MARGIN` times its bounds) is baked with
+  ``capture_indirect`` off, so the world reaches only what sees it (4 % left in the test room
+  of ``tests/render/test_world_room.py``, 2 % with ray-traced ambient occlusion; that room is
+  closed, and is now shut out instead: EEVEE + VPLs 1.034x the truth's brightness, the
+  evaluator 1.033x);
 - **the sky through a room's openings**: where vplace wrote sky portals (``portals``: AREA
   lights in the windows that carry the sky's light in), the world must light nothing more, or
   its light would count twice: the world gets an EEVEE-only World Output (:func:`camera_only`,

@@ -1,7 +1,9 @@
 """A closed room under Blender's default grey world: Cycles lets no world light in, EEVEE adds it
 unoccluded unless it is set up for vplace. With "Set up EEVEE for vplace" (ray tracing with
-ambient-occlusion-only fast GI, a probe volume that occludes the world without capturing
-indirect light) EEVEE with the written VPLs must come within 5 % of the truth's brightness.
+ambient-occlusion-only fast GI; the room is closed, so the world lights nothing in EEVEE and
+shows to the camera, ``eevee_setup.world_shut_out``; before stop 45, a probe volume that
+occluded the world, which did not where walls are single faces) EEVEE with the written VPLs
+must come within 5 % of the truth's brightness.
 
 The measurement runs in a Blender process of its own (this file as a script): a light probe bake
 followed by an EEVEE render in a process that has already rendered EEVEE for other tests
@@ -117,6 +119,8 @@ def measure(out: Path) -> dict:
         "problems_after": after,
         "changed": changed,
         "volume": eevee_setup.vplace_volume(scene) is not None,
+        "camera_only": eevee_setup.is_camera_only(scene.world),
+        "closed": apply.stored_closed(),
         "vpls_written": apply.find_collection() is not None,
     }
 
@@ -140,7 +144,8 @@ def test_eevee_set_up_for_vplace_keeps_the_default_world_out_of_a_closed_room(tm
     assert abs(m["evaluator"]["brightness"] - 1.0) < 0.05  # the evaluator's own image
     # Without the set-up the world leaks in, and the panel says so; the set-up fixes it.
     assert "world" in m["problems_before"] and "world" not in m["problems_after"], m
-    assert m["volume"] and m["vpls_written"], m["changed"]
+    assert m["closed"] and m["camera_only"] and not m["volume"], m["changed"]
+    assert m["vpls_written"]
     assert abs(m["eevee"]["brightness"] - 1.0) < 0.05
     assert m["eevee"]["ssim"] > m["evaluator"]["ssim_direct_only"]
 
