@@ -54,7 +54,7 @@ ones the evaluator renders (``vplace.VplSet`` carries profile and near-field rad
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import bpy
 import numpy as np
@@ -314,10 +314,15 @@ def new_collection(name: str, region: Region | None, closed: bool = False) -> bp
     return coll
 
 
+def _stored(name: str, key: str) -> Any:
+    """The custom property ``key`` of the VPL collection ``name`` (one vplace marked), or None."""
+    coll = bpy.data.collections.get(name)
+    return coll.get(key) if coll is not None and coll.get(VPL_MARKER, False) else None
+
+
 def stored_region(name: str = COLLECTION_NAME) -> Region | None:
     """The region kept on the VPL collection ``name`` (:data:`REGION_KEY`), or None."""
-    coll = bpy.data.collections.get(name)
-    values = coll.get(REGION_KEY) if coll is not None and coll.get(VPL_MARKER, False) else None
+    values = _stored(name, REGION_KEY)
     if values is None or len(values) != 6:
         return None
     v = [float(x) for x in values]
@@ -327,8 +332,7 @@ def stored_region(name: str = COLLECTION_NAME) -> Region | None:
 def stored_closed(name: str = COLLECTION_NAME) -> bool:
     """Whether the VPL collection ``name`` says its lights light a closed room
     (:data:`CLOSED_KEY`)."""
-    coll = bpy.data.collections.get(name)
-    return bool(coll is not None and coll.get(VPL_MARKER, False) and coll.get(CLOSED_KEY, False))
+    return bool(_stored(name, CLOSED_KEY))
 
 
 def write_vpls(

@@ -147,6 +147,20 @@ def _shapes(exported: ExportedScene, emissive: np.ndarray) -> list[_Shape]:
     return out
 
 
+def _cosine_local(u: np.ndarray) -> np.ndarray:
+    """(M, 3) cosine-distributed unit directions about +z from (M, 2) uniform numbers."""
+    r, phi = np.sqrt(u[:, 0]), 2.0 * np.pi * u[:, 1]
+    return np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1.0 - u[:, 0])], axis=1)
+
+
+def _tangents(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit tangents of each unit normal of ``normals`` (N, 3), a right-handed frame with it."""
+    helper = np.where(np.abs(normals[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    tx = np.cross(normals, helper)
+    tx /= np.maximum(np.linalg.norm(tx, axis=1, keepdims=True), 1e-12)
+    return tx, np.cross(normals, tx)
+
+
 def _open_sides(
     scene: vplace.Scene, centres: np.ndarray, normals: np.ndarray, reach: np.ndarray, offset: float
 ) -> np.ndarray:
@@ -154,13 +168,8 @@ def _open_sides(
     than ``reach`` (the emitter's size)."""
     rng = np.random.default_rng(0)
     k = len(centres)
-    u = rng.random((PROBE_RAYS, 2))
-    r, phi = np.sqrt(u[:, 0]), 2.0 * np.pi * u[:, 1]
-    local = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1.0 - u[:, 0])], axis=1)
-    helper = np.where(np.abs(normals[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-    tx = np.cross(normals, helper)
-    tx /= np.linalg.norm(tx, axis=1, keepdims=True)
-    ty = np.cross(normals, tx)
+    local = _cosine_local(rng.random((PROBE_RAYS, 2)))
+    tx, ty = _tangents(normals)
     dirs = (
         local[None, :, 0:1] * tx[:, None]
         + local[None, :, 1:2] * ty[:, None]
@@ -418,13 +427,9 @@ def sky_seen(
         p = position[ys[pick], xs[pick]].astype(np.float32)
         n = normal[ys[pick], xs[pick]].astype(np.float32)
         n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-        a = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-        u = np.cross(n, a)
-        u /= np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-12)
-        w = np.cross(n, u)
-        r1, r2 = rng.random(per_view), rng.random(per_view)
-        rad, phi = np.sqrt(r1)[:, None], (2.0 * np.pi * r2)[:, None]
-        d = (rad * np.cos(phi)) * u + (rad * np.sin(phi)) * w + np.sqrt(1.0 - r1)[:, None] * n
+        local = _cosine_local(rng.random((per_view, 2)))
+        tx, ty = _tangents(n)
+        d = local[:, 0:1] * tx + local[:, 1:2] * ty + local[:, 2:3] * n
         if _escapes(scene, transmits, ids, p + eps * n, d.astype(np.float32)):
             return True
     return False
