@@ -32,6 +32,7 @@ with the truth's one-pixel box), so the scores compare light, not anti-aliasing.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import tempfile
@@ -180,9 +181,11 @@ def _platform() -> str | None:
         return None
 
 
+@functools.cache
 def _start_gpu() -> None:
     """Makes Blender start its GPU context: a one-pixel Workbench render of a temporary empty
-    scene (0.4 s on llvmpipe), removed afterwards with its camera."""
+    scene (0.4 s on llvmpipe), removed afterwards with its camera. Once a process: where it
+    started no context, there is no GPU to start, and EEVEE says so when it renders."""
     scene = bpy.data.scenes.new("vplace GPU probe")
     cam_data = bpy.data.cameras.new("vplace GPU probe")
     cam = bpy.data.objects.new("vplace GPU probe", cam_data)

@@ -3,6 +3,7 @@ Gaussian of the same spread) and give the user's own filter back."""
 
 from functools import partial
 
+import bpy
 import numpy as np
 import pytest
 from blender_util import cornell
@@ -71,3 +72,15 @@ def test_a_cached_eevee_render_is_reused_only_on_the_gpu_that_rendered_it(tmp_pa
     cycles = eevee.SETUPS["cycles+oidn"]
     assert go(setup=cycles).image[0, 0, 0] == 3.0
     assert go(setup=cycles).image[0, 0, 0] == 3.0 and len(renders) == 3
+
+
+def test_a_process_without_a_gpu_starts_blenders_gpu_context_once(monkeypatch):
+    # Where the probe finds no GPU, later renders do not probe again (each probe is a render).
+    eevee._start_gpu.cache_clear()
+    monkeypatch.setattr(eevee, "_platform", lambda: None)
+    assert eevee.gpu_renderer() is None
+    assert eevee.gpu_renderer() is None
+    info = eevee._start_gpu.cache_info()
+    assert (info.misses, info.hits) == (1, 1)
+    assert not [s for s in bpy.data.scenes if s.name.startswith("vplace GPU probe")]
+    eevee._start_gpu.cache_clear()
