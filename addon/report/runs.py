@@ -146,11 +146,12 @@ def generate_held_out(
     prepared: pipeline.Prepared,
     camera: bpy.types.Object,
     count: int,
-    config: ReportConfig,
+    radius: float,
 ) -> list[bpy.types.Object]:
     """``count`` new cameras (copies of ``camera``'s lens) at the poses of
     ``vplace.coverage.held_out_poses`` around where ``camera`` stands (:func:`eye_positions`:
-    past its clip start where that passes a wall), linked to ``bl_scene``; named
+    past its clip start where that passes a wall), within ``radius`` scene units of it (0: the
+    room it stands in; the job's ``views.region_radius``), linked to ``bl_scene``; named
     :data:`GENERATED_PREFIX` ``k``; where the camera's clip start passes a wall, theirs is at most
     :data:`GENERATED_CLIP_START` (they stand past that wall). :func:`remove_generated` takes them
     out again."""
@@ -164,7 +165,7 @@ def generate_held_out(
         forward,
         count,
         seed=0,
-        radius=config.region_radius / export.unit_scale(bl_scene),
+        radius=radius,
     )
     if len(poses) < count:
         raise ReportError(
@@ -230,7 +231,9 @@ def load_scene(
     held_out = list(preset.held_out_views)
     made = config.generated_for(preset)
     if made:
-        for cam in generate_held_out(bl_scene, prepared, cams[preset.fit_views[0]], made, config):
+        for cam in generate_held_out(
+            bl_scene, prepared, cams[preset.fit_views[0]], made, job.views.region_radius
+        ):
             cams[cam.name] = cam
             held_out.append(cam.name)
         log(f"[vplace] {made} held-out views made in the region: {held_out[-made:]}")
@@ -673,7 +676,7 @@ class _EeveeRun:
         # Sky portals where the world can be kept from lighting EEVEE (else, as without them,
         # the world's volume); in a closed room the world lights nothing, as in Cycles.
         lights = self.data.prepared.stand_ins
-        shut = bool(lights.portals) or lights.closed
+        shut = lights.world_shut_out
         shut = shut and eevee_setup.camera_only_blocker(self.bl_scene.world) is None
         portals = bool(lights.portals) and shut
         with contextlib.ExitStack() as stack:

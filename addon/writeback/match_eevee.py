@@ -90,7 +90,7 @@ def refit_views(
         )
         try:
             with eevee_setup.world_for_render(
-                bl_scene, portals=bool(stand_ins.portals) or stand_ins.closed, region=region
+                bl_scene, portals=stand_ins.world_shut_out, region=region
             ):
                 for i, cap in enumerate(captures):
                     camera = bpy.data.objects.get(cap.camera)

@@ -459,6 +459,13 @@ class StandIns:
         """The sky portals among :attr:`emitters`."""
         return [e for e in self.emitters if e.portal]
 
+    @property
+    def world_shut_out(self) -> bool:
+        """Whether EEVEE's world must light nothing with these lights: the portals carry the
+        sky's light in, or the room is :attr:`closed` (as ``eevee_setup.world_shut_out`` reads
+        it from the written lights)."""
+        return bool(self.portals) or self.closed
+
 
 def stand_ins(
     exported: ExportedScene,

@@ -476,7 +476,7 @@ def test_held_out_views_are_made_in_the_region_and_removed_after():
     cam = scene.objects["Cornell camera"]
     cameras, objects = len(bpy.data.cameras), len(bpy.data.objects)
     native = build_scene(export_scene(scene))
-    made = report.generate_held_out(scene, SimpleNamespace(scene=native), cam, 2, ReportConfig())
+    made = report.generate_held_out(scene, SimpleNamespace(scene=native), cam, 2, 0.0)
     assert [o.name for o in made] == [f"{GENERATED_PREFIX}1", f"{GENERATED_PREFIX}2"]
     for obj in made:
         assert obj.type == "CAMERA" and obj.data is not cam.data and obj.data.lens == cam.data.lens
