@@ -41,7 +41,7 @@ def test_recovers_known_scales(setup):
         scene, view(d), base.with_flux((base.flux * truth[:, None]).astype("f4"))
     )
     v = view(d, indirect=target)
-    out = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, ridge=0.0))
+    out = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, ridge=0.0, group=1))
     assert isinstance(out, vplace.Refit)
     assert len(out) == 7 and out.pixels == 16 * 16
     np.testing.assert_allclose(out.scales[:6], truth[:6], atol=1e-4)
@@ -56,11 +56,26 @@ def test_recovers_known_scales(setup):
     assert out.shadow_rays == 6 * out.pixels and out.seconds > 0
     # The default ridge pulls toward 1 (a trade: less error reduction on this tiny case, no
     # overfitting on real views), and a weaker one lands closer to the truth.
-    near = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2))
-    weak = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, ridge=1e-3))
+    near = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, group=1))
+    weak = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, ridge=1e-3, group=1))
     assert weak.error_after < near.error_after < near.error_before
     np.testing.assert_allclose(weak.scales[:6], truth[:6], atol=0.05)
     assert np.abs(near.scales[:6] - 1).sum() < np.abs(weak.scales[:6] - 1).sum()
+
+
+def test_the_default_refit_scales_groups_of_neighbouring_vpls(setup):
+    scene, d = setup
+    vpls = vplace.uniform_vpls(scene, 48, seed=2)
+    assert vplace.RefitParams().group == vplace.RefitParams.DEFAULT.group == 8
+    assert "group=8" in repr(vplace.RefitParams())
+    out = vplace.refit(scene, [view(d)], vpls)
+    assert out.groups == 6 and len(out) == 48
+    # One scale per group: at most 6 distinct scales, each shared by the VPLs of its group.
+    assert len(np.unique(out.scales)) <= 6
+    single = vplace.refit(scene, [view(d)], vpls, vplace.RefitParams(group=1))
+    assert single.groups == 48 and len(np.unique(single.scales)) > 6
+    with pytest.raises(vplace.InputError, match="group"):
+        vplace.refit(scene, [view(d)], vpls, vplace.RefitParams(group=0))
 
 
 def test_never_worse_and_deterministic(setup):
@@ -147,11 +162,11 @@ def test_the_ridge_is_chosen_by_held_out_blocks():
     )
     v = view(d, indirect=target)
     assert vplace.RefitParams().select_ridge and not vplace.RefitParams(ridge=1.0).select_ridge
-    out = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, free_gain=False))
+    out = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, free_gain=False, group=1))
     # The VPLs reproduce the target exactly: the weakest pull predicts left-out blocks best.
     assert [r for r, _ in out.cv] == [0.01, 0.1, 1.0, 10.0, 100.0]
     assert out.ridge == 0.01 and min(e for _, e in out.cv) == out.cv[0][1]
-    given = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, ridge=0.01))
+    given = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, ridge=0.01, group=1))
     assert given.cv == [] and given.ridge == 0.01
     np.testing.assert_allclose(given.scales, out.scales, atol=1e-9)
 
@@ -165,11 +180,11 @@ def test_the_gain_carries_the_captures_total_to_vpls_no_pixel_sees():
     base = inward_vpls()
     target, _ = vplace.evaluate(scene, view(d), base.with_flux((base.flux * 2.5).astype("f4")))
     v = view(d, indirect=target)
-    out = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2))
+    out = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, group=1))
     assert out.gain == pytest.approx(2.5, rel=1e-5)
     assert [r for r, _ in out.gain_cv] == [0.01, 0.1, 1.0, 10.0, 100.0]
     assert min(e for _, e in out.gain_cv) < min(e for _, e in out.cv)
     np.testing.assert_allclose(out.scales, 2.5, rtol=1e-3)
-    fixed = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, free_gain=False))
+    fixed = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, free_gain=False, group=1))
     assert fixed.gain == 1.0 and fixed.gain_cv == []
     assert fixed.scales[6] == pytest.approx(1.0, abs=1e-9)

@@ -325,14 +325,18 @@ impl PyRefitParams {
     /// `ridge` given: that ridge, not selected; None: chosen by cross-validation, leaving out
     /// whole views when there are three or more and `leave_out_views` (default True), else
     /// blocks of pixels. `free_gain` (default True): the cross-validation also tries pulling
-    /// the powers toward the captures' gain instead of the light-path powers.
+    /// the powers toward the captures' gain instead of the light-path powers. `group` (default
+    /// `REFIT_GROUP`, 8): VPLs per power group, one scale per group of neighbouring VPLs; 1:
+    /// one scale per VPL.
     #[new]
-    #[pyo3(signature = (*, stride = None, ridge = None, leave_out_views = None, free_gain = None))]
+    #[pyo3(signature = (*, stride = None, ridge = None, leave_out_views = None, free_gain = None,
+        group = None))]
     fn new(
         stride: Option<usize>,
         ridge: Option<f64>,
         leave_out_views: Option<bool>,
         free_gain: Option<bool>,
+        group: Option<usize>,
     ) -> Self {
         let d = RefitParams::DEFAULT;
         Self {
@@ -342,6 +346,7 @@ impl PyRefitParams {
                 select_ridge: ridge.is_none(),
                 leave_out_views: leave_out_views.unwrap_or(d.leave_out_views),
                 free_gain: free_gain.unwrap_or(d.free_gain),
+                group: group.unwrap_or(d.group),
                 ..d
             },
         }
@@ -384,14 +389,22 @@ impl PyRefitParams {
         self.inner.free_gain
     }
 
+    /// VPLs per power group (1: one scale per VPL).
+    #[getter]
+    fn group(&self) -> usize {
+        self.inner.group
+    }
+
     fn __repr__(&self) -> String {
         format!(
-            "RefitParams(stride={}, ridge={:?}, select_ridge={}, leave_out_views={}, free_gain={})",
+            "RefitParams(stride={}, ridge={:?}, select_ridge={}, leave_out_views={}, free_gain={}, \
+             group={})",
             self.inner.stride,
             self.inner.ridge,
             py_bool(self.inner.select_ridge),
             py_bool(self.inner.leave_out_views),
-            py_bool(self.inner.free_gain)
+            py_bool(self.inner.free_gain),
+            self.inner.group
         )
     }
 }

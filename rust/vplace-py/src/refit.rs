@@ -51,6 +51,12 @@ impl PyRefit {
         self.r.error_after
     }
 
+    /// Power groups the scales were fitted for (one scale each; the VPL count with group 1).
+    #[getter]
+    fn groups(&self) -> usize {
+        self.r.groups
+    }
+
     /// Covered pixels on the strided grids of every view.
     #[getter]
     fn pixels(&self) -> usize {

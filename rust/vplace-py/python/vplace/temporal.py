@@ -273,7 +273,9 @@ def shared_layout(
     )
     out = []
     for scene, frame_views in zip(scenes, views, strict=True):
-        params = vplace.RefitParams(stride=vplace.stride_for(frame_views))
+        # One scale per VPL (not power groups): the refit picks each frame's lights out of
+        # the union, and a group would tie a light of this frame to its neighbour of another.
+        params = vplace.RefitParams(stride=vplace.stride_for(frame_views), group=1)
         refit = vplace.refit(scene, captures_of(frame_views), union, params, progress=progress)
         out.append(refit.vpls)
     return out
