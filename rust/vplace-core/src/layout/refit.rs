@@ -11,7 +11,12 @@
 //! one scale per VPL (its colour is kept), `lambda = ridge * trace(A^T A) / n`. By default the
 //! scales are those of **power groups** ([`RefitParams::group`]): `s = M t`, `M` the membership
 //! of groups of about 8 neighbouring VPLs, so the problem above is solved for `t` on the normal
-//! equations of `A M` (summed from `A`'s, [`project`]); `n` is then the number of groups. The pull toward
+//! equations of `A M` (summed from `A`'s, [`project`]), penalty and `lambda` unchanged:
+//! `lambda ||M t - g||^2` pulls each group with the weight of its VPLs. (A ridge taken relative
+//! to `A M`'s own trace instead pulled a group of 8 VPLs whose columns nearly coincide up to 8
+//! times harder than the same ridge pulls its VPLs: on a 48 x 36 closed room whose
+//! cross-validation picked the grid's largest ridge, the groups then kept the layout's 6 %
+//! excess brightness where single VPLs shed it.) The pull toward
 //! `g` keeps VPLs that no strided pixel sees at `g` times their power and makes the problem
 //! strictly convex. `g` is 1 (the light-path powers) or, with [`RefitParams::free_gain`] and
 //! where the cross-validation prefers it, the captures' **gain**: the luminance of the targets
@@ -129,8 +134,9 @@ impl Default for RefitParams {
 /// captures' noise and the evaluator's own bias into single VPLs (scaled up to 27x, 112 of 256
 /// switched off: hot spots on surfaces no capture saw); groups of 8, the neighbourhood the
 /// disks' density estimate reads (`vpl::near_field_radii`), kept the refit's gain on the
-/// captured views and lost less on the views never captured (ARCHITECTURE.md, "The refit's
-/// power groups").
+/// captured views and lost less on the views never captured in the built-in rooms; Sponza,
+/// whose captures pin each VPL down, loses .002-.009 SSIM with them (ARCHITECTURE.md, "The
+/// refit's power groups").
 pub const REFIT_GROUP: usize = 8;
 
 /// Rounds of Lloyd's k-means in [`power_groups`].
@@ -227,6 +233,11 @@ struct Normal {
     /// Per VPL, the luminance of its column of `A` summed over the rows; and of `b`.
     lum_a: Vec<f64>,
     lum_b: f64,
+    /// The trace of the VPLs' own Gram matrix (before [`project`]): the ridge's scale.
+    vpl_trace: f64,
+    /// Per scale, the VPLs it multiplies (1 each, or a power group's size): the ridge's weight,
+    /// so that a group's pull is its VPLs' pulls summed.
+    size: Vec<f64>,
     /// With cross-validation: per cell of [`CV_CELL_PX`] pixels (view, cell x, cell y), the
     /// sums of its pixels' rows (R, G, B: `3 n`), of their targets, and the pixel count.
     cells: BTreeMap<(usize, usize, usize), Cell>,
@@ -282,6 +293,8 @@ impl Normal {
             rays: 0,
             lum_a: vec![0.0; n],
             lum_b: 0.0,
+            vpl_trace: 0.0,
+            size: vec![1.0; n],
             cells: BTreeMap::new(),
         }
     }
@@ -454,6 +467,7 @@ fn group_equations(
             out.gram[j * n + i] = out.gram[i * n + j];
         }
     }
+    out.vpl_trace = (0..n).map(|i| out.gram[i * n + i]).sum();
     Ok(out)
 }
 
@@ -601,6 +615,8 @@ fn add_to(acc: &mut Normal, part: &Normal) {
         .for_each(|(a, b)| *a += b);
     acc.lum_b += part.lum_b;
     acc.rays += part.rays;
+    acc.vpl_trace += part.vpl_trace;
+    acc.size.clone_from(&part.size);
 }
 
 /// Groups of about `per` neighbouring VPLs: k-means (`k = ceil(n / per)`, [`GROUP_ROUNDS`]
@@ -685,6 +701,11 @@ fn project(ne: &Normal, member: &[usize], k: usize) -> Normal {
     out.btb = ne.btb;
     out.lum_b = ne.lum_b;
     out.rays = ne.rays;
+    out.vpl_trace = ne.vpl_trace;
+    out.size = vec![0.0; k];
+    for &m in member {
+        out.size[m] += 1.0;
+    }
     for (key, cell) in &ne.cells {
         let mut a = vec![0.0; 3 * k];
         for c in 0..3 {
@@ -703,9 +724,11 @@ fn project(ne: &Normal, member: &[usize], k: usize) -> Normal {
 }
 
 /// The refitted scales of the normal equations `ne` with relative ridge `ridge`
-/// (`lambda = ridge * trace / n`), one solution per pull of `pulls` (what the scales are pulled
-/// toward); all 1 where the trace is 0 (no pixel sees a VPL). The pulls share `Q` and its
-/// factor: a second pull costs no factorization where its solution keeps every VPL free.
+/// (`lambda = ridge * trace / n` of the VPLs' own Gram matrix, each scale's pull weighted by
+/// the VPLs it multiplies: the per-VPL penalty `lambda ||M t - g||^2` of the module docs), one
+/// solution per pull of `pulls` (what the scales are pulled toward); all 1 where the trace is 0
+/// (no pixel sees a VPL). The pulls share `Q` and its factor: a second pull costs no
+/// factorization where its solution keeps every VPL free.
 fn solve(
     ne: &Normal,
     ridge: f64,
@@ -713,7 +736,7 @@ fn solve(
     cancelled: &dyn Fn() -> bool,
 ) -> Result<Vec<Solved>> {
     let n = ne.atb.len();
-    let trace: f64 = (0..n).map(|i| ne.gram[i * n + i]).sum();
+    let trace = ne.vpl_trace;
     if trace <= 0.0 {
         let ones = || Solved {
             s: vec![1.0; n],
@@ -721,10 +744,11 @@ fn solve(
         };
         return Ok(pulls.iter().map(|_| ones()).collect());
     }
-    let lambda = ridge.max(MIN_RIDGE) * trace / n as f64;
+    let vpls: f64 = ne.size.iter().sum();
+    let lambda = ridge.max(MIN_RIDGE) * trace / vpls;
     let mut q = ne.gram.clone();
     for i in 0..n {
-        q[i * n + i] += lambda;
+        q[i * n + i] += lambda * ne.size[i];
     }
     let full = if pulls.len() > 1 {
         Cholesky::new(DMatrix::from_column_slice(n, n, &q))
@@ -734,7 +758,9 @@ fn solve(
     pulls
         .iter()
         .map(|&pull| {
-            let c: Vec<f64> = ne.atb.iter().map(|&v| v + lambda * pull).collect();
+            let c: Vec<f64> = (ne.atb.iter().zip(&ne.size))
+                .map(|(&v, &size)| v + lambda * size * pull)
+                .collect();
             nnls_bpp(&q, &c, full.as_ref(), MAX_EXCHANGES, cancelled)
         })
         .collect()
@@ -1114,6 +1140,50 @@ mod tests {
         );
         let single = refit(&scene, &[&v], &base, &params(1, 0.0), None).unwrap();
         assert_eq!(single.groups, base.len());
+    }
+
+    /// A group is its VPLs under one scale, ridge and all: with every VPL of the test set
+    /// copied four times (each group the four copies), the grouped refit gives the scales the
+    /// per-VPL refit does at the same ridge (whose solution gives copies one scale). A ridge
+    /// relative to the groups' own Gram matrix pulled each group up to four times harder.
+    #[test]
+    fn a_group_of_coinciding_vpls_refits_as_its_vpls() {
+        let scene = closed_box(vec![]);
+        let fv = FloorView::new(32, Vec3::new(0.0, 0.0, 1.0), 10.0);
+        let copies: Vec<Vpl> = vpls()
+            .iter()
+            .flat_map(|v| {
+                std::iter::repeat_n(
+                    Vpl {
+                        flux: v.flux * 0.25,
+                        ..*v
+                    },
+                    4,
+                )
+            })
+            .collect();
+        let (member, k) = power_groups(&copies, 4);
+        assert_eq!(k, vpls().len());
+        assert!(member.chunks(4).all(|g| g.iter().all(|&m| m == g[0])));
+        let target = render(
+            &scene,
+            &fv,
+            &scaled(&vpls(), &[0.5, 2.0, 1.0, 0.0, 1.5, 0.8, 3.0]),
+        );
+        let v = fv.view_with(Some(&target));
+        for ridge in [0.1, 1.0, 10.0] {
+            let single = refit(&scene, &[&v], &copies, &params(1, ridge), None).unwrap();
+            let grouped = RefitParams {
+                group: 4,
+                ..params(1, ridge)
+            };
+            let r = refit(&scene, &[&v], &copies, &grouped, None).unwrap();
+            assert_eq!(r.groups, k);
+            for (a, b) in r.scales.iter().zip(&single.scales) {
+                assert!((a - b).abs() < 1e-6 * b.max(1.0), "{ridge}: {a} {b}");
+            }
+            assert!((r.error_after - single.error_after).abs() < 1e-9 + 1e-6 * r.error_after);
+        }
     }
 
     /// The captures' gain: on a target that is every VPL at 2.5 times its power, the refit
