@@ -32,3 +32,21 @@ def test_the_pixel_budget_keeps_stride_4_for_one_view_and_bounds_many():
     assert strided <= vplace.PIXEL_BUDGET
     with pytest.raises(ValueError, match="pixel budget"):
         vplace.stride_for(many, budget=0)
+    with pytest.raises(ValueError, match="finest stride"):
+        vplace.stride_for(many, min_stride=0)
+
+
+def test_the_refit_samples_the_captures_on_a_budget_of_its_own():
+    class V:
+        def __init__(self, w, h):
+            self.width, self.height = w, h
+
+    # The report's three 192x108 captures: stride 2 (15,552 pixels), where the iteration's 4
+    # left the refit 3,888 for 256 powers.
+    assert vplace.refit_stride_for([V(192, 108)] * 3) == 2
+    assert vplace.refit_stride_for([V(16, 16)]) == vplace.budget.REFIT_MIN_STRIDE == 2
+    big = [V(640, 360)] * 3
+    stride = vplace.refit_stride_for(big)
+    assert stride == 4
+    strided = sum(-(-v.width // stride) * -(-v.height // stride) for v in big)
+    assert strided <= vplace.REFIT_PIXEL_BUDGET

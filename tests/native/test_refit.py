@@ -63,19 +63,63 @@ def test_recovers_known_scales(setup):
     assert np.abs(near.scales[:6] - 1).sum() < np.abs(weak.scales[:6] - 1).sum()
 
 
-def test_the_default_refit_scales_groups_of_neighbouring_vpls(setup):
+def test_power_groups_scale_neighbouring_vpls_together(setup):
     scene, d = setup
     vpls = vplace.uniform_vpls(scene, 48, seed=2)
-    assert vplace.RefitParams().group == vplace.RefitParams.DEFAULT.group == 8
-    assert "group=8" in repr(vplace.RefitParams())
-    out = vplace.refit(scene, [view(d)], vpls)
+    # One scale per VPL by default (with the coverage views' penalty, it beat groups of 8 on
+    # every view of the built-in scenes).
+    assert vplace.RefitParams().group == vplace.RefitParams.DEFAULT.group == 1
+    assert "group=1" in repr(vplace.RefitParams())
+    single = vplace.refit(scene, [view(d)], vpls)
+    assert single.groups == 48 and len(np.unique(single.scales)) > 6
+    out = vplace.refit(scene, [view(d)], vpls, vplace.RefitParams(group=8))
     assert out.groups == 6 and len(out) == 48
     # One scale per group: at most 6 distinct scales, each shared by the VPLs of its group.
     assert len(np.unique(out.scales)) <= 6
-    single = vplace.refit(scene, [view(d)], vpls, vplace.RefitParams(group=1))
-    assert single.groups == 48 and len(np.unique(single.scales)) > 6
     with pytest.raises(vplace.InputError, match="group"):
         vplace.refit(scene, [view(d)], vpls, vplace.RefitParams(group=0))
+
+
+def test_coverage_holds_a_vpl_that_lights_what_no_capture_saw(setup):
+    """A wall VPL lighting the ceiling more than the floor, tripled in the floor's target: the
+    refit follows the floor alone and triples it; a coverage view of the ceiling (which the
+    floor camera cannot see) holds it nearer its light-path power."""
+    scene, d = setup
+    base = inward_vpls()
+    truth = np.ones(7)
+    truth[4] = 3.0
+    target, _ = vplace.evaluate(
+        scene, view(d), base.with_flux((base.flux * truth[:, None]).astype("f4"))
+    )
+    capture = view(d, indirect=target)
+    pos = d["position"].copy()
+    pos[..., 2] = 2.0
+    ceiling = view(
+        d, name="ceiling", position=pos, normal=np.broadcast_to(np.float32([0, 0, -1]), pos.shape)
+    )
+    p = vplace.RefitParams(stride=2, ridge=1e-3)
+    assert p.unseen_weight == 1.0 and "unseen_weight=1.0" in repr(p)
+    alone = vplace.refit(scene, [capture], base, p)
+    held = vplace.refit(scene, [capture], base, p, coverage=[ceiling])
+    assert alone.unseen_pixels == 0 and held.unseen_pixels == 16 * 16
+    assert alone.scales[4] == pytest.approx(3.0, abs=0.05)
+    assert 1.0 < held.scales[4] < 2.5
+    # The floor the capture sees is not unseen; a weight of 0 turns the penalty off.
+    seen = vplace.refit(scene, [capture], base, p, coverage=[capture])
+    assert seen.unseen_pixels == 0 and np.array_equal(seen.scales, alone.scales)
+    off = vplace.refit(
+        scene,
+        [capture],
+        base,
+        vplace.RefitParams(stride=2, ridge=1e-3, unseen_weight=0.0),
+        coverage=[ceiling],
+    )
+    assert np.array_equal(off.scales, alone.scales)
+    for bad in (-1.0, float("nan")):
+        with pytest.raises(vplace.InputError, match="unseen_weight"):
+            vplace.refit(
+                scene, [capture], base, vplace.RefitParams(unseen_weight=bad), coverage=[ceiling]
+            )
 
 
 def test_never_worse_and_deterministic(setup):

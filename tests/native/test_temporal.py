@@ -89,6 +89,22 @@ def test_track_keeps_a_vpl_that_moves_a_little_in_its_slot_and_is_deterministic(
         assert np.array_equal(getattr(k, name), getattr(k2, name))
 
 
+def test_sets_sharing_their_positions_are_matched_vpl_by_vpl():
+    # One shared layout: two neighbours 2 cm apart, each lit on one frame. Matched by position
+    # the second would take the first's slot and the light would jump; shared, each stands.
+    pos = [[0, 0, 0], [0.02, 0, 0], [3, 0, 0]]
+    a = _set(pos, flux=[[1, 1, 1], [0, 0, 0], [2, 2, 2]])
+    b = _set(pos, flux=[[0, 0, 0], [1, 1, 1], [2, 2, 2]])
+    k = temporal.track([a, b], diagonal=10.0)
+    assert k.index.tolist() == [[0, -1, 2], [-1, 1, 2]]
+    assert k.energy.tolist() == [[1.0, 0.0, 2.0], [0.0, 1.0, 2.0]]
+    for s in range(3):
+        assert np.array_equal(k.position[0, s], k.position[1, s])
+    # Not shared (the second set moved by a millimetre): matched by position, one slot moves.
+    moved = _set([[0.001, 0, 0], [0.021, 0, 0], [3, 0, 0]], flux=[[0, 0, 0], [1, 1, 1], [2, 2, 2]])
+    assert temporal.track([a, moved], diagonal=10.0).position.shape[1] == 2
+
+
 def test_a_vpl_that_jumps_gets_a_new_slot_and_the_old_one_goes_dark_where_it_stands():
     a = _set([[0, 0, 0]])
     b = _set([[5, 0, 0]])  # half a diagonal away: far beyond its patch

@@ -326,17 +326,20 @@ impl PyRefitParams {
     /// whole views when there are three or more and `leave_out_views` (default True), else
     /// blocks of pixels. `free_gain` (default True): the cross-validation also tries pulling
     /// the powers toward the captures' gain instead of the light-path powers. `group` (default
-    /// `REFIT_GROUP`, 8): VPLs per power group, one scale per group of neighbouring VPLs; 1:
-    /// one scale per VPL.
+    /// `REFIT_GROUP`, 1): VPLs per power group, one scale per group of neighbouring VPLs; 1:
+    /// one scale per VPL. `unseen_weight` (default `UNSEEN_WEIGHT`, 1): the weight of the
+    /// coverage views' pixels no capture sees (`refit(..., coverage=...)`), per coverage view
+    /// relative to one captured view; 0 turns it off.
     #[new]
     #[pyo3(signature = (*, stride = None, ridge = None, leave_out_views = None, free_gain = None,
-        group = None))]
+        group = None, unseen_weight = None))]
     fn new(
         stride: Option<usize>,
         ridge: Option<f64>,
         leave_out_views: Option<bool>,
         free_gain: Option<bool>,
         group: Option<usize>,
+        unseen_weight: Option<f64>,
     ) -> Self {
         let d = RefitParams::DEFAULT;
         Self {
@@ -347,6 +350,7 @@ impl PyRefitParams {
                 leave_out_views: leave_out_views.unwrap_or(d.leave_out_views),
                 free_gain: free_gain.unwrap_or(d.free_gain),
                 group: group.unwrap_or(d.group),
+                unseen_weight: unseen_weight.unwrap_or(d.unseen_weight),
                 ..d
             },
         }
@@ -395,16 +399,23 @@ impl PyRefitParams {
         self.inner.group
     }
 
+    /// Weight of the coverage views' pixels no capture sees, per view relative to a capture.
+    #[getter]
+    fn unseen_weight(&self) -> f64 {
+        self.inner.unseen_weight
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "RefitParams(stride={}, ridge={:?}, select_ridge={}, leave_out_views={}, free_gain={}, \
-             group={})",
+             group={}, unseen_weight={:?})",
             self.inner.stride,
             self.inner.ridge,
             py_bool(self.inner.select_ridge),
             py_bool(self.inner.leave_out_views),
             py_bool(self.inner.free_gain),
-            self.inner.group
+            self.inner.group,
+            self.inner.unseen_weight
         )
     }
 }

@@ -4,7 +4,7 @@ use numpy::PyArray1;
 use pyo3::prelude::*;
 use std::sync::Arc;
 use vplace_core::{
-    layout::refit::{refit as refit_vpls, RefitParams, Refitted},
+    layout::refit::{refit_with_coverage, RefitParams, Refitted},
     view::View,
 };
 
@@ -55,6 +55,12 @@ impl PyRefit {
     #[getter]
     fn groups(&self) -> usize {
         self.r.groups
+    }
+
+    /// Strided pixels of the coverage views that no captured view sees (0 without coverage).
+    #[getter]
+    fn unseen_pixels(&self) -> usize {
+        self.r.unseen_pixels
     }
 
     /// Covered pixels on the strided grids of every view.
@@ -117,16 +123,18 @@ impl PyRefit {
     }
 }
 
-/// Non-negative least squares on the VPL powers against every view's indirect image (see
+/// Non-negative least squares on the VPL powers against every view's indirect image, each VPL
+/// also held by its light on what the `coverage` views show and no view sees (see
 /// `vplace.refit`).
 #[pyfunction]
-#[pyo3(signature = (scene, views, vpls, params = None, *, progress = None))]
+#[pyo3(signature = (scene, views, vpls, params = None, *, coverage = None, progress = None))]
 fn refit(
     py: Python<'_>,
     scene: &PyScene,
     views: Vec<Bound<'_, PyView>>,
     vpls: &PyVplSet,
     params: Option<&PyRefitParams>,
+    coverage: Option<Vec<Bound<'_, PyView>>>,
     progress: Option<&PyProgress>,
 ) -> PyResult<PyRefit> {
     if views.is_empty() {
@@ -134,6 +142,7 @@ fn refit(
     }
     vpls.check_no_given_radii("refit")?;
     let views = views_of(&views);
+    let coverage = views_of(&coverage.unwrap_or_default());
     let params = RefitParams {
         profile: vpls.profile,
         radius: vpls.radius,
@@ -144,7 +153,8 @@ fn refit(
     let prog = progress.map(|p| Arc::clone(&p.inner));
     let r = run(py, move || {
         let refs: Vec<&View> = views.iter().map(|v| v.as_ref()).collect();
-        refit_vpls(&s, &refs, &set, &params, prog.as_deref())
+        let cover: Vec<&View> = coverage.iter().map(|v| v.as_ref()).collect();
+        refit_with_coverage(&s, &refs, &cover, &set, &params, prog.as_deref())
     })?;
     Ok(PyRefit {
         vpls: PyVplSet::new_checked(r.vpls.clone(), vpls.profile, vpls.radius)?,

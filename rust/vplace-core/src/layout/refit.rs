@@ -8,11 +8,12 @@
 //!
 //! `min_s ||A s - b||^2 + lambda ||s - g||^2  subject to  s >= 0`,
 //!
-//! one scale per VPL (its colour is kept), `lambda = ridge * trace(A^T A) / n`. By default the
-//! scales are those of **power groups** ([`RefitParams::group`]): `s = M t`, `M` the membership
-//! of groups of about 8 neighbouring VPLs, so the problem above is solved for `t` on the normal
-//! equations of `A M` (summed from `A`'s, [`project`]), penalty and `lambda` unchanged:
-//! `lambda ||M t - g||^2` pulls each group with the weight of its VPLs. (A ridge taken relative
+//! one scale per VPL (its colour is kept), `lambda = ridge * trace(A^T A) / n`. With
+//! [`RefitParams::group`] above 1 the scales are those of **power groups**: `s = M t`, `M` the
+//! membership of groups of about that many neighbouring VPLs, so the problem above is solved
+//! for `t` on the normal equations of `A M` (summed from `A`'s, [`project`]), penalty and
+//! `lambda` unchanged: `lambda ||M t - g||^2` pulls each group with the weight of its VPLs.
+//! (Groups of 8 were the default in stops 47-48. A ridge taken relative
 //! to `A M`'s own trace instead pulled a group of 8 VPLs whose columns nearly coincide up to 8
 //! times harder than the same ridge pulls its VPLs: on a 48 x 36 closed room whose
 //! cross-validation picked the grid's largest ridge, the groups then kept the layout's 6 %
@@ -24,6 +25,18 @@
 //! random estimate whose total is off by tens of percent on a few hundred VPLs (measured on
 //! `skyroom_afternoon`, 256 VPLs: the captures' gain 0.82 to 1.25 over four frames), and the
 //! captures measure that total well; pulling toward 1 made the ridge keep that error.
+//!
+//! **Surfaces no capture saw** ([`refit_with_coverage`]). The captures say nothing of the
+//! light a VPL throws where none of them looks, and a scale fitted to the little of its light
+//! they do see can make a hot spot there. The coverage views (ray-traced G-buffers of the
+//! region around the cameras, no target read) add `sum_i u_i (s_i - g)^2` to the objective:
+//! `u_i` is VPL `i`'s squared contribution summed over the coverage views' strided pixels that
+//! no capture sees ([`View::sees`]), scaled so a coverage view weighs as one capture
+//! ([`RefitParams::unseen_weight`] times). It is the error the scale would add there were the
+//! pulled-toward powers right, counted VPL by VPL: no VPL's change is assumed to cancel its
+//! neighbour's. (The full Gram matrix of the coverage views in its place let neighbours cancel,
+//! one up and its neighbour off, and made hot spots where a camera came closer.) The
+//! cross-validation chooses the ridge with this penalty in place.
 //!
 //! **The ridge** is chosen by cross-validation, never by the fitted pixels alone (they always
 //! prefer the smallest): the strided pixels fall in [`CV_FOLDS`] folds by blocks of
@@ -102,8 +115,13 @@ pub struct RefitParams {
     /// of blocks of pixels (see the module docs).
     pub leave_out_views: bool,
     /// VPLs per power group (`>= 1`): the refit scales groups of about this many neighbouring
-    /// VPLs ([`power_groups`]), one scale per group; 1 gives every VPL its own scale.
+    /// VPLs ([`power_groups`]), one scale per group; 1 (the default) gives every VPL its own
+    /// scale.
     pub group: usize,
+    /// Weight of the penalty from the coverage views' pixels that no captured view sees
+    /// ([`refit_with_coverage`], the module docs' "Surfaces no capture saw"), per coverage view
+    /// relative to one captured view (`>= 0`; 0 turns it off).
+    pub unseen_weight: f64,
     /// Where the ridge is cross-validated, also try pulling the scales toward the captures'
     /// gain instead of 1 (see the module docs); without the selection the pull is toward 1.
     pub free_gain: bool,
@@ -121,6 +139,7 @@ impl RefitParams {
         leave_out_views: true,
         free_gain: true,
         group: REFIT_GROUP,
+        unseen_weight: UNSEEN_WEIGHT,
     };
 }
 
@@ -130,14 +149,18 @@ impl Default for RefitParams {
     }
 }
 
-/// VPLs per power group by default ([`RefitParams::group`]). One scale per VPL fitted the
-/// captures' noise and the evaluator's own bias into single VPLs (scaled up to 27x, 112 of 256
-/// switched off: hot spots on surfaces no capture saw); groups of 8, the neighbourhood the
-/// disks' density estimate reads (`vpl::near_field_radii`), kept the refit's gain on the
-/// captured views and lost less on the views never captured in the built-in rooms; Sponza,
-/// whose captures pin each VPL down, loses .002-.009 SSIM with them (ARCHITECTURE.md, "The
+/// VPLs per power group by default ([`RefitParams::group`]): one scale per VPL. Groups of 8
+/// (stops 47-48) held the rooms' VPLs that light surfaces no capture saw, but cost Sponza,
+/// whose captures pin each VPL down, .002-.009 SSIM; the coverage views' penalty
+/// ([`UNSEEN_WEIGHT`]) holds those VPLs one by one, and one scale per VPL with it scored
+/// higher than groups with it on every view of the built-in scenes (ARCHITECTURE.md, "The
 /// refit's power groups").
-pub const REFIT_GROUP: usize = 8;
+pub const REFIT_GROUP: usize = 1;
+
+/// The coverage views' penalty by default ([`RefitParams::unseen_weight`]): a coverage view
+/// counts as one captured view. 4 measured within .0015 SSIM of 1 on every view of the sky
+/// room and Sponza (8 seeds).
+pub const UNSEEN_WEIGHT: f64 = 1.0;
 
 /// Rounds of Lloyd's k-means in [`power_groups`].
 pub const GROUP_ROUNDS: usize = 16;
@@ -219,6 +242,9 @@ pub struct Refitted {
     pub gain: f64,
     /// Power groups the scales were fitted for (one scale each; `n` with group 1).
     pub groups: usize,
+    /// Strided pixels of the coverage views that no captured view sees: where the penalty of
+    /// [`refit_with_coverage`] comes from (0 without coverage views).
+    pub unseen_pixels: usize,
     /// Wall time, seconds.
     pub seconds: f64,
 }
@@ -238,6 +264,9 @@ struct Normal {
     /// Per scale, the VPLs it multiplies (1 each, or a power group's size): the ridge's weight,
     /// so that a group's pull is its VPLs' pulls summed.
     size: Vec<f64>,
+    /// Per scale, the weight of its pull from the surfaces no capture saw ([`unseen_weights`];
+    /// a group's is its VPLs' summed): the same in every fold.
+    unseen: Vec<f64>,
     /// With cross-validation: per cell of [`CV_CELL_PX`] pixels (view, cell x, cell y), the
     /// sums of its pixels' rows (R, G, B: `3 n`), of their targets, and the pixel count.
     cells: BTreeMap<(usize, usize, usize), Cell>,
@@ -295,6 +324,7 @@ impl Normal {
             lum_b: 0.0,
             vpl_trace: 0.0,
             size: vec![1.0; n],
+            unseen: vec![0.0; n],
             cells: BTreeMap::new(),
         }
     }
@@ -617,6 +647,7 @@ fn add_to(acc: &mut Normal, part: &Normal) {
     acc.rays += part.rays;
     acc.vpl_trace += part.vpl_trace;
     acc.size.clone_from(&part.size);
+    acc.unseen.clone_from(&part.unseen);
 }
 
 /// Groups of about `per` neighbouring VPLs: k-means (`k = ceil(n / per)`, [`GROUP_ROUNDS`]
@@ -703,8 +734,10 @@ fn project(ne: &Normal, member: &[usize], k: usize) -> Normal {
     out.rays = ne.rays;
     out.vpl_trace = ne.vpl_trace;
     out.size = vec![0.0; k];
-    for &m in member {
+    out.unseen = vec![0.0; k];
+    for (&m, &u) in member.iter().zip(&ne.unseen) {
         out.size[m] += 1.0;
+        out.unseen[m] += u;
     }
     for (key, cell) in &ne.cells {
         let mut a = vec![0.0; 3 * k];
@@ -725,10 +758,11 @@ fn project(ne: &Normal, member: &[usize], k: usize) -> Normal {
 
 /// The refitted scales of the normal equations `ne` with relative ridge `ridge`
 /// (`lambda = ridge * trace / n` of the VPLs' own Gram matrix, each scale's pull weighted by
-/// the VPLs it multiplies: the per-VPL penalty `lambda ||M t - g||^2` of the module docs), one
-/// solution per pull of `pulls` (what the scales are pulled toward); all 1 where the trace is 0
-/// (no pixel sees a VPL). The pulls share `Q` and its factor: a second pull costs no
-/// factorization where its solution keeps every VPL free.
+/// the VPLs it multiplies: the per-VPL penalty `lambda ||M t - g||^2` of the module docs, plus
+/// the unseen surfaces' weights `u`: `sum_i u_i (s_i - g)^2`), one solution per pull of `pulls`
+/// (what the scales are pulled toward); all 1 where the trace is 0 (no pixel sees a VPL). The
+/// pulls share `Q` and its factor: a second pull costs no factorization where its solution
+/// keeps every VPL free.
 fn solve(
     ne: &Normal,
     ridge: f64,
@@ -747,8 +781,11 @@ fn solve(
     let vpls: f64 = ne.size.iter().sum();
     let lambda = ridge.max(MIN_RIDGE) * trace / vpls;
     let mut q = ne.gram.clone();
-    for i in 0..n {
-        q[i * n + i] += lambda * ne.size[i];
+    let weight: Vec<f64> = (ne.size.iter().zip(&ne.unseen))
+        .map(|(&size, &u)| lambda * size + u)
+        .collect();
+    for (i, w) in weight.iter().enumerate() {
+        q[i * n + i] += w;
     }
     let full = if pulls.len() > 1 {
         Cholesky::new(DMatrix::from_column_slice(n, n, &q))
@@ -758,16 +795,110 @@ fn solve(
     pulls
         .iter()
         .map(|&pull| {
-            let c: Vec<f64> = (ne.atb.iter().zip(&ne.size))
-                .map(|(&v, &size)| v + lambda * size * pull)
+            let c: Vec<f64> = (ne.atb.iter().zip(&weight))
+                .map(|(&v, &w)| v + w * pull)
                 .collect();
             nnls_bpp(&q, &c, full.as_ref(), MAX_EXCHANGES, cancelled)
         })
         .collect()
 }
 
+/// The covered pixels of every `stride`-th row and column of each view: `(view, pixel)`.
+fn strided_pixels(views: &[&View], stride: usize) -> Vec<(usize, usize)> {
+    views
+        .iter()
+        .enumerate()
+        .flat_map(|(v, view)| {
+            let w = view.width;
+            (0..view.height)
+                .step_by(stride)
+                .flat_map(move |y| (0..w).step_by(stride).map(move |x| (v, y * w + x)))
+                .filter(|&(_, p)| view.covered[p])
+        })
+        .collect()
+}
+
+/// The weight of each VPL's pull from the surfaces no capture saw, and how many strided pixels
+/// of `coverage` show them: per VPL, `unseen_weight * k * sum_p ||a_p||^2` over the covered
+/// strided pixels `p` of the coverage views that no view of `captures` sees ([`View::sees`]),
+/// `a_p` the VPL's shaded RGB contribution there (as a row of `A`), `k` the captures' strided
+/// pixels per view over the coverage views' (so a coverage view weighs as one capture).
+fn unseen_weights(
+    scene: &Scene,
+    captures: &[&View],
+    coverage: &[&View],
+    soa: &VplSoa,
+    params: &RefitParams,
+    capture_pixels: usize,
+    cancelled: &(dyn Fn() -> bool + Sync),
+) -> Result<(Vec<f64>, usize)> {
+    let n = soa.len();
+    if coverage.is_empty() || params.unseen_weight == 0.0 {
+        return Ok((vec![0.0; n], 0));
+    }
+    let eps = scene.ray_epsilon();
+    // Stops short of the surface, so the point does not hide itself.
+    let occluded = |a: Vec3, b: Vec3| {
+        let d = b - a;
+        let len = d.length();
+        len > 4.0 * eps && scene.occluded(a, a + d * ((len - 4.0 * eps) / len))
+    };
+    let strided = strided_pixels(coverage, params.stride);
+    let unseen: Vec<(usize, usize)> = strided
+        .par_iter()
+        .copied()
+        .filter(|&(v, p)| {
+            let x = coverage[v].position_at(p);
+            !captures.iter().any(|c| c.sees(x, occluded))
+        })
+        .collect();
+    if cancelled() {
+        return Err(VplaceError::Cancelled);
+    }
+    let gbuffers: Vec<GBuffer<'_>> = coverage.iter().map(|v| v.gbuffer()).collect();
+    let sums = unseen
+        .par_chunks(PIXELS_PER_TASK)
+        .map(|task| {
+            let mut state = scene.shadow_state();
+            let mut batch = Batch::new(n);
+            let mut rows = vec![0.0f64; 3 * n];
+            let mut sum = vec![0.0f64; n];
+            if cancelled() {
+                return sum;
+            }
+            for &(v, p) in task {
+                let recv = Receiver::of_pixel(&gbuffers[v], p, eps);
+                let occluded = |ray: &_| scene.occluded_ray(&mut state, ray);
+                pixel_rows(&recv, soa, params.profile, &mut batch, occluded, &mut rows);
+                for channel in rows.chunks(n) {
+                    sum.iter_mut().zip(channel).for_each(|(s, a)| *s += a * a);
+                }
+            }
+            sum
+        })
+        .reduce(
+            || vec![0.0f64; n],
+            |mut a, b| {
+                a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+                a
+            },
+        );
+    if cancelled() {
+        return Err(VplaceError::Cancelled);
+    }
+    let per_capture = capture_pixels as f64 / captures.len().max(1) as f64;
+    let per_coverage = strided.len() as f64 / coverage.len() as f64;
+    let k = if per_coverage > 0.0 {
+        params.unseen_weight * per_capture / per_coverage
+    } else {
+        0.0
+    };
+    Ok((sums.iter().map(|x| k * x).collect(), unseen.len()))
+}
+
 /// Refits the flux of `vpls` against the indirect image `indirect` (`I = G - D`, `H x W x 3`,
 /// finite on covered pixels) over the covered pixels of the strided grid of `gbuffer`.
+/// [`refit_with_coverage`] without coverage views.
 ///
 /// Errors: shape mismatches, non-finite values on covered pixels, no VPLs or more than
 /// [`MAX_VPLS`], `stride == 0`, a negative or non-finite `ridge` or `radius`,
@@ -776,6 +907,23 @@ fn solve(
 pub fn refit(
     scene: &Scene,
     views: &[&View],
+    vpls: &[Vpl],
+    params: &RefitParams,
+    progress: Option<&Progress>,
+) -> Result<Refitted> {
+    refit_with_coverage(scene, views, &[], vpls, params, progress)
+}
+
+/// [`refit`], each VPL also pulled toward its light-path power (or the captures' gain times it)
+/// with the weight of its light on what `coverage` shows and no view of `views` sees (the
+/// module docs' "Surfaces no capture saw"). The coverage views need no indirect image: only
+/// their G-buffers are read.
+///
+/// Errors: those of [`refit`], and a negative or non-finite [`RefitParams::unseen_weight`].
+pub fn refit_with_coverage(
+    scene: &Scene,
+    views: &[&View],
+    coverage: &[&View],
     vpls: &[Vpl],
     params: &RefitParams,
     progress: Option<&Progress>,
@@ -824,19 +972,16 @@ pub fn refit(
             expected: ">= 0 and finite".into(),
         });
     }
+    if !(params.unseen_weight >= 0.0 && params.unseen_weight.is_finite()) {
+        return Err(VplaceError::OutOfRange {
+            what: "unseen_weight".into(),
+            value: params.unseen_weight.to_string(),
+            expected: ">= 0 and finite".into(),
+        });
+    }
     let sources: Vec<(GBuffer<'_>, &[f32])> =
         views.iter().map(|v| v.gbuffer()).zip(targets).collect();
-    let pixels: Vec<(usize, usize)> = views
-        .iter()
-        .enumerate()
-        .flat_map(|(v, view)| {
-            let (w, stride) = (view.width, params.stride);
-            (0..view.height)
-                .step_by(stride)
-                .flat_map(move |y| (0..w).step_by(stride).map(move |x| (v, y * w + x)))
-                .filter(|&(_, p)| view.covered[p])
-        })
-        .collect();
+    let pixels = strided_pixels(views, params.stride);
     let n = vpls.len();
     let by_view = params.leave_out_views && views.len() >= LOVO_MIN_VIEWS;
     let folds = match (params.select_ridge && n <= CV_MAX_VPLS, by_view) {
@@ -854,7 +999,21 @@ pub fn refit(
         };
         groups[fold].push((v, p));
     }
-    let parts = normal_equations(scene, &sources, vpls, &groups, params, progress)?;
+    let mut parts = normal_equations(scene, &sources, vpls, &groups, params, progress)?;
+    let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
+    let soa = VplSoa::new(vpls, &near_field_radii(vpls, params.radius));
+    let (unseen, unseen_pixels) = unseen_weights(
+        scene,
+        views,
+        coverage,
+        &soa,
+        params,
+        pixels.len(),
+        &cancelled,
+    )?;
+    for part in &mut parts {
+        part.unseen.clone_from(&unseen);
+    }
     // Power groups: the solve runs on one scale per group ([`RefitParams::group`]).
     let full_n = n;
     let (member, parts, n) = if params.group > 1 {
@@ -864,7 +1023,6 @@ pub fn refit(
     } else {
         ((0..n).collect(), parts, n)
     };
-    let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
     let mut ne = Normal::zero(n);
     for part in &parts {
         add_to(&mut ne, part);
@@ -960,6 +1118,7 @@ pub fn refit(
         gain_cv,
         gain,
         groups: n,
+        unseen_pixels,
         seconds: start.elapsed().as_secs_f64(),
     })
 }
@@ -1190,6 +1349,81 @@ mod tests {
     /// pulling toward the gain (taken by the cross-validation) gives every VPL 2.5, the one no
     /// pixel sees too; pulling toward 1 leaves that one at 1. On a target the powers already
     /// match, the gain is 1.
+    /// The floor view's pixels lifted onto the test box's ceiling (facing down): a view of
+    /// surfaces the floor camera, at z = 1.9 looking down, cannot see.
+    fn ceiling_view(fv: &FloorView) -> View {
+        let mut up = fv.clone();
+        up.gbuffer.position.chunks_mut(3).for_each(|p| p[2] = 2.0);
+        up.gbuffer.normal = [0.0, 0.0, -1.0].repeat(up.gbuffer.width * up.gbuffer.height);
+        up.view()
+    }
+
+    /// A wall VPL that lights the ceiling more than the floor, its power tripled in the floor's
+    /// target: without coverage the refit follows the floor and triples it (lighting the
+    /// ceiling no capture saw three times too bright); with a coverage view of the ceiling it
+    /// is held nearer its light-path power, and the VPLs that light the floor alone are fitted
+    /// as before.
+    #[test]
+    fn coverage_holds_a_vpl_that_lights_what_no_capture_saw() {
+        let scene = closed_box(vec![]);
+        let fv = FloorView::new(32, Vec3::new(0.0, 0.0, 1.0), 10.0);
+        let base = vpls();
+        let mut truth = [1.0f32; 7];
+        truth[4] = 3.0;
+        let target = render(&scene, &fv, &scaled(&base, &truth));
+        let capture = fv.view_with(Some(&target));
+        let up = ceiling_view(&fv);
+        let p = params(2, 1e-3);
+        let alone = refit(&scene, &[&capture], &base, &p, None).unwrap();
+        let held = refit_with_coverage(&scene, &[&capture], &[&up], &base, &p, None).unwrap();
+        assert_eq!(alone.unseen_pixels, 0);
+        assert_eq!(held.unseen_pixels, 16 * 16);
+        assert!((alone.scales[4] - 3.0).abs() < 0.05, "{:?}", alone.scales);
+        assert!(
+            held.scales[4] > 1.0 && held.scales[4] < 2.5,
+            "{:?}",
+            held.scales
+        );
+        assert!(held.error_after > alone.error_after);
+        assert!(held.error_after < held.error_before);
+        // The ceiling VPLs face down: they light no ceiling pixel, are not held, and take up
+        // the floor's light the held wall VPL no longer gives.
+        for i in 0..3 {
+            assert!((alone.scales[i] - 1.0).abs() < 0.05, "{:?}", alone.scales);
+            assert!(held.scales[i] > alone.scales[i], "{:?}", held.scales);
+        }
+        // What the captures see is not unseen: the floor as coverage changes nothing, nor does
+        // a weight of 0.
+        let floor = refit_with_coverage(&scene, &[&capture], &[&capture], &base, &p, None).unwrap();
+        assert_eq!((floor.unseen_pixels, &floor.scales), (0, &alone.scales));
+        let off = RefitParams {
+            unseen_weight: 0.0,
+            ..p
+        };
+        let zero = refit_with_coverage(&scene, &[&capture], &[&up], &base, &off, None).unwrap();
+        assert_eq!(zero.scales, alone.scales);
+        // A heavier weight holds it nearer 1; the cross-validated ridge sees the same penalty.
+        let heavy = RefitParams {
+            unseen_weight: 10.0,
+            ..p
+        };
+        let h = refit_with_coverage(&scene, &[&capture], &[&up], &base, &heavy, None).unwrap();
+        assert!(
+            h.scales[4] < held.scales[4],
+            "{} {}",
+            h.scales[4],
+            held.scales[4]
+        );
+        for bad in [-1.0, f64::NAN, f64::INFINITY] {
+            let q = RefitParams {
+                unseen_weight: bad,
+                ..p
+            };
+            let e = refit_with_coverage(&scene, &[&capture], &[&up], &base, &q, None);
+            assert!(matches!(e, Err(VplaceError::OutOfRange { .. })), "{bad}");
+        }
+    }
+
     #[test]
     fn the_gain_carries_the_captures_total_to_unseen_vpls() {
         let scene = closed_box(vec![]);
@@ -1384,6 +1618,7 @@ mod tests {
                     free_gain: false,
                     leave_out_views: false,
                     group: 1,
+                    unseen_weight: 0.0,
                 };
                 let pixels: Vec<usize> = (0..144).filter(|&p| g.covered[p]).collect();
                 let radii = near_field_radii(&vpls, radius);

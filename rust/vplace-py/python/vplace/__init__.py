@@ -27,7 +27,8 @@ The pieces, in pipeline order:
 - :func:`layout` lays out one world-space :class:`VplSet` for a list of views (strata over the
   cells of every view and the off-screen light paths, the budget split by predicted indirect
   light, then iterations against every view's indirect image); :func:`refit` refits the VPL
-  powers against every view at once (non-negative least squares); :func:`uniform_vpls` (Keller)
+  powers against every view at once (non-negative least squares; ``coverage=`` views hold the
+  VPLs lighting what no view saw); :func:`uniform_vpls` (Keller)
   and :func:`rsm_vpls` are the baselines.
 - :func:`direct_light` estimates every light source's direct light over a view's G-buffer
   with shadow rays (irradiance / pi, what Cycles' DiffDir pass holds).
@@ -91,7 +92,7 @@ from vplace._native import (
     ssim_noise_free,
     uniform_vpls,
 )
-from vplace.budget import PIXEL_BUDGET, stride_for
+from vplace.budget import PIXEL_BUDGET, REFIT_PIXEL_BUDGET, refit_stride_for, stride_for
 
 __all__ = [
     "DISK_PATCHES",
@@ -101,6 +102,7 @@ __all__ = [
     "MAX_RADIUS_FACTOR",
     "NEAR_FIELD_FRACTION",
     "PIXEL_BUDGET",
+    "REFIT_PIXEL_BUDGET",
     "REGION_MARGIN",
     "SPACING_NEIGHBOURS",
     "VPL_SURFACE_OFFSET",
@@ -132,6 +134,7 @@ __all__ = [
     "fit_design",
     "layout",
     "refit",
+    "refit_stride_for",
     "relative_mse",
     "rmse",
     "rmse_noise_free",

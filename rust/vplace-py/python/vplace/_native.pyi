@@ -576,6 +576,8 @@ class Refit:
     @property
     def groups(self) -> int: ...
     @property
+    def unseen_pixels(self) -> int: ...
+    @property
     def pixels(self) -> int: ...
     @property
     def shadow_rays(self) -> int: ...
@@ -602,6 +604,7 @@ class RefitParams:
         leave_out_views: bool | None = None,
         free_gain: bool | None = None,
         group: int | None = None,
+        unseen_weight: float | None = None,
     ) -> RefitParams: ...
     DEFAULT: RefitParams
     @property
@@ -616,6 +619,8 @@ class RefitParams:
     def free_gain(self) -> bool: ...
     @property
     def group(self) -> int: ...
+    @property
+    def unseen_weight(self) -> float: ...
 
 def refit(
     scene: Scene,
@@ -623,6 +628,7 @@ def refit(
     vpls: VplSet,
     params: RefitParams | None = None,
     *,
+    coverage: Sequence[View] | None = None,
     progress: Progress | None = None,
 ) -> Refit: ...
 

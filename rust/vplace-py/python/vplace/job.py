@@ -22,7 +22,7 @@ import numpy as np
 
 import vplace
 from vplace import images, markdown
-from vplace.coverage import captures_of
+from vplace.coverage import captures_of, is_coverage
 
 #: The layout methods, in the report's order: Keller's light paths, reflective shadow maps, the
 #: regression-guided layout, and the same with its VPL powers refitted to the captured light.
@@ -89,11 +89,14 @@ class LayoutSettings:
 
 
 def fit(scene: vplace.Scene, views: Sequence[vplace.View], settings: LayoutSettings) -> vplace.Fit:
-    """The regression on ``views`` with the settings' cells and feature mode. Coverage views
-    (``vplace.coverage``) are left out: the model learns from the captures only."""
+    """The regression on ``views`` with the settings' cells and feature mode, coverage views
+    (``vplace.coverage``) included: their light-path indirect images are estimates, but the
+    model learns where indirect light is strong from the surfaces they add. Fitted on the
+    captures alone, Sponza's layout scored .005-.021 SSIM lower on every view (192x108, 256
+    VPLs, 8 seeds; the built-in rooms within .001)."""
     return vplace.fit(
         scene,
-        captures_of(views),
+        list(views),
         vplace.FitParams(
             cell_px=settings.cell_px,
             surface_only=settings.feature_mode == "auto",
@@ -154,7 +157,7 @@ def lay_out(
     if fitted is None:
         with timer.stage("fit regression"):
             fitted = fit(scene, views, settings)
-    stride = vplace.stride_for(views)  # the iteration's and the refit's pixels, bounded
+    stride = vplace.stride_for(views)  # the iteration's pixels, bounded
     with timer.stage(f"layout (n={n}, alpha={settings.alpha:g})"):
         laid = vplace.layout(
             scene,
@@ -177,11 +180,18 @@ def lay_out(
     if settings.method == "vplace+refit" and all(v.has_indirect for v in views):
         with timer.stage("refit VPL powers"):
             start = time.perf_counter()
-            # The captures only: a coverage view's target is itself light-path VPLs, and
+            # The captures are fitted: a coverage view's target is itself light-path VPLs, and
             # fitting powers to it fits that estimate's noise (the layout uses it to place).
+            # Its G-buffer only says which surfaces no capture saw: the VPLs lighting them are
+            # held near their light-path powers.
             captured = captures_of(views) if refit_views is None else list(refit_views)
             out.refit = vplace.refit(
-                scene, captured, laid.vpls, vplace.RefitParams(stride=stride), progress=progress
+                scene,
+                captured,
+                laid.vpls,
+                vplace.RefitParams(stride=vplace.refit_stride_for(captured)),
+                coverage=[v for v in views if is_coverage(v)],
+                progress=progress,
             )
             out.refit_seconds = time.perf_counter() - start
         out.vpls = out.refit.vpls

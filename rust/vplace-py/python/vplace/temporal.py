@@ -177,20 +177,36 @@ def greedy_match(cost: np.ndarray, max_cost: float = MAX_MATCH_COST) -> np.ndarr
 def track(sets: Sequence[vplace.VplSet], diagonal: float) -> Keyed:
     """The VPLs of ``sets`` (one set per frame, in frame order, one profile and radius) matched
     into slots (see the module docs); ``diagonal`` is the scene's size (its working scale,
-    ``Scene.scale``). Deterministic: the same sets give the same slots."""
+    ``Scene.scale``). Deterministic: the same sets give the same slots. Sets that share their
+    positions and normals (:func:`shared_layout`'s) are matched VPL by VPL: each light stands
+    where it stands on every frame, whichever of its neighbours a frame's refit switched off."""
     if not sets:
         raise ValueError("no frames to track")
     profile, radius = sets[0].profile, sets[0].radius
-    # Per slot: list of (frame, vpl index).
-    slot_pos: list[np.ndarray] = []
-    slot_nrm: list[np.ndarray] = []
-    slot_rad: list[float] = []
-    members: list[dict[int, int]] = []
-    own = [np.asarray(v.radii, dtype=np.float64) for v in sets]
     for f, vpls in enumerate(sets):
         if vpls.profile != profile:
             raise ValueError(f"frame {f}'s VPLs are {vpls.profile}, the first frame's {profile}")
-        lit = np.flatnonzero(np.asarray(vpls.blender_power).max(axis=1) > 0)
+    own = [np.asarray(v.radii, dtype=np.float64) for v in sets]
+    lit_of = [np.flatnonzero(np.asarray(v.blender_power).max(axis=1) > 0) for v in sets]
+    shared = all(
+        len(v) == len(sets[0])
+        and np.array_equal(v.position, sets[0].position)
+        and np.array_equal(v.normal, sets[0].normal)
+        for v in sets
+    )
+    # Per slot: frame -> VPL index.
+    members: list[dict[int, int]] = []
+    if shared:
+        lit_sets = [set(lit.tolist()) for lit in lit_of]
+        for i in range(len(sets[0])):
+            got = {f: i for f, lit in enumerate(lit_sets) if i in lit}
+            if got:
+                members.append(got)
+    slot_pos: list[np.ndarray] = []
+    slot_nrm: list[np.ndarray] = []
+    slot_rad: list[float] = []
+    for f, vpls in enumerate(sets if not shared else []):
+        lit = lit_of[f]
         pos = np.asarray(vpls.position, dtype=np.float64)[lit]
         nrm = np.asarray(vpls.normal, dtype=np.float64)[lit]
         rad = own[f][lit]
