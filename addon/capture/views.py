@@ -50,8 +50,8 @@ class ViewSet:
     orbit_radius: float = 0.0
     orbit_angle: float = 30.0
     #: Coverage views added for the region around these views (``vplace.coverage``; 0: none).
-    #: The regression learns from them and the layout places for them; the refit fits the
-    #: captures only and holds the VPLs that light what only the coverage views show.
+    #: The layout places for them; the refit fits the captures only and holds the VPLs that
+    #: light what only the coverage views show.
     coverage: int = vplace.coverage.DEFAULT_COUNT
     #: The region's radius around each camera, scene units; 0: from the room the camera stands
     #: in.

@@ -709,14 +709,10 @@ def _scene_lines(name: str, info: dict[str, Any], rows: Sequence[Row]) -> list[s
     """One scene's section: the fit, then per view the evaluator's and the renderers' tables."""
     fit = info["fit"]
     r2 = ", ".join(f"{v} {_fmt(x, '.3f')}" for v, x in fit["view_r2"].items())
-    covering = sum(v.startswith(vplace.coverage.PREFIX) for v in fit["view_r2"])
-    views = f"{len(fit['view_r2']) - covering} views" + (
-        f" and {covering} coverage views" if covering else ""
-    )
     lines = [
         f"## {name}",
         "",
-        f"Fit over {views}: kept "
+        f"Fit over {len(fit['view_r2'])} views: kept "
         + ", ".join(fit["kept"])
         + f" (R^2 {fit['r2']:.3f}; per view {r2}; {info['fit_seconds']:.2f} s). Captures of "
         f"the fit views: {info['capture_seconds']:.1f} s.",

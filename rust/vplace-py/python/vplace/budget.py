@@ -9,9 +9,10 @@ chosen so that all views together give about :data:`PIXEL_BUDGET` pixels, never 
 The power refit samples the captured views alone, on a budget of its own
 (:data:`REFIT_PIXEL_BUDGET`, :func:`refit_stride_for`): it solves for one power per VPL, and at
 the report's 192x108 the iteration's stride 4 left it 1,296 pixels a view for 256 unknowns.
-At stride 2 instead, with the coverage views' penalty, the refit scored higher SSIM on every
-view of Sponza (.007-.039) and on the rooms' captured views (ARCHITECTURE.md, "The refit's
-power groups"); it costs 0.25-0.4 s there against 0.1 s.
+At stride 2 instead (one scale per VPL, no other change) the refit scored .004-.007 higher SSIM
+on every view of the sky room and .002-.008 on Sponza's fit views, though .014 lower on
+Sponza's held-out Alcove (8 seeds; ARCHITECTURE.md, "The refit's power groups"); it costs
+0.25-0.4 s there against 0.1 s.
 """
 
 from __future__ import annotations

@@ -25,10 +25,10 @@ their VPLs from few, heavy off-screen draws, and a refit trades them away for th
   light from :func:`vplace.direct_light` (what Cycles' DiffDir holds), and as its indirect
   image the light reflected by :data:`TARGET_VPLS` light-path VPLs
   (:func:`vplace.uniform_vpls`, every bounce the scene's renderer follows; physically derived
-  powers, no fitting): the regression learns from it with the captures, and the iteration
-  places for it. The refit fits the captures only and reads the coverage views' G-buffers
-  alone: the VPLs that light their pixels no capture sees are held near their light-path
-  powers (``vplace.refit(..., coverage=...)``).
+  powers, no fitting): the iteration is held to it on the surfaces the captures did not see.
+  The refit fits the captures only and reads the coverage views' G-buffers alone: the VPLs
+  that light their pixels no capture sees are held near their light-path powers
+  (``vplace.refit(..., coverage=...)``).
 
 No Cycles render is made: a coverage view costs rays only (about ``size^2`` primary rays,
 ``samples`` shadow rays per pixel and emitter, and ``TARGET_VPLS`` shadow rays per pixel).
