@@ -374,16 +374,16 @@ impl Normal {
 
 /// The normal equations of each group of strided pixels (`groups`: the folds; with more than
 /// one, each keeps its cells' sums too), traced block by block; the progress counts the blocks
-/// of all groups and one step for the solve.
+/// of all groups and one step for the solve. `soa`: the VPLs with their near-field radii.
 fn normal_equations(
     scene: &Scene,
     sources: &[(GBuffer<'_>, &[f32])],
-    vpls: &[Vpl],
+    soa: &VplSoa,
     groups: &[Vec<(usize, usize)>],
     params: &RefitParams,
     progress: Option<&Progress>,
 ) -> Result<Vec<Normal>> {
-    let n = vpls.len();
+    let n = soa.len();
     // About 24 MB of rows per block (3 rows of n f64 per pixel), 128..1024 pixels.
     let block = ((1usize << 20) / n).clamp(128, 1024);
     let blocks: usize = groups.iter().map(|g| g.len().div_ceil(block)).sum();
@@ -391,14 +391,13 @@ fn normal_equations(
         p.total.store(blocks + 1, Ordering::Relaxed);
         p.done.store(0, Ordering::Relaxed);
     }
-    let soa = VplSoa::new(vpls, &near_field_radii(vpls, params.radius));
     let mut rows = vec![0.0f64; 3 * block * n];
     groups
         .iter()
         .map(|pixels| {
             let cells = groups.len() > 1;
             group_equations(
-                scene, sources, &soa, pixels, block, &mut rows, params, cells, progress,
+                scene, sources, soa, pixels, block, &mut rows, params, cells, progress,
             )
         })
         .collect()
@@ -999,9 +998,10 @@ pub fn refit_with_coverage(
         };
         groups[fold].push((v, p));
     }
-    let mut parts = normal_equations(scene, &sources, vpls, &groups, params, progress)?;
-    let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
+    // The VPLs with their near-field radii, once for the captures and the coverage views.
     let soa = VplSoa::new(vpls, &near_field_radii(vpls, params.radius));
+    let mut parts = normal_equations(scene, &sources, &soa, &groups, params, progress)?;
+    let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
     let (unseen, unseen_pixels) = unseen_weights(
         scene,
         views,
@@ -1665,7 +1665,7 @@ mod tests {
                 let sources = [(g, &target[..])];
                 let pairs: Vec<(usize, usize)> = pixels.iter().map(|&p| (0, p)).collect();
                 let groups = [pairs];
-                let ne = normal_equations(&scene, &sources, &vpls, &groups, &params, None)
+                let ne = normal_equations(&scene, &sources, &soa, &groups, &params, None)
                     .unwrap()
                     .remove(0);
                 assert_eq!(ne.rays, expect_rays);
