@@ -144,7 +144,7 @@ def _attribution_detail(a: dict[str, Any] | None) -> dict[str, str]:
     """What a target's detail adds from an EEVEE row's attribution (``vplace.job.Attribution``):
     whose part of the error it is, in words (empty without one)."""
     if not a:
-        return {"rmse": "", "ssim": ""}
+        return {"rmse": "", "ssim": "", "hot": ""}
     share = a["share"]
     seen = ""
     if math.isfinite(a.get("seen_share", math.nan)):
@@ -166,7 +166,23 @@ def _attribution_detail(a: dict[str, Any] | None) -> dict[str, str]:
         "ssim": f"; with Cycles' direct light under EEVEE's VPL light {a['ssim_cycles_direct']:.4f}"
         f", with the evaluator's VPL light over EEVEE's direct light "
         f"{a['ssim_evaluator_vpl']:.4f}",
+        "hot": _hot_swaps(
+            a,
+            "; with Cycles' direct light under EEVEE's VPL light {}, with the "
+            "evaluator's VPL light over EEVEE's direct light {}",
+            ".3%",
+        ),
     }
+
+
+def _hot_swaps(a: dict[str, Any], template: str, spec: str) -> str:
+    """``template`` filled with the hot-pixel shares of the attribution's two swaps (EEVEE's VPL
+    light over Cycles' direct light, the evaluator's over EEVEE's direct light); empty where
+    the attribution predates them."""
+    swaps = [a.get("hot_cycles_direct", math.nan), a.get("hot_evaluator_vpl", math.nan)]
+    if not all(math.isfinite(x) for x in swaps):
+        return ""
+    return template.format(*(format(x, spec) for x in swaps))
 
 
 def targets(rows: list[Row]) -> list[dict[str, Any]]:
@@ -289,7 +305,7 @@ def targets(rows: list[Row]) -> list[dict[str, Any]]:
                     shown.hot_pixels,
                     shown.hot_pixels <= HOT_SHARE,
                     f"EEVEE {shown.hot_pixels:.3%}, evaluator "
-                    f"{lights.get('hot_pixels', float('nan')):.3%}",
+                    f"{lights.get('hot_pixels', float('nan')):.3%}{parts['hot']}",
                 )
                 evaluated = lights["ssim"]
                 gap = evaluated - shown.ssim
@@ -656,6 +672,7 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
                 f"{r.hot_pixels:.2%} / {ev.hot_pixels:.2%}" if ev else f"{r.hot_pixels:.2%} / -",
                 f"{r.worst_share:.2f} / {ev.worst_share:.2f}" if ev else f"{r.worst_share:.2f}",
                 f"{a['vpl_hot_pixels']:.2%}",
+                _hot_swaps(a, "{} / {}", ".2%") or "-",
                 f"{a['ssim_cycles_direct']:.3f} / {a['ssim_evaluator_vpl']:.3f}",
                 _seen_cell(a),
                 _stand_in_cell(a),
@@ -666,6 +683,7 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
     header = ["lights", "RMSE: EEVEE / evaluator", "(a) direct", "(b) VPL light", "(c) rest"]
     header += ["direct: EEVEE / Cycles", "VPL light: EEVEE / evaluator"]
     header += ["hot pixels: EEVEE / evaluator", "worst 1 %: EEVEE / evaluator", "(b) hot"]
+    header += ["hot pixels without (a) / without (b)"]
     header += ["SSIM without (a) / without (b)", "(a) where emitters are seen"]
     header += ["(a): the stand-ins / EEVEE's rendering"]
     return [
@@ -676,8 +694,9 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
         "(c) the evaluator's own error. Brightness is mean luminance over mean luminance; hot "
         "pixels are brighter than twice the truth plus 0.05, worst 1 % is the share of the "
         "squared error in the worst 1 % of pixels, (b) hot counts EEVEE's VPL light against "
-        "the evaluator's. SSIM without (a) puts Cycles' direct light under EEVEE's VPL light, "
-        "without (b) the evaluator's VPL light over EEVEE's direct light. (a) where emitters "
+        "the evaluator's. SSIM and hot pixels without (a) put Cycles' direct light under "
+        "EEVEE's VPL light, without (b) the evaluator's VPL light over EEVEE's direct light: "
+        "hot pixels that go without (a) are EEVEE's direct light's. (a) where emitters "
         "are seen: the share of EEVEE's squared error that (a) holds in the pixels where the "
         "camera sees an emitter or the world (Cycles' emission and environment passes at least "
         "half its direct light there), and how many pixels those are: edges and patterns "

@@ -367,6 +367,14 @@ def test_targets_compare_held_out_views_with_the_fit_mean_and_eevee_with_the_sam
     )
     assert summary._stand_in_cell(a) == "+30% / +50%"
     assert summary._stand_in_cell({**a, "stand_in_share": float("nan")}) == "-"
+    # The hot-spot check says which swap takes its hot pixels away (none before the swaps).
+    name = "s A (fit): EEVEE's hot-spot pixels at most 0.1%"
+    assert "Cycles' direct light under" not in checks_of(rows, name)["detail"]
+    a.update(hot_cycles_direct=0.0001, hot_evaluator_vpl=0.002)
+    assert checks_of(rows, name)["detail"].endswith(
+        "; with Cycles' direct light under EEVEE's VPL light 0.010%, with the evaluator's VPL "
+        "light over EEVEE's direct light 0.200%"
+    )
 
 
 def checks_of(rows, name):

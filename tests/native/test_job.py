@@ -188,6 +188,9 @@ def test_attribution_splits_eevees_error_into_parts_that_add_up():
     # The hot spot holds most of the error and is the VPL light's only hot pixel.
     assert a.share["vpl"] > 0.5 and a.vpl_hot_pixels == pytest.approx(1 / (16 * 24))
     assert a.vpl_worst_share == pytest.approx(1.0)
+    # Its hot pixel stays with Cycles' direct light swapped in, and goes with the evaluator's
+    # VPL light swapped in: it is the VPL light's, not the direct light's.
+    assert a.hot_cycles_direct == pytest.approx(1 / (16 * 24)) and a.hot_evaluator_vpl == 0.0
     # Each swap leaves the other part's error: neither image is the truth.
     assert 0.9 < a.ssim_evaluator_vpl < 1.0 and 0.9 < a.ssim_cycles_direct < 1.0
     # EEVEE equal to the evaluator: no VPL part, the rest is all.

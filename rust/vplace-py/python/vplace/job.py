@@ -268,6 +268,12 @@ class Attribution:
     #: film and texture filtering. ``stand_in_rmse`` is the first's RMSE; NaN without.
     stand_in_share: float = float("nan")
     stand_in_rmse: float = float("nan")
+    #: :func:`outliers`' hot-pixel share of the same two swaps as ``ssim_cycles_direct`` and
+    #: ``ssim_evaluator_vpl``: EEVEE's VPL light over Cycles' direct light (the hot pixels that
+    #: stay are the VPL light's), and EEVEE's direct light plus the evaluator's VPL light (those
+    #: that stay are EEVEE's direct light's or the evaluator's own).
+    hot_cycles_direct: float = float("nan")
+    hot_evaluator_vpl: float = float("nan")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready."""
@@ -416,6 +422,8 @@ def attribute(
         seen_share=share_of(parts["direct"] * seen[..., None]) if seen is not None else math.nan,
         stand_in_share=share_of(model) if model is not None else math.nan,
         stand_in_rmse=float(np.sqrt((model * model).mean())) if model is not None else float("nan"),
+        hot_cycles_direct=outliers(cd + ve, t)["hot_pixels"],
+        hot_evaluator_vpl=outliers(ed + vx, t)["hot_pixels"],
     )
 
 
