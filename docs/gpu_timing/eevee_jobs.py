@@ -17,8 +17,10 @@ The cache keys an EEVEE render by the GPU that renders it (``eevee_render.gpu_re
 ``collect`` and ``strict`` key theirs by ``--gpu LABEL`` (default ``gpu-job``) instead of this
 machine's: the GPU's images never answer for this machine's own renders, nor the other way
 round. ``render_jobs.py`` writes the GPU's own name beside each render's time. EEVEE renders the
-   add-on does not cache (the animation's volume rows) are cached in ``JOBS/uncached`` for
-   this; ingest those there.
+add-on does not cache (the animation's volume rows) are cached for this in
+``JOBS/uncached/NNNN``, one folder per such render in the order the run makes them: their key
+does not hold the light probe's bake, so a volume baked once and one baked again at that frame
+would share it. ``ingest`` puts those where the line of ``jobs.jsonl`` says.
 
 Run with the repository's ``.venv/bin/python`` from the repository root. Not part of the
 add-on; CI never runs it.
@@ -58,6 +60,7 @@ def main() -> int:
     jobs.mkdir(parents=True, exist_ok=True)
     original_render, original_op = er.render, er.run_operator
     current: dict = {}
+    uncached = [0]
 
     def op(name: str, what: str, error: type = addon_errors.AddonError, **kw: Any) -> Any:
         if name != "render.render" or not current:
@@ -86,8 +89,12 @@ def main() -> int:
     ) -> er.EeveeImage:
         kw = dict(resolution=resolution, camera=camera, samples=samples, setup=setup, seed=seed)
         engine = setup.engine if setup is not None else eevee_engine()
+        own_dir = None
         if cache_dir is None and engine != "CYCLES":  # an uncached render: cached here
-            cache_dir = jobs / "uncached"
+            own_dir = f"uncached/{uncached[0]:04d}"
+            uncached[0] += 1
+            cache_dir = jobs / own_dir
+            cache_dir.mkdir(parents=True, exist_ok=True)
         if engine == "CYCLES" or cache_dir is None:
             return original_render(scene, cache_dir=cache_dir, **kw)
         cam = camera if camera is not None else scene.camera
@@ -97,6 +104,8 @@ def main() -> int:
         if mode == "strict":
             raise RuntimeError(f"EEVEE render {key} ({setup and setup.name}) is not cached")
         current.update(key=key, setup=setup.name if setup else "scene", camera=cam.name)
+        if own_dir is not None:  # its own file names: two such renders can share a key
+            current.update(key=f"{key}-{own_dir[-4:]}", cache_key=key, cache_dir=own_dir)
         try:
             return original_render(scene, cache_dir=cache_dir, **kw)
         except Deferred:
@@ -110,7 +119,14 @@ def main() -> int:
 
 
 def ingest(jobs: Path, exrs: Path, cache: Path) -> int:
-    """Each ``exrs/<key>.exr`` (with ``exrs/times.jsonl``) as the cache entry ``render-<key>``."""
+    """Each ``exrs/<name>.exr`` (with ``exrs/times.jsonl``) as the cache entry of its job:
+    ``render-<key>`` in ``cache``, or, for a render the add-on does not cache, in the job's own
+    folder under ``jobs`` that its line names (with the key it was made under)."""
+    where = {}
+    for line in (jobs / "jobs.jsonl").read_text().splitlines():
+        d = json.loads(line)
+        if "cache_dir" in d:
+            where[d["key"]] = (jobs / d["cache_dir"], d["cache_key"])
     seconds, gpus = {}, set()
     for line in (exrs / "times.jsonl").read_text().splitlines():
         d = json.loads(line)
@@ -118,11 +134,12 @@ def ingest(jobs: Path, exrs: Path, cache: Path) -> int:
         gpus.add(d.get("gpu", "?"))
     n = 0
     for exr in sorted(exrs.glob("*.exr")):
-        key = exr.stem
-        if key not in seconds:
+        name = exr.stem
+        if name not in seconds:
             continue
+        folder, key = where.get(name, (cache, name))
         image = er.read_exr_rgb(exr)
-        np.savez(cache / f"render-{key}.npz", image=image, seconds=seconds[key])
+        np.savez(folder / f"render-{key}.npz", image=image, seconds=seconds[name])
         n += 1
     print(f"ingested {n} of {len(list((jobs).glob('*.blend')))} jobs into {cache}")
     print(f"rendered on: {'; '.join(sorted(gpus))}")
