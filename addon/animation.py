@@ -727,7 +727,42 @@ def animation_report(summary: AnimationSummary) -> str:
         f"for the {len(summary.costs)} captured frames ({summary.keyed_layout_seconds / n:.2f} "
         "s a frame; `lay_out_frames`).",
     ]
+    if summary.costs:
+        lines += ["", captured_frame_cost(summary)]
     return "\n".join(lines) + "\n"
+
+
+#: Issue 23's yardstick for a captured frame's one-time cost: one Cycles + OIDN frame at this
+#: many samples, of the same size.
+COST_SAMPLES = 16
+
+
+def captured_frame_cost(summary: AnimationSummary) -> str:
+    """One sentence: what a captured frame of the keyed lights costs once (the captures' Cycles
+    render as first rendered, and the frame's share of the keyed layout; as the still report
+    counts a camera's captures, fit, layout and refit), against a Cycles + OIDN frame of
+    :data:`COST_SAMPLES` spp where the run rendered one, and the export's wall time beside it."""
+    n = max(len(summary.costs), 1)
+    render = sum(c.capture_render_seconds for c in summary.costs) / n
+    keyed = summary.keyed_layout_seconds / n
+    once = render + keyed
+    text = (
+        f"A captured frame of the keyed lights costs {once:.2f} s once: the captures' Cycles "
+        f"render ({render:.2f} s, as first rendered) and its share of the keyed layout "
+        f"({keyed:.2f} s)"
+    )
+    cycles = summary.seconds_per_frame.get(cycles_kind(COST_SAMPLES), float("nan"))
+    if np.isfinite(cycles) and cycles > 0:
+        text += (
+            f", {once / cycles:.2f}x a Cycles + OIDN {COST_SAMPLES} spp frame of this size "
+            f"({cycles:.2f} s; at most 1x is the aim)"
+        )
+    export = sum(c.prepare_seconds for c in summary.costs) / n
+    return text + (
+        f". The export and capture's wall time comes beside it ({export:.2f} s a frame in this "
+        "run; the captures' render is in it where they were not cached, and so is the bake of "
+        "a world the add-on bakes)."
+    )
 
 
 def plot_animation(summary: AnimationSummary, path: Path) -> Path:

@@ -396,8 +396,31 @@ def test_report_animate_scores_every_frame_and_plots_them(tmp_path):
     lines = (out / "results.csv").read_text().splitlines()
     assert "ssim_noise_free" in lines[0].split(",")
     assert sorted({int(r.split(",")[0]) for r in lines[1:]}) == [1, 2, 3]
-    assert "the truth, another seed" in (out / "animation.md").read_text()
+    md = (out / "animation.md").read_text()
+    assert "the truth, another seed" in md
+    # The one-time cost of a captured frame is stated; no 16 spp frame here to weigh it against.
+    assert "A captured frame of the keyed lights costs" in md and "spp frame of" not in md
     assert (out / "animation.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_a_captured_frames_cost_is_weighed_against_a_cycles_frame():
+    """Issue 23's yardstick: a captured frame's captures and keyed layout against one Cycles +
+    OIDN 16 spp frame, the export's wall time beside it."""
+    costs = [animation.FrameCost(1, 0.9, 0.6, 0.25), animation.FrameCost(5, 0.7, 0.4, 0.25)]
+    summary = animation.AnimationSummary(
+        "s", [1, 5], [1, 5], [16, 9], 8, 8, "t", costs=costs, keyed_layout_seconds=0.2,
+        seconds_per_frame={animation.cycles_kind(16): 0.4},
+    )  # fmt: skip
+    text = animation.captured_frame_cost(summary)
+    assert text.startswith(
+        "A captured frame of the keyed lights costs 0.60 s once: the captures' Cycles render "
+        "(0.50 s, as first rendered) and its share of the keyed layout (0.10 s), 1.50x a "
+        "Cycles + OIDN 16 spp frame of this size (0.40 s; at most 1x is the aim)."
+    )
+    assert "(0.80 s a frame in this run;" in text
+    assert text in animation.animation_report(summary)
+    del summary.seconds_per_frame[animation.cycles_kind(16)]
+    assert "spp frame" not in animation.captured_frame_cost(summary)
 
 
 def test_eevees_own_gi_is_scored_with_the_worlds_sun_as_the_users_lamp():
