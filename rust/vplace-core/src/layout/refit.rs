@@ -1345,10 +1345,6 @@ mod tests {
         }
     }
 
-    /// The captures' gain: on a target that is every VPL at 2.5 times its power, the refit
-    /// pulling toward the gain (taken by the cross-validation) gives every VPL 2.5, the one no
-    /// pixel sees too; pulling toward 1 leaves that one at 1. On a target the powers already
-    /// match, the gain is 1.
     /// The floor view's pixels lifted onto the test box's ceiling (facing down): a view of
     /// surfaces the floor camera, at z = 1.9 looking down, cannot see.
     fn ceiling_view(fv: &FloorView) -> View {
@@ -1424,6 +1420,10 @@ mod tests {
         }
     }
 
+    /// The captures' gain: on a target that is every VPL at 2.5 times its power, the refit
+    /// pulling toward the gain (taken by the cross-validation) gives every VPL 2.5, the one no
+    /// pixel sees too; pulling toward 1 leaves that one at 1. On a target the powers already
+    /// match, the gain is 1.
     #[test]
     fn the_gain_carries_the_captures_total_to_unseen_vpls() {
         let scene = closed_box(vec![]);
