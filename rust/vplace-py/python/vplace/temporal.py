@@ -195,38 +195,15 @@ def track(sets: Sequence[vplace.VplSet], diagonal: float) -> Keyed:
         for v in sets
     )
     # Per slot: frame -> VPL index.
-    members: list[dict[int, int]] = []
     if shared:
+        members: list[dict[int, int]] = []
         lit_sets = [set(lit.tolist()) for lit in lit_of]
         for i in range(len(sets[0])):
             got = {f: i for f, lit in enumerate(lit_sets) if i in lit}
             if got:
                 members.append(got)
-    slot_pos: list[np.ndarray] = []
-    slot_nrm: list[np.ndarray] = []
-    slot_rad: list[float] = []
-    for f, vpls in enumerate(sets if not shared else []):
-        lit = lit_of[f]
-        pos = np.asarray(vpls.position, dtype=np.float64)[lit]
-        nrm = np.asarray(vpls.normal, dtype=np.float64)[lit]
-        rad = own[f][lit]
-        if slot_pos:
-            cost = _cost(
-                np.array(slot_pos), np.array(slot_nrm), np.array(slot_rad), pos, nrm, rad, diagonal
-            )
-            match = greedy_match(cost)
-        else:
-            match = np.full(len(lit), -1, dtype=np.int64)
-        for j, i in enumerate(lit):
-            s = int(match[j])
-            if s < 0:
-                s = len(members)
-                members.append({})
-                slot_pos.append(pos[j])
-                slot_nrm.append(nrm[j])
-                slot_rad.append(float(rad[j]))
-            members[s][f] = int(i)
-            slot_pos[s], slot_nrm[s], slot_rad[s] = pos[j], nrm[j], float(rad[j])
+    else:
+        members = _match_by_position(sets, lit_of, own, diagonal)
     frames, slots = len(sets), len(members)
     position = np.zeros((frames, slots, 3))
     normal = np.zeros((frames, slots, 3))
@@ -252,6 +229,44 @@ def track(sets: Sequence[vplace.VplSet], diagonal: float) -> Keyed:
                 flux[f, s] = vpls.flux[i]
                 index[f, s] = i
     return Keyed(position, normal, power, flux, index, held, profile, radius, radii, list(sets))
+
+
+def _match_by_position(
+    sets: Sequence[vplace.VplSet],
+    lit_of: Sequence[np.ndarray],
+    own: Sequence[np.ndarray],
+    diagonal: float,
+) -> list[dict[int, int]]:
+    """:func:`track`'s slots of sets laid out on their own: frame by frame, each lit VPL
+    (``lit_of[f]``, radii ``own[f]``) matched to a slot where the slot's last VPL stood
+    (:func:`greedy_match`), else a new slot. Per slot: frame -> VPL index."""
+    members: list[dict[int, int]] = []
+    slot_pos: list[np.ndarray] = []
+    slot_nrm: list[np.ndarray] = []
+    slot_rad: list[float] = []
+    for f, vpls in enumerate(sets):
+        lit = lit_of[f]
+        pos = np.asarray(vpls.position, dtype=np.float64)[lit]
+        nrm = np.asarray(vpls.normal, dtype=np.float64)[lit]
+        rad = own[f][lit]
+        if slot_pos:
+            cost = _cost(
+                np.array(slot_pos), np.array(slot_nrm), np.array(slot_rad), pos, nrm, rad, diagonal
+            )
+            match = greedy_match(cost)
+        else:
+            match = np.full(len(lit), -1, dtype=np.int64)
+        for j, i in enumerate(lit):
+            s = int(match[j])
+            if s < 0:
+                s = len(members)
+                members.append({})
+                slot_pos.append(pos[j])
+                slot_nrm.append(nrm[j])
+                slot_rad.append(float(rad[j]))
+            members[s][f] = int(i)
+            slot_pos[s], slot_nrm[s], slot_rad[s] = pos[j], nrm[j], float(rad[j])
+    return members
 
 
 def shared_layout(
