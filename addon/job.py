@@ -31,6 +31,7 @@ import bpy
 import numpy as np
 
 from .capture import passes as capture
+from .capture.native_view import vpl_unlit
 from .capture.stage import (
     Captured,
     ReferenceRender,
@@ -167,6 +168,11 @@ class Prepared:
     #: The written VPLs' specular factor, decided on the captures (``Captured.specular``,
     #: ``capture.native_view.vpl_specular``; 0: no glossy layer modelled, ``gloss`` all None).
     vpl_specular: float = 0.0
+
+    @property
+    def vpl_unlit(self) -> list[str]:
+        """The objects the written VPLs do not light (``capture.native_view.vpl_unlit``)."""
+        return vpl_unlit(self.exported, self.vpl_specular)
 
     @property
     def capture(self) -> capture.Capture:

@@ -1,5 +1,6 @@
-"""A capture as a ``vplace.View``, the mask of the pixels whose glossy layer vplace models, and
-whether it models them at all (the written VPLs' specular factor)."""
+"""A capture as a ``vplace.View``, the mask of the pixels whose glossy layer vplace models,
+whether it models them at all (the written VPLs' specular factor), and the objects the written
+VPLs must not light."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..native import vplace
+from ..scene.export import ROUGH_GLOSS
 
 if TYPE_CHECKING:
     from ..scene.export import ExportedScene
@@ -19,14 +21,24 @@ def gloss_mask(scene: vplace.Scene, exported: ExportedScene, cap: Capture) -> np
     """(H, W) float32: 1 where the pixel's surface has a glossy layer vplace models (rough:
     ``export.ROUGH_GLOSS``), 0 where it is left to EEVEE's ray tracing; None when no material
     has a rough glossy layer. A surface without a glossy layer has a black Glossy Color pass, so
-    only a scene with sharp layers needs to know which surface each pixel sees: a short ray
-    along the view direction finds it in ``scene``."""
+    only a scene with sharp layers needs to know which surface each pixel sees
+    (:func:`pixel_materials`)."""
     rough, sharp = exported.rough_gloss, exported.sharp_gloss
     if not rough.any():
         return None
     mask = cap.covered.astype(np.float32)
     if not sharp.any():
         return mask
+    mat = pixel_materials(scene, exported, cap)
+    mask[cap.covered] = np.where((mat >= 0) & sharp[np.maximum(mat, 0)], 0.0, 1.0)[cap.covered]
+    return mask
+
+
+def pixel_materials(scene: vplace.Scene, exported: ExportedScene, cap: Capture) -> np.ndarray:
+    """(H, W) int64: the index into ``exported.materials`` of the surface each covered pixel
+    sees, -1 where none is found (and where the pixel is not covered): a short ray along the
+    view direction from just in front of the pixel's position finds it in ``scene``."""
+    out = np.full(cap.covered.shape, -1, dtype=np.int64)
     ys, xs = np.nonzero(cap.covered)
     target = cap.position[ys, xs].astype(np.float32)
     look = target - np.asarray(cap.camera_position, dtype=np.float32)
@@ -36,12 +48,12 @@ def gloss_mask(scene: vplace.Scene, exported: ExportedScene, cap: Capture) -> np
         np.ascontiguousarray(target - back * look), np.ascontiguousarray(look)
     )
     hit = tri >= 0
-    mat = exported.material_ids[np.where(hit, tri, 0)]
-    mask[ys, xs] = np.where(hit & sharp[mat], 0.0, 1.0)
-    return mask
+    out[ys, xs] = np.where(hit, exported.material_ids[np.where(hit, tri, 0)].astype(np.int64), -1)
+    return out
 
 
 def vpl_specular(
+    scene: vplace.Scene,
     exported: ExportedScene,
     captures: Sequence[Capture],
     masks: Sequence[np.ndarray | None],
@@ -50,25 +62,95 @@ def vpl_specular(
     :func:`gloss_mask`; with 0 vplace models no glossy layer (the callers then pass no mask),
     so the evaluator shows what EEVEE does.
 
-    EEVEE gives a light's specular to every surface alike. On a rough glossy layer
+    EEVEE gives a light's specular to every surface it lights alike. On a rough glossy layer
     (``export.ROUGH_GLOSS``) it is the broad glossy bounce the evaluator counts. On a sharp one,
     left to EEVEE's ray tracing (which already reflects the lit room), each VPL's disk shows as
     a mirrored spot: on a floor of roughness 0.15 seen at a grazing angle, 0.42 % of the pixels
     hot (ARCHITECTURE.md, "Glossy light"). So the factor is 1 when some material has a rough
     glossy layer and the captured views show at least as much glossy indirect light (Cycles'
-    Glossy Indirect x Glossy Color, luminance) on rough layers as on sharp ones; else 0."""
+    Glossy Indirect x Glossy Color, luminance) on rough layers as on the sharp ones the VPLs
+    would light; else 0. The objects :func:`vpl_unlit` leaves out with the factor 1 (metal,
+    glass) do not count: the VPLs light them not at all."""
     if not exported.rough_gloss.any():
         return 0.0
     if not exported.sharp_gloss.any():
         return 1.0
+    spared = spared_materials(exported)
     lum = np.asarray(vplace.LUMINANCE, dtype=np.float32)
     rough = sharp = 0.0
     for cap, mask in zip(captures, masks, strict=True):
         assert mask is not None  # some layer is rough
         glossy = (cap.glossy_indirect * cap.glossy_color)[..., :3] @ lum
         rough += float(glossy[cap.covered & (mask > 0)].sum())
-        sharp += float(glossy[cap.covered & (mask == 0)].sum())
+        lit = cap.covered & (mask == 0)
+        if spared.any():
+            mat = pixel_materials(scene, exported, cap)
+            lit &= ~((mat >= 0) & spared[np.maximum(mat, 0)])
+        sharp += float(glossy[lit].sum())
     return 1.0 if rough >= sharp else 0.0
+
+
+#: A sharp glossy object is left unlit by the VPLs (:func:`vpl_unlit`) when its diffuse albedo
+#: is at most this fraction of its glossy layer's reflectance (both their luminance): what the
+#: object then loses of the VPLs' diffuse light, which the evaluator counts, is at most 2 % of
+#: the highlights it is spared, which the evaluator does not count. Metal and glass have none.
+UNLIT_DIFFUSE = 0.02
+
+
+def _dark_sharp(exported: ExportedScene) -> np.ndarray:
+    """(M,) bool: the materials with a sharp glossy layer and next to no diffuse albedo
+    (:data:`UNLIT_DIFFUSE`)."""
+    lum = np.asarray(vplace.LUMINANCE, dtype=np.float64)
+    return np.array(
+        [
+            m.gloss_roughness is not None
+            and m.gloss_roughness < ROUGH_GLOSS
+            and m.gloss is not None
+            and float(np.dot(m.albedo, lum)) <= UNLIT_DIFFUSE * float(np.dot(m.gloss, lum))
+            for m in exported.materials
+        ],
+        dtype=bool,
+    )
+
+
+def _unlit(exported: ExportedScene) -> list[str]:
+    """The objects whose every material is :func:`_dark_sharp`."""
+    dark = _dark_sharp(exported)
+    return sorted(
+        name
+        for name, mats in exported.object_materials.items()
+        if mats and all(dark[m] for m in mats)
+    )
+
+
+def spared_materials(exported: ExportedScene) -> np.ndarray:
+    """(M,) bool: the materials only :func:`_unlit` objects show (no other object, no
+    instance)."""
+    out = _dark_sharp(exported)
+    unlit = set(_unlit(exported))
+    for name, mats in exported.object_materials.items():
+        if name not in unlit:
+            out[list(mats)] = False
+    out[list(exported.instanced_materials)] = False
+    return out
+
+
+def vpl_unlit(exported: ExportedScene, specular: float) -> list[str]:
+    """The objects the written VPLs must not light (``apply.write_vpls``' ``unlit``: a Light
+    Linking receiver collection that excludes them): with specular factor ``specular`` > 0,
+    each object of ``exported.object_materials`` whose every material has a sharp glossy layer
+    (``export.sharp_gloss``) and next to no diffuse albedo (:data:`UNLIT_DIFFUSE`): chrome,
+    polished metal, glass.
+
+    The evaluator counts no VPL light on such a surface (its reflectance is the Diffuse Color
+    pass, black on a metal; the sharp layer is left to EEVEE's ray tracing). EEVEE gives it
+    each VPL's specular all the same: a bright mirrored disk per VPL where the truth reflects
+    the lit room (a metal cube of roughness 0.3 in a studio whose floor and walls are rough
+    enough for specular 1: 1.02 % of a held-out view's pixels hot, 68 % of its squared error in
+    EEVEE's VPL light). Unlit, it shows what the evaluator computed, and its reflection is
+    EEVEE's ray tracing's (``eevee_setup.set_up``). Objects drawn as instances are lit as
+    before (``export.ExportedScene.object_materials``)."""
+    return _unlit(exported) if specular > 0.0 else []
 
 
 def view_of(

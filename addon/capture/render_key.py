@@ -269,6 +269,25 @@ _RAY_VISIBILITY = (
 )
 
 
+def _linking_signature(obj: bpy.types.Object) -> list[object]:
+    """An object's Light Linking (Blender 4.0 on): the objects and collections its receiver and
+    blocker collections hold, each with its link state."""
+    linking = getattr(obj, "light_linking", None)
+    out: list[object] = []
+    for attr in ("receiver_collection", "blocker_collection"):
+        coll = getattr(linking, attr, None) if linking is not None else None
+        if coll is None:
+            out.append(None)
+            continue
+        pairs = [
+            *zip(coll.objects, coll.collection_objects, strict=True),
+            *zip(coll.children, coll.collection_children, strict=True),
+        ]
+        entries = [(member.name_full, e.light_linking.link_state) for member, e in pairs]
+        out.append((coll.name_full, sorted(entries)))
+    return out
+
+
 def scene_signature(
     scene: bpy.types.Scene,
     engine: str,
@@ -293,6 +312,9 @@ def scene_signature(
         h.update(repr((obj.name_full, obj.type, [list(r) for r in matrix])).encode())
         h.update(data_signature(obj, done).encode())
         h.update(repr([getattr(obj, k, None) for k in _RAY_VISIBILITY]).encode())
+        linking = _linking_signature(obj)
+        if any(linking):  # (objects without keep the keys they had before it was hashed)
+            h.update(repr(linking).encode())
         for slot in getattr(obj, "material_slots", ()):
             if slot.material is not None:
                 materials[slot.material.name_full] = slot.material

@@ -19,7 +19,7 @@ import numpy as np
 from ..errors import CaptureError
 from ..native import vplace
 from ..scene.export import ExportedScene
-from .native_view import gloss_mask, view_of, vpl_specular
+from .native_view import gloss_mask, spared_materials, view_of, vpl_specular
 from .passes import Capture, capture
 from .views import ViewSpec
 
@@ -117,9 +117,10 @@ def capture_views(
             + "): aim the camera at the scene"
         )
     masks = [gloss_mask(scene, exported, c) for c in captures]
-    specular = vpl_specular(exported, captures, masks)
+    specular = vpl_specular(scene, exported, captures, masks)
     if not specular and exported.rough_gloss.any():
-        sharp = [m.name for m, s in zip(exported.materials, exported.sharp_gloss, strict=True) if s]
+        lit = exported.sharp_gloss & ~spared_materials(exported)
+        sharp = [m.name for m, s in zip(exported.materials, lit, strict=True) if s]
         log(
             "[vplace] note: the written VPLs have no specular: the sharp glossy layers (e.g. "
             f"{sharp[0]!r}) show more glossy light in the captures than the rough ones, and "

@@ -643,6 +643,7 @@ class _EeveeRun:
             scene_diagonal=prepared.scene.scale,
             region=prepared.scene.region,
             specular=prepared.vpl_specular,
+            unlit=prepared.vpl_unlit,
             emitters=[e for e in prepared.stand_ins.emitters if portals or not e.portal],
             sun=prepared.stand_ins.sun,
             closed=prepared.stand_ins.closed,

@@ -191,6 +191,11 @@ class ExportedScene:
     light_bounces: tuple[int, int, int] | None = None
     #: Metres per Blender unit (:func:`unit_scale`): every length here is in Blender units.
     unit_scale: float = 1.0
+    #: The indices into ``materials`` that each object's exported faces show, by object name;
+    #: only objects exported as themselves (one drawn also as an instance is left out) ...
+    object_materials: dict[str, tuple[int, ...]] = field(default_factory=dict)
+    #: ... and those the instances' faces show.
+    instanced_materials: tuple[int, ...] = ()
 
     @property
     def albedo(self) -> np.ndarray:
@@ -563,6 +568,8 @@ class _Exporter:
         self.parts: list[_Part] = []
         self.lights: list[LightInfo] = []
         self.names: list[str] = []
+        self.object_materials: dict[str, set[int]] = {}
+        self.instanced: dict[str, set[int]] = {}
         self.warnings: list[str] = []
         self._warned: set[str] = set()
 
@@ -624,6 +631,9 @@ class _Exporter:
         if part is not None:
             self.parts.append(part)
             self.names.append(original.name)
+            used = np.unique(part.material_ids).tolist()
+            shown = self.instanced if inst.is_instance else self.object_materials
+            shown.setdefault(original.name, set()).update(used)
 
     def _check_linking(self, obj: bpy.types.Object) -> None:
         """A warning for light or shadow linking (Blender 4.0 on): Cycles' captures follow it;
@@ -798,6 +808,19 @@ class _Exporter:
             warnings=self.warnings,
             light_bounces=self.bounces(scene),
             unit_scale=unit_scale(scene),
+            object_materials={
+                name: tuple(sorted(mats))
+                for name, mats in self.object_materials.items()
+                if name not in self.instanced
+            },
+            instanced_materials=tuple(
+                sorted(
+                    set().union(
+                        *self.instanced.values(),
+                        *(m for n, m in self.object_materials.items() if n in self.instanced),
+                    )
+                )
+            ),
         )
 
     def bounces(self, scene: bpy.types.Scene) -> tuple[int, int, int]:

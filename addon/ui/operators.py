@@ -206,6 +206,7 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
             scene_diagonal=self.prepared.scene.scale,
             region=self.prepared.scene.region,
             specular=self.prepared.vpl_specular,
+            unlit=self.prepared.vpl_unlit,
             emitters=self.prepared.stand_ins.emitters,
             sun=self.prepared.stand_ins.sun,
             closed=self.prepared.stand_ins.closed,

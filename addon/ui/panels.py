@@ -8,7 +8,7 @@ from typing import Any
 import bpy
 
 from ..native import vplace
-from ..writeback import eevee_setup
+from ..writeback import apply, eevee_setup
 
 
 class _Panel:
@@ -90,6 +90,13 @@ class VPLACE_PT_main(_Panel, bpy.types.Panel):
                 text=f"{len(lamps)} lamp(s) with soft shadows, no jitter (e.g. {lamps[0]!r}):"
             )
             box.label(text="  noisier than Cycles; Light > Shadow > Jitter (slower)")
+        unlit = apply.unlit_objects() if written else []
+        if unlit:  # native_view.vpl_unlit: sharp metal and glass
+            box = layout.box()
+            box.label(text="Not lit by the VPLs (Light Linking):", icon="INFO")
+            more = f" and {len(unlit) - 1} more" if len(unlit) > 1 else ""
+            box.label(text=f"  {unlit[0]!r}{more}: sharp metal or glass,")
+            box.label(text="  reflecting the room through EEVEE's ray tracing")
         layout.operator("vplace.report", icon="TEXT")
         layout.operator("vplace.bake_par2d", icon="IMAGE_DATA")
         report = vplace.job.PanelReport.from_json(settings.last_report)

@@ -47,6 +47,11 @@ ones the evaluator renders (``vplace.VplSet`` carries profile and near-field rad
   (when it lights at least 0.1 % of some captured view: else it only adds EEVEE's shadow
   leaks), shadowed; EEVEE must then not extract the sun from the world itself (its sun threshold 0,
   what "Set up EEVEE for vplace" and the scored renders set).
+- Objects the VPLs must not light (``unlit``: ``capture.native_view.vpl_unlit``, sharp metal
+  and glass when the VPLs have specular): every VPL light's Light Linking receiver collection
+  (:data:`UNLIT_SUFFIX`, not linked to the scene, marked as vplace's) holds them as excluded.
+  The user's objects are linked into it and nothing of them changes; re-running replaces it
+  with the VPL collection. The stand-ins keep lighting them (Cycles' direct light does).
 - VPLs whose refitted power is zero are not written (a light that gives nothing still costs
   EEVEE a shadow map); each light keeps its VPL's index as ``vplace_index``.
 """
@@ -109,6 +114,8 @@ SHADOW_PAGES = {"AREA": 5, "POINT": 6}
 #: ``SHADOW_MAX_PAGE``: 4,096 pages).
 POOL_PAGES_PER_MB = 4
 MAX_POOL_PAGES = 4096
+#: The name of the VPL lights' receiver collection is the VPL collection's plus this.
+UNLIT_SUFFIX = " (not lit by VPLs)"
 #: The most VPL lights written with a shadow (the brightest): what the largest pool holds, with
 #: room for the user's own lights.
 MAX_SHADOWED_VPLS = 768
@@ -144,7 +151,9 @@ def clear_vpls(name: str = COLLECTION_NAME) -> int:
 
 
 def remove_collection(coll: bpy.types.Collection) -> int:
-    """Removes a vplace collection with the objects and lights vplace made in it."""
+    """Removes a vplace collection with the objects and lights vplace made in it, and the
+    receiver collection of its lights (:func:`exclude_receivers`; the objects in it stay)."""
+    receivers = _receivers(coll)
     count = 0
     for obj in list(coll.objects):
         if not obj.get(VPL_MARKER, False):
@@ -174,6 +183,8 @@ def remove_collection(coll: bpy.types.Collection) -> int:
                 bpy.data.actions.remove(action)
         count += 1
     bpy.data.collections.remove(coll)
+    if receivers is not None:
+        bpy.data.collections.remove(receivers)
     return count
 
 
@@ -346,16 +357,18 @@ def write_vpls(
     sun: SunLight | None = None,
     region: Region | None = None,
     closed: bool = False,
+    unlit: Sequence[str] = (),
     name: str = COLLECTION_NAME,
 ) -> bpy.types.Collection:
     """Writes the VPLs of ``vpls`` that carry power as lights (by its profile and near-field
     radius) in a fresh VPL collection linked to ``scene``; with ``shadows``, the
     :data:`MAX_SHADOWED_VPLS` brightest cast shadows; ``specular`` is their specular factor
-    (``Prepared.vpl_specular``); ``emitters`` are written beside them, lights that stand in
-    for emissive meshes EEVEE does not light with (``emitter_lights``), and ``sun``, a SUN light
-    for the world's sun (``emitter_lights.world_sun``). ``region`` (``vplace.Scene.region``)
-    is kept on the collection (:data:`REGION_KEY`), and ``closed``, a closed room
-    (``StandIns.closed``; :data:`CLOSED_KEY`). See the module docs."""
+    (``Prepared.vpl_specular``) and ``unlit`` the objects they do not light
+    (``Prepared.vpl_unlit``, :func:`exclude_receivers`); ``emitters`` are written beside them,
+    lights that stand in for emissive meshes EEVEE does not light with (``emitter_lights``),
+    and ``sun``, a SUN light for the world's sun (``emitter_lights.world_sun``). ``region``
+    (``vplace.Scene.region``) is kept on the collection (:data:`REGION_KEY`), and ``closed``,
+    a closed room (``StandIns.closed``; :data:`CLOSED_KEY`). See the module docs."""
     n = len(vpls)
     if n > MAX_VPLS:
         raise WriteBackError(
@@ -391,10 +404,60 @@ def write_vpls(
             _new_emitter_object(coll, j, e, CUTOFF_DIAGONALS * scene_diagonal, shadows)
         if sun is not None:
             new_sun_object(coll, sun)
+        exclude_receivers(coll, unlit)
     except BaseException:
         remove_collection(coll)
         raise
+    replace_collection(scene, coll, name)
+    return coll
+
+
+def exclude_receivers(coll: bpy.types.Collection, unlit: Sequence[str]) -> None:
+    """Makes the VPL lights of ``coll`` (those with a ``vplace_index``) light every object
+    but ``unlit`` (object names; those not in the file are skipped): a Light Linking receiver
+    collection, new, unlinked and marked as vplace's, holds them excluded. No collection when
+    nothing is left out."""
+    objects = [bpy.data.objects[n] for n in unlit if n in bpy.data.objects]
+    if not objects:
+        return
+    receivers = bpy.data.collections.new(coll.name + UNLIT_SUFFIX)
+    receivers[VPL_MARKER] = True
+    for obj in objects:
+        receivers.objects.link(obj)
+    for entry in receivers.collection_objects:
+        entry.light_linking.link_state = "EXCLUDE"
+    for obj in coll.objects:
+        if obj.get("vplace_index") is not None:
+            obj.light_linking.receiver_collection = receivers
+
+
+def unlit_objects(coll: bpy.types.Collection | None = None) -> list[str]:
+    """The names of the objects the VPL lights of ``coll`` (default: the VPL collection, if
+    vplace wrote it) do not light (:func:`exclude_receivers`)."""
+    if coll is None:
+        coll = bpy.data.collections.get(COLLECTION_NAME)
+        if coll is None or not coll.get(VPL_MARKER, False):
+            return []
+    receivers = _receivers(coll)
+    return sorted(o.name for o in receivers.objects) if receivers is not None else []
+
+
+def _receivers(coll: bpy.types.Collection) -> bpy.types.Collection | None:
+    """The receiver collection vplace made for the VPL lights of ``coll``, if any."""
+    for obj in coll.objects:
+        linking = getattr(obj, "light_linking", None)
+        found = linking.receiver_collection if linking is not None else None
+        if found is not None and found.get(VPL_MARKER, False):
+            return found
+    return None
+
+
+def replace_collection(scene: bpy.types.Scene, coll: bpy.types.Collection, name: str) -> None:
+    """Replaces the VPL collection ``name`` (and its receiver collection) with ``coll``, just
+    written unlinked, and links it to ``scene``."""
     clear_vpls(name)
     coll.name = name
+    receivers = _receivers(coll)
+    if receivers is not None:
+        receivers.name = name + UNLIT_SUFFIX
     scene.collection.children.link(coll)
-    return coll

@@ -95,6 +95,7 @@ def write_keyed(
     portals: Sequence[Sequence[EmitterLight]] = (),
     region: apply.Region | None = None,
     closed: bool = False,
+    unlit: Sequence[str] = (),
     name: str = apply.COLLECTION_NAME,
 ) -> bpy.types.Collection:
     """Writes the slots of ``keyed`` (one per light, keyed on ``frames``), the world's sun of
@@ -102,9 +103,9 @@ def write_keyed(
     one list per frame, or none; a portal in ``emitters`` is left to them) and ``emitters``
     into a fresh VPL collection
     linked to ``scene`` (see the module docs); the :data:`apply.MAX_SHADOWED_VPLS` slots
-    brightest on some frame cast shadows; ``region`` is kept on the collection
-    (``apply.REGION_KEY``), and ``closed`` (``apply.CLOSED_KEY``). The scene's current frame is
-    kept."""
+    brightest on some frame cast shadows; ``unlit`` are the objects they do not light
+    (``apply.exclude_receivers``); ``region`` is kept on the collection (``apply.REGION_KEY``),
+    and ``closed`` (``apply.CLOSED_KEY``). The scene's current frame is kept."""
     slots = keyed.position.shape[1]
     if len(frames) != keyed.position.shape[0]:
         raise WriteBackError(f"{len(frames)} frames for {keyed.position.shape[0]} keyed frames")
@@ -161,18 +162,17 @@ def write_keyed(
         lit_suns = [s for s in suns if s is not None]
         if lit_suns:
             write_keyed_sun(coll, frames, suns, lit_suns[0])
+        apply.exclude_receivers(coll, unlit)
     except BaseException:
         apply.remove_collection(coll)
         raise
     finally:
         if scene.frame_current != current:
             scene.frame_set(current)
-    apply.clear_vpls(name)
-    coll.name = name
+    apply.replace_collection(scene, coll, name)
     for obj in coll.objects:  # the old lights are gone: their names are free again
         if obj.get(SLOT_PROPERTY) is not None:
             obj.name = obj.data.name = slot_name(obj[SLOT_PROPERTY])
-    scene.collection.children.link(coll)
     return coll
 
 

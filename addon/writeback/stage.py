@@ -13,6 +13,7 @@ import bpy
 import numpy as np
 
 from ..capture import passes as capture
+from ..capture.native_view import vpl_unlit
 from ..errors import WriteBackError, run_operator
 from ..native import vplace
 from ..settings import override
@@ -47,8 +48,15 @@ def write_back(
 ) -> WrittenBack:
     """Writes ``vpls`` (specular factor ``specular``: ``Prepared.vpl_specular``) and the
     stand-in ``lights`` of ``exported`` (``stand_ins.stand_ins``) into the VPL collection
-    (``apply.write_vpls``), saves a copy of the file to ``blend_path`` when given, and logs
+    (``apply.write_vpls``), leaves unlit by the VPLs the objects ``native_view.vpl_unlit``
+    names (with a note), saves a copy of the file to ``blend_path`` when given, and logs
     what EEVEE will not show right."""
+    unlit = vpl_unlit(exported, specular)
+    if unlit:
+        log(
+            f"[vplace] note: the VPLs do not light {_names(unlit)} (Light Linking): sharp "
+            "metal or glass, whose reflections are EEVEE's ray tracing's"
+        )
     with stage("write back"):
         apply.write_vpls(
             bl_scene,
@@ -56,6 +64,7 @@ def write_back(
             scene_diagonal=scene.scale,
             region=scene.region,
             specular=specular,
+            unlit=unlit,
             emitters=lights.emitters,
             sun=lights.sun,
             closed=lights.closed,
@@ -75,6 +84,12 @@ def write_back(
     for note in notes:
         log(f"[vplace] note: {note}")
     return WrittenBack(lights, problems, notes)
+
+
+def _names(names: Sequence[str], most: int = 3) -> str:
+    """Up to ``most`` quoted names, and how many more."""
+    shown = ", ".join(repr(n) for n in names[:most])
+    return shown + (f" and {len(names) - most} more" if len(names) > most else "")
 
 
 def score_eevee(

@@ -248,6 +248,22 @@ def test_a_keyed_sun_is_dark_where_the_frame_has_none():
     assert energy == [(1.0, 2.0), (5.0, 0.0)]
 
 
+def test_the_keyed_lights_leave_the_unlit_objects_out_as_the_still_ones_do():
+    scene, tracked = _one_vpl_on_two_frames()
+    mesh = bpy.data.meshes.new("chrome")
+    chrome = bpy.data.objects.new("chrome", mesh)
+    scene.collection.objects.link(chrome)
+    for _ in range(2):  # re-running replaces the receiver collection with the lights
+        coll = keyed.write_keyed(scene, [1, 5], tracked, unlit=["chrome"])
+    assert apply.unlit_objects(coll) == ["chrome"]
+    assert {c.name for c in chrome.users_collection} == {
+        scene.collection.name,
+        apply.COLLECTION_NAME + apply.UNLIT_SUFFIX,
+    }
+    apply.clear_vpls()
+    assert [c.name for c in chrome.users_collection] == [scene.collection.name]
+
+
 def test_a_sky_portal_is_keyed_as_the_sky_changes():
     """The same opening on both frames: one portal light, its power and facing keyed; a portal
     that moved is written as the first frame's, unkeyed; portals in the emitters are not

@@ -122,3 +122,30 @@ def test_user_object_put_in_the_vpl_collection_survives_a_rerun():
     apply.write_vpls(scene, some_vpls(2, seed=5), scene_diagonal=3.4)
     assert bpy.data.objects.get("my empty") is mine
     assert scene.collection.objects.get("my empty") is mine
+
+
+def test_the_unlit_objects_are_excluded_from_the_vpls_light_and_nothing_else():
+    """``unlit`` (``native_view.vpl_unlit``): every VPL light's Light Linking receiver
+    collection holds those objects excluded; the stand-ins light them still. Re-running
+    replaces the receiver collection with the lights, clearing removes it, and the user's
+    objects are as they were (in their own collections only)."""
+    scene = cornell()
+    before = data_snapshot()
+    box = bpy.data.objects["tallBox"]
+    own = [c.name for c in box.users_collection]
+    apply.write_vpls(scene, some_vpls(4), scene_diagonal=3.4, unlit=["tallBox", "no such"])
+    coll = apply.write_vpls(scene, some_vpls(3, seed=1), scene_diagonal=3.4, unlit=["tallBox"])
+    receivers = [c for c in bpy.data.collections if c.get(VPL_MARKER) and c is not coll]
+    assert [c.name for c in receivers] == [apply.COLLECTION_NAME + apply.UNLIT_SUFFIX]
+    assert receivers[0] not in scene.collection.children_recursive
+    assert list(receivers[0].objects) == [box]
+    assert receivers[0].collection_objects[0].light_linking.link_state == "EXCLUDE"
+    assert all(o.light_linking.receiver_collection == receivers[0] for o in coll.objects)
+    assert apply.unlit_objects(coll) == ["tallBox"]
+    apply.write_vpls(scene, some_vpls(3, seed=1), scene_diagonal=3.4)
+    assert [c.name for c in bpy.data.collections if c.get(VPL_MARKER)] == [apply.COLLECTION_NAME]
+    apply.write_vpls(scene, some_vpls(3, seed=1), scene_diagonal=3.4, unlit=["tallBox"])
+    apply.clear_vpls()
+    assert not any(c.get(VPL_MARKER) for c in bpy.data.collections)
+    assert [c.name for c in box.users_collection] == own
+    assert diff(before, data_snapshot()) == []

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from blender_util import empty_file
 
-from addon.capture.native_view import gloss_mask, vpl_specular
+from addon.capture.native_view import gloss_mask, vpl_specular, vpl_unlit
 from addon.capture.passes import Capture
 from addon.compat import new_material
 from addon.native import vplace
@@ -164,7 +164,9 @@ def test_the_modelled_reflectance_and_indirect_light_add_the_glossy_layer_where_
 
 def decide(native, exported, captures):
     """``vpl_specular`` on ``captures`` and their glossy masks, as the capture stage calls it."""
-    return vpl_specular(exported, captures, [gloss_mask(native, exported, c) for c in captures])
+    return vpl_specular(
+        native, exported, captures, [gloss_mask(native, exported, c) for c in captures]
+    )
 
 
 def test_the_vpls_specular_follows_the_glossy_light_the_captures_see(scene):
@@ -208,3 +210,49 @@ def test_the_written_vpls_take_the_specular_factor(scene, specular):
     )
     coll = apply.write_vpls(scene, vpls, scene_diagonal=3.0, specular=specular)
     assert [o.data.specular_factor for o in coll.objects] == [specular]
+
+
+def faces(scene, name, mats, x0):
+    """One object of unit quads side by side from x = ``x0``, quad i of material ``mats[i]``."""
+    mesh = bpy.data.meshes.new(name)
+    verts = [(x0 + i + dx, dy, 0) for i in range(len(mats)) for dx, dy in _CORNERS]
+    mesh.from_pydata(verts, [], [tuple(range(4 * i, 4 * i + 4)) for i in range(len(mats))])
+    for mat in dict.fromkeys(mats):
+        mesh.materials.append(mat)
+    slots = list(dict.fromkeys(mats))
+    mesh.polygons.foreach_set("material_index", [slots.index(m) for m in mats])
+    obj = bpy.data.objects.new(name, mesh)
+    scene.collection.objects.link(obj)
+    bpy.context.view_layer.update()
+    return obj
+
+
+_CORNERS = ((0, 0), (1, 0), (1, 1), (0, 1))
+
+
+def test_the_vpls_leave_unlit_the_objects_whose_every_material_is_sharp_and_not_diffuse(scene):
+    """Sharp metal and glass get no VPL light the evaluator counts (their Diffuse Color is
+    black), only EEVEE's mirrored VPL disks; a sharp layer over a diffuse base, a rough metal
+    and an object with a diffuse face stay lit, and with the specular off nothing is left out
+    (the VPLs give such a surface nothing)."""
+    metal = principled("metal", Metallic=1.0, Roughness=0.3)
+    matte = principled("matte", Roughness=0.9)
+    faces(scene, "rough", [principled("rough", Roughness=0.8)], 0.0)
+    faces(scene, "cube", [metal, metal], 1.0)
+    faces(
+        scene, "pane", [principled("glass", **{"Transmission Weight": 1.0, "Roughness": 0.0})], 3.0
+    )
+    faces(scene, "varnished", [principled("varnish", Roughness=0.1)], 4.0)
+    faces(scene, "brushed", [principled("rough metal", Metallic=1.0, Roughness=0.7)], 5.0)
+    faces(
+        scene,
+        "mirror",
+        [shader_material("mirror", "ShaderNodeBsdfAnisotropic", Roughness=0.05)],
+        6.0,
+    )
+    faces(scene, "trimmed", [metal, matte], 7.0)
+    exported = export.export_scene(scene)
+    shown = {exported.materials[m].name for m in exported.object_materials["trimmed"]}
+    assert shown == {"metal", "matte"}
+    assert vpl_unlit(exported, 1.0) == ["cube", "mirror", "pane"]
+    assert vpl_unlit(exported, 0.0) == []

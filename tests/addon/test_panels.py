@@ -6,6 +6,7 @@ that records what it is asked to draw."""
 import json
 
 import bpy
+import numpy as np
 import pytest
 from blender_util import addon_cornell
 
@@ -146,3 +147,15 @@ def test_match_and_check_in_eevee_show_eevees_direct_light_and_whose_part_its_di
         # "Match EEVEE's direct light" rendered it first and says by how much it differs.
         assert any(t.startswith("Matched EEVEE's direct light: Cornell camera ") for t in labels)
         assert any(t.endswith("EEVEE's rendering (not vplace's)") for t in labels)
+
+
+def test_panel_names_the_objects_the_vpls_do_not_light(scene):
+    assert bpy.ops.vplace.apply() == {"FINISHED"}
+    assert "Not lit by the VPLs (Light Linking):" not in [t for _, t in draw(scene)]
+    vpls = vplace.VplSet(
+        np.zeros((1, 3), np.float32), np.array([[0, 0, 1]], np.float32), np.ones((1, 3), np.float32)
+    )
+    apply.write_vpls(scene, vpls, scene_diagonal=3.0, specular=1.0, unlit=["tallBox", "shortBox"])
+    labels = [t for kind, t in draw(scene) if kind == "label"]
+    assert "Not lit by the VPLs (Light Linking):" in labels
+    assert "  'shortBox' and 1 more: sharp metal or glass," in labels

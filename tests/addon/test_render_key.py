@@ -38,6 +38,8 @@ def _principled(scene):
         "film transparent",
         "world strength",
         "light spread",
+        "light linking",
+        "light linking state",
     ],
 )
 def test_what_the_render_reads_changes_the_key(change):
@@ -64,6 +66,13 @@ def test_what_the_render_reads_changes_the_key(change):
         bg.inputs["Strength"].default_value = 2.5
     elif change == "light spread":
         bpy.data.objects["light"].data.spread = 1.0
+    elif change.startswith("light linking"):
+        receivers = bpy.data.collections.new("receivers")
+        receivers.objects.link(bpy.data.objects["tallBox"])
+        bpy.data.objects["light"].light_linking.receiver_collection = receivers
+        if change == "light linking state":
+            before = key(scene)
+            receivers.collection_objects[0].light_linking.link_state = "EXCLUDE"
     assert key(scene) != before, change
 
 

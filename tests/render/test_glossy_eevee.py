@@ -13,7 +13,7 @@ import vplace.job as vjob
 from blender_util import cornell, principled
 
 from addon.capture import passes as capture
-from addon.capture.native_view import gloss_mask, view_of, vpl_specular
+from addon.capture.native_view import gloss_mask, view_of, vpl_specular, vpl_unlit
 from addon.native import vplace
 from addon.scene import export
 from addon.scene.convert import build_scene
@@ -78,7 +78,7 @@ def test_eevee_shows_the_vpl_light_the_evaluator_computed_with_the_decided_specu
     exported = export.export_scene(scene)
     native = build_scene(exported)
     gbuf = capture.capture(scene, resolution=RES, samples=8)
-    specular = vpl_specular(exported, [gbuf], [gloss_mask(native, exported, gbuf)])
+    specular = vpl_specular(native, exported, [gbuf], [gloss_mask(native, exported, gbuf)])
     assert specular == 0.0
     vpls = vplace.uniform_vpls(native, 64, seed=3, bounces=vplace.MAX_BOUNCES)
     ours, _ = vplace.evaluate(native, view_of(gbuf, gloss=None), vpls)
@@ -92,3 +92,43 @@ def test_eevee_shows_the_vpl_light_the_evaluator_computed_with_the_decided_specu
     print(f"EEVEE's VPL light against the evaluator's: relative RMSE {rel:.4f}, {brightness:.4f}x")
     assert rel < 0.09
     assert abs(brightness - 1.0) < 0.01
+
+
+@pytest.mark.slow
+def test_a_sharp_metal_box_shows_no_vpl_highlight_the_evaluator_did_not_compute():
+    """The Cornell box with its tall box a metal of roughness 0.3 and its floor, back wall and
+    short box rough glossy (0.8): the VPLs' specular is on for those, and the metal box, whose
+    Diffuse Color is black, gets no VPL light in the evaluator. EEVEE must not light it with the
+    VPLs either (``native_view.vpl_unlit``): lit, it mirrored each VPL's disk."""
+    scene = cornell()
+    metal, _ = principled("metal", **{"Base Color": (0.9, 0.9, 0.9, 1.0), "Metallic": 1.0,
+                                      "Roughness": 0.3})  # fmt: skip
+    rough, _ = principled("rough", **{"Base Color": (0.6, 0.6, 0.6, 1.0), "Roughness": 0.8})
+    for name, mat in (("tallBox", metal), ("floor", rough), ("backWall", rough),
+                      ("shortBox", rough)):  # fmt: skip
+        mesh = bpy.data.objects[name].data
+        mesh.materials.clear()
+        mesh.materials.append(mat)
+    exported = export.export_scene(scene)
+    native = build_scene(exported)
+    gbuf = capture.capture(scene, resolution=RES, samples=8)
+    mask = gloss_mask(native, exported, gbuf)
+    specular = vpl_specular(native, exported, [gbuf], [mask])
+    assert specular == 1.0
+    unlit = vpl_unlit(exported, specular)
+    assert unlit == ["tallBox"]
+    vpls = vplace.uniform_vpls(native, 64, seed=3, bounces=vplace.MAX_BOUNCES)
+    ours, _ = vplace.evaluate(native, view_of(gbuf, gloss=mask), vpls)
+    apply.write_vpls(scene, vpls, scene_diagonal=native.diagonal, specular=specular, unlit=unlit)
+    bpy.data.objects["light"].hide_render = True  # the VPLs' light alone (black world)
+    shown = eevee.render(scene, resolution=RES, samples=4).image
+    hot = vjob.outliers(shown, ours)
+    covered = gbuf.covered
+    lum = np.asarray(vplace.LUMINANCE)
+    brightness = float((shown[covered] @ lum).mean() / (ours[covered] @ lum).mean())
+    print(
+        f"EEVEE's VPL light against the evaluator's: hot {hot['hot_pixels']:.2%}, worst 1 % "
+        f"{hot['worst_share']:.2f}, {brightness:.4f}x"
+    )
+    assert hot["hot_pixels"] <= 0.001
+    assert abs(brightness - 1.0) < 0.03
