@@ -824,6 +824,8 @@ def _run_scene(
         "capture_seconds": data.capture_seconds,
         "views": {},
         "lamp_notes": eevee_setup.lamp_notes(bl_scene) if config.with_eevee else [],
+        "vpl_specular": data.prepared.vpl_specular,
+        "vpl_unlit": data.prepared.vpl_unlit,
     }
     for view in data.views:
         cap = view.truth

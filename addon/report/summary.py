@@ -724,6 +724,22 @@ def _seen_cell(a: dict[str, Any]) -> str:
     return f"{pct(share, signed=True)} in {pixels:.1%}" if math.isfinite(share) else "-"
 
 
+def _light_lines(info: dict[str, Any]) -> list[str]:
+    """The written VPLs' specular factor and the objects they do not light
+    (``native_view.vpl_specular``, ``vpl_unlit``), where the run recorded them."""
+    if "vpl_specular" not in info:
+        return []
+    text = f"The written VPLs' specular factor: {info['vpl_specular']:g}"
+    unlit = info.get("vpl_unlit") or []
+    if unlit:
+        names = ", ".join(f"'{n}'" for n in unlit)
+        text += (
+            f"; they do not light {names} (sharp metal or glass, Light Linking), whose "
+            "reflections are EEVEE's ray tracing's"
+        )
+    return [text + ".", ""]
+
+
 def _scene_lines(name: str, info: dict[str, Any], rows: Sequence[Row]) -> list[str]:
     """One scene's section: the fit, then per view the evaluator's and the renderers' tables."""
     fit = info["fit"]
@@ -737,6 +753,7 @@ def _scene_lines(name: str, info: dict[str, Any], rows: Sequence[Row]) -> list[s
         f"the fit views: {info['capture_seconds']:.1f} s.",
         "",
         *[line for note in info.get("lamp_notes", []) for line in (f"Note: {note}.", "")],
+        *_light_lines(info),
     ]
     budgets = sorted({r.n_vpls for r in rows if r.scene == name and r.renderer == "evaluator"})
     for view, v in info["views"].items():

@@ -169,6 +169,7 @@ def test_tiny_report_writes_csv_json_plots_and_markdown(tiny_report):
     assert f"| {RELAYOUT} |" in md and "## Break-even" in md and "## Targets" in md
     assert "evaluator, same lights" in md and "Capture samples against layout quality" in md
     assert "(b) VPL light" in md and "vpl_difference_cornell_" in md
+    assert "The written VPLs' specular factor: 0." in md  # the Cornell box has no glossy layer
     # Every view's truth was rendered twice: each image is also scored against the noise-free
     # truth, and each view states the ceiling its truth's noise puts on SSIM.
     assert all(np.isfinite(float(r["ssim_noise_free"])) for r in table)
@@ -501,3 +502,13 @@ def test_held_out_views_are_made_in_the_region_and_removed_after():
     assert ReportConfig().generated_for(named) == 0
     assert ReportConfig().generated_for(bare) == 2
     assert ReportConfig(generated_views=1).generated_for(named) == 1
+
+
+def test_the_scene_section_names_the_objects_the_vpls_do_not_light():
+    info = {"vpl_specular": 1.0, "vpl_unlit": ["Chrome", "Pane"]}
+    (line, _) = summary._light_lines(info)
+    assert line == (
+        "The written VPLs' specular factor: 1; they do not light 'Chrome', 'Pane' (sharp metal "
+        "or glass, Light Linking), whose reflections are EEVEE's ray tracing's."
+    )
+    assert summary._light_lines({}) == []  # a run from before they were recorded
