@@ -157,7 +157,7 @@ def reference_of(
         label,
         camera=cap.view,
         samples=cap.samples,
-        seen=vplace.job.seen_directly(cap.emission + cap.environment, cap.direct),
+        seen=vplace.job.seen_directly(cap.seen_light, cap.direct),
     )
 
 

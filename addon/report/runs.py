@@ -562,8 +562,9 @@ class _EeveeRun:
                 f"{a.vpl_brightness:.3f}x the evaluator's; SSIM with Cycles' direct light "
                 f"{a.ssim_cycles_direct:.4f}, with the evaluator's VPL light "
                 f"{a.ssim_evaluator_vpl:.4f}; (a) in the {a.seen_pixels:.1%} of pixels that "
-                f"see an emitter or the world: {pct(a.seen_share, signed=True)} of the squared "
-                "error; (a) the stand-ins' own light (Cycles rendering them) "
+                "see an emitter, the world or a lamp in a mirror: "
+                f"{pct(a.seen_share, signed=True)} of the squared error; (a) the stand-ins' own "
+                "light (Cycles rendering them) "
                 f"{pct(a.stand_in_share, signed=True)}, EEVEE's rendering of them "
                 f"{pct(a.share['direct'] - a.stand_in_share, signed=True)}"
             )
@@ -621,7 +622,7 @@ class _EeveeRun:
         direct = self.direct[view.name]
         self.vpl_differences.setdefault(view.name, {})[method] = img.image - direct - vpl_light
         truth = view.truth
-        seen = vplace.job.seen_directly(truth.emission + truth.environment, truth.direct)
+        seen = vplace.job.seen_directly(truth.seen_light, truth.direct)
         return vplace.job.attribute(
             img.image,
             direct,

@@ -150,7 +150,8 @@ def _attribution_detail(a: dict[str, Any] | None) -> dict[str, str]:
     if math.isfinite(a.get("seen_share", math.nan)):
         seen = (
             f" ({pct(a['seen_share'])} in the {a['seen_pixels']:.1%} of pixels where the camera "
-            "sees an emitter or the world: their edges and patterns, anti-aliased EEVEE's way)"
+            "sees an emitter, the world or a lamp in a mirror: their edges and patterns, "
+            "anti-aliased EEVEE's way)"
         )
     model = a.get("stand_in_share", math.nan)
     if math.isfinite(model):
@@ -698,8 +699,10 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
         "EEVEE's VPL light, without (b) the evaluator's VPL light over EEVEE's direct light: "
         "hot pixels that go without (a) are EEVEE's direct light's. (a) where emitters "
         "are seen: the share of EEVEE's squared error that (a) holds in the pixels where the "
-        "camera sees an emitter or the world (Cycles' emission and environment passes at least "
-        "half its direct light there), and how many pixels those are: edges and patterns "
+        "camera sees an emitter, the world or a lamp in a mirror (Cycles' emission and "
+        "environment passes, and a lamp's glossy highlight above 20 times the view's mean "
+        "direct light, at least half its direct light there), and how many pixels those are: "
+        "edges and patterns "
         "EEVEE anti-aliases its own way, not light on surfaces. (a) split by Cycles rendering "
         "the same lights (the stand-ins, the emissive meshes lighting nothing, the world "
         "lighting nothing where sky portals stand in for it): the stand-ins' own light against "

@@ -105,7 +105,7 @@ def refit_views(
                             setup=eevee.SETUPS["vpl"],
                             cache_dir=cache_dir,
                         )
-                    seen = vplace.job.seen_directly(cap.emission + cap.environment, cap.direct)
+                    seen = vplace.job.seen_directly(cap.seen_light, cap.direct)
                     deficit = vplace.job.eevee_deficit(
                         cap.direct, img.image, cap.covered & ~seen, cell_px
                     )

@@ -256,3 +256,27 @@ def test_the_vpls_leave_unlit_the_objects_whose_every_material_is_sharp_and_not_
     assert shown == {"metal", "matte"}
     assert vpl_unlit(exported, 1.0) == ["cube", "mirror", "pane"]
     assert vpl_unlit(exported, 0.0) == []
+
+
+def test_a_lamps_mirror_image_counts_as_seen_light_and_a_lit_surface_does_not():
+    """``Capture.seen_light``: Emit + Env, plus the glossy direct light of pixels above
+    ``MIRRORED_LAMP`` times the view's mean direct light (a lamp seen in chrome)."""
+    from addon.capture.passes import MIRRORED_LAMP
+
+    n = 100
+    covered = np.ones((1, n), bool)
+    covered[0, -1] = False
+    glossy = np.full((1, n, 3), 0.5, np.float32)  # x GlossCol 0.2: a surface at 0.1
+    glossy[0, 1], glossy[0, 2], glossy[0, -1] = 4.0, 400.0, 900.0
+    emission = np.zeros_like(glossy)
+    emission[0, 3] = 7.0
+    cap = fake_capture(np.zeros((1, n, 3)), covered, (0.0, 0.0, 1.0))
+    cap = dataclasses.replace(cap, glossy_direct=glossy, emission=emission)
+    lum = np.asarray(vplace.LUMINANCE)
+    mean = float((cap.direct @ lum)[covered].mean())
+    assert 0.8 < MIRRORED_LAMP * mean < 80.0  # pixel 1 a lit surface, pixel 2 a lamp's image
+    seen = cap.seen_light @ lum
+    np.testing.assert_allclose(seen[0, :5], [0.0, 0.0, 80.0, 7.0, 0.0], rtol=1e-5)
+    assert seen[0, 5:].max() == 0.0  # nor the uncovered pixel, however bright
+    found = vplace.job.seen_directly(cap.seen_light, cap.direct)
+    assert np.flatnonzero(found).tolist() == [2, 3]

@@ -114,8 +114,8 @@ def test_job_report_says_how_much_of_eevees_error_is_at_emitters_the_camera_sees
     text = vjob.job_report(_report(eevee=seen))
     assert (
         "; of EEVEE's squared error, 80% is its direct light in the 3.4% of pixels that see an "
-        "emitter or the world (their edges and patterns, anti-aliased EEVEE's way: not light on "
-        "surfaces)." in text
+        "emitter, the world or a lamp in a mirror (their edges and patterns, anti-aliased "
+        "EEVEE's way: not light on surfaces)." in text
     )
     # A view that sees no emitter: nothing to say.
     none = vjob.job_report(_report(eevee={**seen, "attribution_seen_pixels": 0.0}))

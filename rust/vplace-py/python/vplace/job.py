@@ -254,9 +254,9 @@ class Attribution:
     ssim_cycles_direct: float
     ssim_evaluator_vpl: float
     #: With a ``seen`` mask (:func:`seen_directly`): the share of pixels where the camera sees
-    #: an emitter or the world, and the share of EEVEE's squared error that part ``direct``
-    #: holds in them (the emitters' edges and patterns, which EEVEE anti-aliases its own way,
-    #: not light on surfaces); NaN without a mask.
+    #: an emitter, the world or a lamp in a mirror, and the share of EEVEE's squared error
+    #: that part ``direct`` holds in them (the emitters' edges and patterns, which EEVEE
+    #: anti-aliases its own way, not light on surfaces); NaN without a mask.
     seen_pixels: float = float("nan")
     seen_share: float = float("nan")
     #: With ``stand_ins`` (Cycles rendering the same direct lights EEVEE renders): part
@@ -286,9 +286,11 @@ SEEN_SHARE = 0.5
 
 
 def seen_directly(seen_light: np.ndarray, direct: np.ndarray) -> np.ndarray:
-    """(H, W) bool: the pixels where the camera sees an emitter or the world, from Cycles'
-    ``Emit + Env`` passes (``seen_light``) and its direct light (both (H, W, 3)): where their
-    luminance is positive and at least :data:`SEEN_SHARE` of the direct light's."""
+    """(H, W) bool: the pixels where the camera sees an emitter, the world or a lamp in a
+    mirror, from Cycles' ``Emit + Env`` passes plus the glossy direct light of a lamp's mirror
+    image (``seen_light``: the add-on's ``Capture.seen_light``) and its direct light (both
+    (H, W, 3)): where their luminance is positive and at least :data:`SEEN_SHARE` of the
+    direct light's."""
     a = np.asarray(seen_light, dtype=np.float64)
     b = np.asarray(direct, dtype=np.float64)
     if a.shape != b.shape or a.ndim != 3 or a.shape[-1] < 3:
@@ -356,7 +358,8 @@ def attribute(
     evaluator_vpl`` and ``cycles_direct + evaluator_vpl - truth``. EEVEE adds lights linearly,
     so ``eevee - eevee_direct`` is its image of the VPLs alone (up to its sampling noise).
     ``seen`` ((H, W) bool, :func:`seen_directly`) marks the pixels where the camera sees an
-    emitter or the world: how much of part ``direct`` lies there is ``seen_share``.
+    emitter, the world or a lamp in a mirror: how much of part ``direct`` lies there is
+    ``seen_share``.
     ``stand_ins`` (RGB, the same shape: Cycles rendering the lights EEVEE's direct light comes
     from) splits part ``direct`` into the stand-ins' own error and EEVEE's rendering of them
     (``stand_in_share``)."""
@@ -496,7 +499,7 @@ class Reference:
     #: The camera's name and the render's samples.
     camera: str = ""
     samples: int = 0
-    #: (H, W) bool, the pixels where the camera sees an emitter or the world
+    #: (H, W) bool, the pixels where the camera sees an emitter, the world or a lamp in a mirror
     #: (:func:`seen_directly`); None where the render's passes do not say.
     seen: np.ndarray | None = None
 
@@ -869,8 +872,9 @@ def eevee_notes(e: dict[str, float], stand_ins: int = 0) -> list[str]:
         if seen is not None and math.isfinite(seen) and e.get("attribution_seen_pixels", 0) > 0:
             line += (
                 f"; of EEVEE's squared error, {markdown.percent(seen)} is its direct light in the "
-                f"{e['attribution_seen_pixels']:.1%} of pixels that see an emitter or the world "
-                "(their edges and patterns, anti-aliased EEVEE's way: not light on surfaces)"
+                f"{e['attribution_seen_pixels']:.1%} of pixels that see an emitter, the world "
+                "or a lamp in a mirror (their edges and patterns, anti-aliased EEVEE's way: not "
+                "light on surfaces)"
             )
         model = e.get("attribution_stand_in_share")
         if model is not None and math.isfinite(model):
