@@ -50,8 +50,9 @@ ones the evaluator renders (``vplace.VplSet`` carries profile and near-field rad
 - Objects the VPLs must not light (``unlit``: ``capture.native_view.vpl_unlit``, sharp metal
   and glass when the VPLs have specular): every VPL light's Light Linking receiver collection
   (:data:`UNLIT_SUFFIX`, not linked to the scene, marked as vplace's) holds them as excluded.
-  The user's objects are linked into it and nothing of them changes; re-running replaces it
-  with the VPL collection. The stand-ins keep lighting them (Cycles' direct light does).
+  The user's objects are linked into it (it is among their collections, outside the scene)
+  and nothing of theirs is set; re-running replaces it with the VPL collection, and clearing
+  the VPLs removes it. The stand-ins keep lighting them (Cycles' direct light does).
 - VPLs whose refitted power is zero are not written (a light that gives nothing still costs
   EEVEE a shadow map); each light keeps its VPL's index as ``vplace_index``.
 """
