@@ -368,6 +368,26 @@ def targets(rows: list[Row]) -> list[dict[str, Any]]:
                             f"{shown.ssim_noise_free:.4f} against "
                             f"{volume.ssim_noise_free:.4f}: {gap:+.4f}",
                         )
+                # Like for like: the set-up "Set up EEVEE for vplace" leaves (ray tracing on,
+                # its fast GI ambient occlusion only) against EEVEE's own GI with ray tracing.
+                # Where sharp metal, glass or a glossy floor show, only ray tracing reflects
+                # the room, in both images.
+                traced = _at(mine, scene, v, "vplace+refit" + WITH_RT, "eevee", n)
+                if volume is not None and traced is not None:
+                    for free, ours_, theirs in (
+                        ("", traced.ssim, volume.ssim),
+                        (f" {NOISE_FREE}", traced.ssim_noise_free, volume.ssim_noise_free),
+                    ):
+                        gap = ours_ - theirs
+                        if math.isfinite(gap):
+                            check(
+                                f"{scene} {v} ({role}): EEVEE with the VPLs and ray tracing (the "
+                                f"set-up vplace applies) >= EEVEE ray tracing + volume + "
+                                f"{SSIM_MARGIN}{free}",
+                                gap,
+                                gap >= SSIM_MARGIN,
+                                f"{ours_:.4f} against {theirs:.4f}: {gap:+.4f}",
+                            )
         once = [ours[v] for v in fit_views if ours.get(v) is not None]
         cycles = [
             r

@@ -323,6 +323,21 @@ def test_targets_compare_held_out_views_with_the_fit_mean_and_eevee_with_the_sam
     assert checks["s A (fit): EEVEE's RMSE at most 1.25x the evaluator's (the same lights)"]["met"]
     hot = checks["s A (fit): EEVEE's hot-spot pixels at most 0.1%"]
     assert hot["met"] and hot["value"] == 0.0
+    # Against EEVEE's own GI: the scored set-up as it is, and like for like, the set-up vplace
+    # applies (ray tracing on) where the report rendered it.
+    own_gi = _row("A", "eevee rt + volume", None, 0.86, renderer="eevee")
+    traced = _row("A", "vplace+refit" + WITH_RT, 256, 0.92, renderer="eevee", seed=0)
+    plain = "s A (fit): EEVEE with the VPLs >= EEVEE ray tracing + volume + 0.05"
+    like = (
+        "s A (fit): EEVEE with the VPLs and ray tracing (the set-up vplace applies) >= EEVEE "
+        "ray tracing + volume + 0.05"
+    )
+    assert like not in checks_of([*rows, own_gi], None)
+    both = checks_of([*rows, own_gi, traced], None)
+    assert both[plain]["met"] and both[plain]["value"] == pytest.approx(0.08)
+    assert both[like]["met"] and both[like]["value"] == pytest.approx(0.06)
+    traced.ssim = 0.90
+    assert not checks_of([*rows, own_gi, traced], like)["met"]
     # An attributed EEVEE row: each miss says whose part of the error it is.
     a = {
         "rmse": {"direct": 0.2, "vpl": 0.01, "rest": 0.1},
@@ -379,7 +394,9 @@ def test_targets_compare_held_out_views_with_the_fit_mean_and_eevee_with_the_sam
 
 
 def checks_of(rows, name):
-    return {c["check"]: c for c in summary.targets(rows)}[name]
+    """The check ``name`` of ``rows``' targets; with ``name`` None, every check by name."""
+    checks = {c["check"]: c for c in summary.targets(rows)}
+    return checks if name is None else checks[name]
 
 
 def test_break_even_counts_frames_until_the_one_time_cost_is_paid():
