@@ -50,6 +50,7 @@ from .capture.views import ViewSpec, eye_positions
 from .errors import AddonError, WriteBackError, output_folder, run_operator
 from .job import OTHER_REFERENCE_SEED, Job, Prepared, StageTimer, prepare, reference_render
 from .native import vplace
+from .report.config import COST_SAMPLES
 from .settings import override
 from .writeback import apply, eevee_render, eevee_setup, keyed
 
@@ -734,16 +735,12 @@ def animation_report(summary: AnimationSummary) -> str:
     return "\n".join(lines) + "\n"
 
 
-#: Issue 23's yardstick for a captured frame's one-time cost: one Cycles + OIDN frame at this
-#: many samples, of the same size.
-COST_SAMPLES = 16
-
-
 def captured_frame_cost(summary: AnimationSummary) -> str:
     """One sentence: what a captured frame of the keyed lights costs once (the captures' Cycles
     render as first rendered, and the frame's share of the keyed layout; as the still report
     counts a camera's captures, fit, layout and refit), against a Cycles + OIDN frame of
-    :data:`COST_SAMPLES` spp where the run rendered one, and the export's wall time beside it."""
+    ``report.config.COST_SAMPLES`` spp (the still report's yardstick too) where the run
+    rendered one, and the export's wall time beside it."""
     n = max(len(summary.costs), 1)
     render = sum(c.capture_render_seconds for c in summary.costs) / n
     keyed = summary.keyed_layout_seconds / n

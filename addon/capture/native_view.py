@@ -113,9 +113,8 @@ def _dark_sharp(exported: ExportedScene) -> np.ndarray:
     )
 
 
-def _unlit(exported: ExportedScene) -> list[str]:
-    """The objects whose every material is :func:`_dark_sharp`."""
-    dark = _dark_sharp(exported)
+def _unlit(exported: ExportedScene, dark: np.ndarray) -> list[str]:
+    """The objects whose every material is ``dark`` (:func:`_dark_sharp`)."""
     return sorted(
         name
         for name, mats in exported.object_materials.items()
@@ -127,7 +126,7 @@ def spared_materials(exported: ExportedScene) -> np.ndarray:
     """(M,) bool: the materials only :func:`_unlit` objects show (no other object, no
     instance)."""
     out = _dark_sharp(exported)
-    unlit = set(_unlit(exported))
+    unlit = set(_unlit(exported, out))
     for name, mats in exported.object_materials.items():
         if name not in unlit:
             out[list(mats)] = False
@@ -150,7 +149,7 @@ def vpl_unlit(exported: ExportedScene, specular: float) -> list[str]:
     EEVEE's VPL light). Unlit, it shows what the evaluator computed, and its reflection is
     EEVEE's ray tracing's (``eevee_setup.set_up``). Objects drawn as instances are lit as
     before (``export.ExportedScene.object_materials``)."""
-    return _unlit(exported) if specular > 0.0 else []
+    return _unlit(exported, _dark_sharp(exported)) if specular > 0.0 else []
 
 
 def view_of(

@@ -569,7 +569,7 @@ class _Exporter:
         self.lights: list[LightInfo] = []
         self.names: list[str] = []
         self.object_materials: dict[str, set[int]] = {}
-        self.instanced: dict[str, set[int]] = {}
+        self.instanced: set[str] = set()
         self.warnings: list[str] = []
         self._warned: set[str] = set()
 
@@ -632,8 +632,9 @@ class _Exporter:
             self.parts.append(part)
             self.names.append(original.name)
             used = np.unique(part.material_ids).tolist()
-            shown = self.instanced if inst.is_instance else self.object_materials
-            shown.setdefault(original.name, set()).update(used)
+            self.object_materials.setdefault(original.name, set()).update(used)
+            if inst.is_instance:
+                self.instanced.add(original.name)
 
     def _check_linking(self, obj: bpy.types.Object) -> None:
         """A warning for light or shadow linking (Blender 4.0 on): Cycles' captures follow it;
@@ -814,12 +815,7 @@ class _Exporter:
                 if name not in self.instanced
             },
             instanced_materials=tuple(
-                sorted(
-                    set().union(
-                        *self.instanced.values(),
-                        *(m for n, m in self.object_materials.items() if n in self.instanced),
-                    )
-                )
+                sorted(set().union(*(self.object_materials[n] for n in self.instanced)))
             ),
         )
 
