@@ -48,9 +48,16 @@ from .capture.passes import Capture, capture, hide_vpls
 from .capture.stage import Captured, render_reference
 from .capture.views import ViewSpec, eye_positions
 from .errors import AddonError, WriteBackError, output_folder, run_operator
-from .job import OTHER_REFERENCE_SEED, Job, Prepared, StageTimer, prepare, reference_render
+from .job import (
+    COST_SAMPLES,
+    OTHER_REFERENCE_SEED,
+    Job,
+    Prepared,
+    StageTimer,
+    prepare,
+    reference_render,
+)
 from .native import vplace
-from .report.config import COST_SAMPLES
 from .settings import override
 from .writeback import apply, eevee_render, eevee_setup, keyed
 
@@ -739,7 +746,7 @@ def captured_frame_cost(summary: AnimationSummary) -> str:
     """One sentence: what a captured frame of the keyed lights costs once (the captures' Cycles
     render as first rendered, and the frame's share of the keyed layout; as the still report
     counts a camera's captures, fit, layout and refit), against a Cycles + OIDN frame of
-    ``report.config.COST_SAMPLES`` spp (the still report's yardstick too) where the run
+    ``job.COST_SAMPLES`` spp (the still report's yardstick too) where the run
     rendered one, and the export's wall time beside it."""
     n = max(len(summary.costs), 1)
     render = sum(c.capture_render_seconds for c in summary.costs) / n

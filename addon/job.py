@@ -143,6 +143,10 @@ class Job(vplace.job.LayoutSettings):
         )
 
 
+#: The one-time costs (a camera's captures, fit, layout and refit; a captured frame of keyed
+#: lights) are weighed against Cycles + OIDN frames of this many samples, of the same size
+#: (the report's and the animation's yardstick, issues 20 and 23).
+COST_SAMPLES = 16
 #: The most capture memory (bytes) a job may hold: about 15 float32 values per pixel and view.
 MAX_CAPTURE_BYTES = 4 << 30
 CAPTURE_BYTES_PER_PIXEL = 15 * 4

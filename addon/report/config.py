@@ -45,7 +45,7 @@ COST_FRAMES = 2
 #: most this share of hot-spot pixels (``vplace.job.outliers``).
 EEVEE_RMSE_RATIO = 1.25
 HOT_SHARE = 0.001
-COST_SAMPLES = 16
+COST_SAMPLES = pipeline.COST_SAMPLES
 EEVEE_SPREAD = 0.02
 BRIGHTNESS_TOLERANCE = 0.03
 FIT_VIEW_SSIM = 0.90
