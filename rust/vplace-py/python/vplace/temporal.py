@@ -21,8 +21,11 @@ and the keyed lights at any frame between the captured ones, as Blender interpol
   *powers* refitted on that frame's captures. Each frame lays out ``n // F`` VPLs for its own
   light (``vplace.job.lay_out``: fit, layout, refit); the union of the F layouts is the set (so
   every frame's lit places have VPLs), each flux over F as the refit's prior (F layouts carry F
-  times the light); then each frame refits every power on its own captures. The keyed lights
-  then stand still and only their powers change. Why: a frame's own layout differs from the
+  times the light); then each frame refits every power on its own captures, as the still
+  layout refits (``vplace.job.refit_powers``: at its stride; without the coverage views'
+  penalty, which would hold VPLs at other frames' powers; README, "Each frame's refit is the
+  still layout's"). The keyed lights then stand still and only
+  their powers change. Why: a frame's own layout differs from the
   next frame's in the places it picks, and that change is what flickers. Capturing more frames
   made the keyed lights flicker more, not less (evaluator temporal error, step 4 -> 2 -> 1:
   ``cornell_moving`` .0105 -> .0159 -> .0299, ``skyroom_afternoon`` .0332 -> .0440 -> .0664),
@@ -44,7 +47,6 @@ import numpy as np
 
 import vplace
 import vplace.job
-from vplace.coverage import captures_of
 
 #: The weight of ``1 - cos(angle between normals)`` in the matching cost, against the distance
 #: in scene diagonals: a VPL turned by 90 degrees costs what one moved by half a diagonal does.
@@ -306,8 +308,10 @@ def shared_layout(
     for scene, frame_views in zip(scenes, views, strict=True):
         # One scale per VPL (not power groups): the refit picks each frame's lights out of
         # the union, and a group would tie a light of this frame to its neighbour of another.
-        params = vplace.RefitParams(stride=vplace.stride_for(frame_views), group=1)
-        refit = vplace.refit(scene, captures_of(frame_views), union, params, progress=progress)
+        # Nothing held at the union's powers: they are other frames' (refit_powers).
+        refit = vplace.job.refit_powers(
+            scene, frame_views, union, group=1, hold_unseen=False, progress=progress
+        )
         out.append(refit.vpls)
     return out
 
