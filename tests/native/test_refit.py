@@ -4,7 +4,7 @@ images."""
 import numpy as np
 import pytest
 import vplace
-from test_layout import box_scene, floor_view
+from test_layout import box_mesh, box_scene, floor_view
 from views import view
 
 
@@ -232,3 +232,57 @@ def test_the_gain_carries_the_captures_total_to_vpls_no_pixel_sees():
     fixed = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, free_gain=False, group=1))
     assert fixed.gain == 1.0 and fixed.gain_cv == []
     assert fixed.scales[6] == pytest.approx(1.0, abs=1e-9)
+
+
+def test_frames_whose_light_alone_differs_refit_together_as_each_alone(setup):
+    """``refit_frames``: three frames of one floor, each lit by other powers (the scene's lamp
+    moved for the second), refitted at once: each result is the one ``refit`` gives it alone,
+    bit for bit, from the shadow rays of one frame. Frames that do not share their G-buffers
+    or occluders are refused with the reason."""
+    scene, d = setup
+    v, t = box_mesh()
+    ids = np.zeros(len(t), dtype=np.uint32)
+    albedo = np.array([[0.5, 0.5, 0.5]], dtype=np.float32)
+    moved = vplace.Scene(v, t, ids, albedo, [vplace.Light.point([-0.4, 0.3, 1.2], [5.0] * 3)])
+    assert scene.same_occluders(moved) and moved.same_occluders(scene)
+    base = inward_vpls()
+    frames = []
+    for s in ([0.5, 2.0, 1.0, 0.0, 1.5, 0.8, 3.0], [1.5, 0.5, 1.0, 2.0, 0.5, 0.8, 3.0], [1] * 7):
+        target, _ = vplace.evaluate(
+            scene, view(d), base.with_flux(base.flux * np.float32(s)[:, None])
+        )
+        frames.append([view(d, indirect=target)])
+    scenes = [scene, moved, scene]
+    params = vplace.RefitParams(stride=2, group=1)
+    together = vplace.refit_frames(scenes, frames, base, params)
+    assert len(together) == 3
+    for s, f, got in zip(scenes, frames, together, strict=True):
+        alone = vplace.refit(s, f, base, params)
+        assert np.array_equal(got.scales, alone.scales)
+        assert np.array_equal(got.vpls.flux, alone.vpls.flux)
+        assert (got.ridge, got.cv, got.gain, got.error_after) == (
+            alone.ridge,
+            alone.cv,
+            alone.gain,
+            alone.error_after,
+        )
+        assert got.shadow_rays == alone.shadow_rays  # traced once for all three
+    assert not np.array_equal(together[0].scales, together[1].scales)
+    # Another camera, other occluders, a frame without views, a scene short: one-line errors.
+    other = dict(d, albedo=d["albedo"] * np.float32(0.5))
+    with pytest.raises(vplace.InputError, match="G-buffer differs"):
+        vplace.refit_frames(
+            [scene, scene], [frames[0], [view(other, indirect=frames[1][0].indirect)]], base
+        )
+    cube_v = np.vstack([v, v * np.float32(0.1) + np.float32([0, 0, 1])])  # a box in the box
+    cube_t = np.vstack([t, t + len(v)])
+    walled = vplace.Scene(cube_v, cube_t, np.zeros(len(cube_t), np.uint32), albedo, [])
+    assert not scene.same_occluders(walled)
+    with pytest.raises(vplace.InputError, match="triangles or surfaces differ"):
+        vplace.refit_frames([scene, walled], frames[:2], base)
+    with pytest.raises(vplace.InputError, match="frame 1 has no view"):
+        vplace.refit_frames([scene, scene], [frames[0], []], base)
+    with pytest.raises(vplace.InputError, match="2 scenes for 3 frames"):
+        vplace.refit_frames([scene, scene], frames, base)
+    with pytest.raises(vplace.InputError, match="at least one frame"):
+        vplace.refit_frames([], [], base)

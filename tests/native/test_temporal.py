@@ -225,7 +225,8 @@ def test_a_shared_layout_refits_each_frame_as_the_still_layout_does(monkeypatch)
     lit = np.full_like(cap["albedo"], 0.1)  # a coverage view's target: light-path VPLs
     cover = view(cap, vplace.coverage.PREFIX + "0", indirect=lit, diffuse_indirect=lit)
     seen: list[tuple[list[str], int, int, list[str]]] = []
-    refit = vplace.refit
+    together: list[tuple[list[list[str]], int, int, list[str]]] = []
+    refit, refit_frames = vplace.refit, vplace.refit_frames
 
     def spy(scene, views, vpls, params=None, *, coverage=None, progress=None):
         seen.append(
@@ -238,7 +239,13 @@ def test_a_shared_layout_refits_each_frame_as_the_still_layout_does(monkeypatch)
         )
         return refit(scene, views, vpls, params, coverage=coverage, progress=progress)
 
+    def spy_frames(scenes, frames, vpls, params=None, *, coverage=None, progress=None):
+        names = [[v.name for v in f] for f in frames]
+        together.append((names, params.stride, params.group, [v.name for v in coverage or []]))
+        return refit_frames(scenes, frames, vpls, params, coverage=coverage, progress=progress)
+
     monkeypatch.setattr(vplace, "refit", spy)
+    monkeypatch.setattr(vplace, "refit_frames", spy_frames)
     settings = vplace.job.LayoutSettings(n_vpls=32, iterations=1)
     scenes = [s for s, _ in frames]
     views = [[*v, cover] for _, v in frames]
@@ -248,10 +255,41 @@ def test_a_shared_layout_refits_each_frame_as_the_still_layout_does(monkeypatch)
     assert vplace.stride_for(views[0]) == 4  # the iteration's, which the frames had used
     seen.clear()
     temporal.shared_layout(scenes, views, settings)
-    # Each frame's own layout (n // 2 VPLs, a still layout), then each frame's refit of the
-    # union: at the same stride, the union's without the penalty.
+    # Each frame's own layout (n // 2 VPLs, a still layout), then the union refitted on each
+    # frame: at the same stride, without the penalty; both frames at once (their lamp's power
+    # alone differs: the same G-buffers and occluders).
     still_refit = (["view 0", "view 1"], 2, 1, ["coverage 0"])
-    assert seen == [still_refit, still_refit, *[(["view 0", "view 1"], 2, 1, [])] * 2]
+    assert seen == [still_refit, still_refit]
+    assert together == [([["view 0", "view 1"]] * 2, 2, 1, [])]
+
+
+def test_frames_refit_together_where_their_light_alone_differs(monkeypatch):
+    """``vplace.job.refit_frame_powers``: the frames that share G-buffers and occluders are
+    refitted in one call (their shadow rays traced once), each as ``refit_powers`` refits it
+    alone (without the coverage penalty); a frame whose camera moved gets a call of its own."""
+    (s1, v1), (s2, v2) = _frame(monkeypatch, 1.0), _frame(monkeypatch, 2.0)
+    cams = bench_layout.cameras(3)
+    caps = [bench_layout.synthetic_capture(32, 24, c, t) for c, t in (cams[2], cams[1])]
+    s3, v3 = s2, bench_layout.views_of(s2, caps)  # the camera moved
+    assert not vplace.job.same_gbuffers(v1, v3) and vplace.job.same_gbuffers(v1, v2)
+    union = vplace.uniform_vpls(s1, 24, seed=2)
+    calls: list[int] = []
+    refit_frames = vplace.refit_frames
+
+    def spy(scenes, frames, *a, **k):
+        calls.append(len(frames))
+        return refit_frames(scenes, frames, *a, **k)
+
+    monkeypatch.setattr(vplace, "refit_frames", spy)
+    scenes, views = [s1, s3, s2], [v1, v3, v2]
+    got = vplace.job.refit_frame_powers(scenes, views, union, group=1)
+    assert calls == [2, 1]
+    for s, v, r in zip(scenes, views, got, strict=True):
+        alone = vplace.job.refit_powers(s, v, union, group=1, hold_unseen=False)
+        assert np.array_equal(r.scales, alone.scales)
+    assert not np.array_equal(got[0].scales, got[2].scales)
+    with pytest.raises(ValueError, match="3 scenes for 2"):
+        vplace.job.refit_frame_powers(scenes, views[:2], union)
 
 
 def test_a_set_with_radii_given_checks_them_and_keeps_them():

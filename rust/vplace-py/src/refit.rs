@@ -4,7 +4,9 @@ use numpy::PyArray1;
 use pyo3::prelude::*;
 use std::sync::Arc;
 use vplace_core::{
-    layout::refit::{refit_with_coverage, RefitParams, Refitted},
+    layout::refit::{
+        refit_frames as refit_frames_core, refit_with_coverage, RefitParams, Refitted,
+    },
     view::View,
 };
 
@@ -162,9 +164,77 @@ fn refit(
     })
 }
 
+/// The refit of the same VPLs on several frames whose light alone differs (see
+/// `vplace.refit_frames`): the shadow rays traced once for all frames.
+#[pyfunction]
+#[pyo3(signature = (scenes, frames, vpls, params = None, *, coverage = None, progress = None))]
+fn refit_frames(
+    py: Python<'_>,
+    scenes: Vec<PyRef<'_, PyScene>>,
+    frames: Vec<Vec<Bound<'_, PyView>>>,
+    vpls: &PyVplSet,
+    params: Option<&PyRefitParams>,
+    coverage: Option<Vec<Bound<'_, PyView>>>,
+    progress: Option<&PyProgress>,
+) -> PyResult<Vec<PyRefit>> {
+    if frames.is_empty() {
+        return Err(input_error("frames: give at least one frame's views"));
+    }
+    if scenes.len() != frames.len() {
+        return Err(input_error(format!(
+            "scenes: one per frame of views, got {} scenes for {} frames",
+            scenes.len(),
+            frames.len()
+        )));
+    }
+    if let Some(f) = frames.iter().position(Vec::is_empty) {
+        return Err(input_error(format!(
+            "frames: frame {f} has no view; give at least one View a frame"
+        )));
+    }
+    vpls.check_no_given_radii("refit_frames")?;
+    let frames: Vec<_> = frames.iter().map(|f| views_of(f)).collect();
+    let coverage = views_of(&coverage.unwrap_or_default());
+    let params = RefitParams {
+        profile: vpls.profile,
+        radius: vpls.radius,
+        ..params.map_or(RefitParams::DEFAULT, |p| p.inner)
+    };
+    let scenes: Vec<_> = scenes.iter().map(|s| Arc::clone(&s.inner)).collect();
+    let set = Arc::clone(&vpls.vpls);
+    let prog = progress.map(|p| Arc::clone(&p.inner));
+    let refits = run(py, move || {
+        let scene_refs: Vec<_> = scenes.iter().map(|s| s.as_ref()).collect();
+        let view_refs: Vec<Vec<&View>> = frames
+            .iter()
+            .map(|f| f.iter().map(|v| v.as_ref()).collect())
+            .collect();
+        let frame_refs: Vec<&[&View]> = view_refs.iter().map(Vec::as_slice).collect();
+        let cover: Vec<&View> = coverage.iter().map(|v| v.as_ref()).collect();
+        refit_frames_core(
+            &scene_refs,
+            &frame_refs,
+            &cover,
+            &set,
+            &params,
+            prog.as_deref(),
+        )
+    })?;
+    refits
+        .into_iter()
+        .map(|r| {
+            Ok(PyRefit {
+                vpls: PyVplSet::new_checked(r.vpls.clone(), vpls.profile, vpls.radius)?,
+                r,
+            })
+        })
+        .collect()
+}
+
 /// Registers this file's classes and functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyRefit>()?;
     m.add_function(wrap_pyfunction!(refit, m)?)?;
+    m.add_function(wrap_pyfunction!(refit_frames, m)?)?;
     Ok(())
 }

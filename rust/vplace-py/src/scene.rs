@@ -362,6 +362,13 @@ impl PyScene {
         })
     }
 
+    /// True when every shadow ray is blocked in `other` exactly where it is here: the same
+    /// triangles, textured and alpha-tested surfaces and ray offset; the lights may differ
+    /// (the frames of a moving sun or lamp). `vplace.refit_frames` needs it of its frames.
+    fn same_occluders(&self, other: &PyScene) -> bool {
+        self.inner.same_occluders(&other.inner)
+    }
+
     /// Number of triangles.
     #[getter]
     fn triangle_count(&self) -> usize {

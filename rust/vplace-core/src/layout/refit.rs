@@ -66,6 +66,12 @@
 //! multiply-adds (`rows` = 3 x pixels). The errors come from the same quadratic form:
 //! `||A s - b||^2 = s^T A^T A s - 2 s^T A^T b + b^T b`.
 //!
+//! **Frames** ([`refit_frames`]). `A` reads the VPLs, the receivers' G-buffers and the
+//! occluders, never the lights: frames of an animation whose sun or lamp alone moves have the
+//! same `A` and their own `b`. Their rows are traced once, with `A^T b`, `b^T b` and the cells'
+//! target sums kept per frame; each frame is then cross-validated and solved on its own, so its
+//! result is, bit for bit, the one it gets alone.
+//!
 //! **Solver.** Block principal pivoting (Kim and Park 2011) on the KKT conditions of the
 //! regularized problem, a linear complementarity problem with the positive definite matrix
 //! `A^T A + lambda I`: guess the free set, solve it exactly (Cholesky of the free block), swap
@@ -251,6 +257,7 @@ pub struct Refitted {
 
 /// The normal equations of the strided problem: `A^T A` (column-major `n x n`, upper triangle
 /// filled, then mirrored), `A^T b`, `b^T b`.
+#[derive(Clone)]
 struct Normal {
     gram: Vec<f64>,
     atb: Vec<f64>,
@@ -273,6 +280,7 @@ struct Normal {
 }
 
 /// One cell's sums (see [`Normal::cells`]).
+#[derive(Clone)]
 struct Cell {
     a: Vec<f64>,
     b: [f64; 3],
@@ -373,22 +381,26 @@ impl Normal {
 }
 
 /// The normal equations of each group of strided pixels (`groups`: the folds; with more than
-/// one, each keeps its cells' sums too), traced block by block; the progress counts the blocks
-/// of all groups and one step for the solve. `soa`: the VPLs with their near-field radii.
+/// one, each keeps its cells' sums too), traced block by block, per group one per target
+/// (`targets[t][v]`: target `t`'s indirect image of view `v`, all read on the G-buffers
+/// `gbuffers`): the rows of `A` are traced once for every target. The progress counts the
+/// blocks of all groups and one step per target for the solve. `soa`: the VPLs with their
+/// near-field radii.
 fn normal_equations(
     scene: &Scene,
-    sources: &[(GBuffer<'_>, &[f32])],
+    gbuffers: &[GBuffer<'_>],
+    targets: &[Vec<&[f32]>],
     soa: &VplSoa,
     groups: &[Vec<(usize, usize)>],
     params: &RefitParams,
     progress: Option<&Progress>,
-) -> Result<Vec<Normal>> {
+) -> Result<Vec<Vec<Normal>>> {
     let n = soa.len();
     // About 24 MB of rows per block (3 rows of n f64 per pixel), 128..1024 pixels.
     let block = ((1usize << 20) / n).clamp(128, 1024);
     let blocks: usize = groups.iter().map(|g| g.len().div_ceil(block)).sum();
     if let Some(p) = progress {
-        p.total.store(blocks + 1, Ordering::Relaxed);
+        p.total.store(blocks + targets.len(), Ordering::Relaxed);
         p.done.store(0, Ordering::Relaxed);
     }
     let mut rows = vec![0.0f64; 3 * block * n];
@@ -396,30 +408,65 @@ fn normal_equations(
         .iter()
         .map(|pixels| {
             let cells = groups.len() > 1;
-            group_equations(
-                scene, sources, soa, pixels, block, &mut rows, params, cells, progress,
-            )
+            let traced = Traced {
+                scene,
+                gbuffers,
+                soa,
+                params,
+                progress,
+            };
+            group_equations(&traced, targets, pixels, block, &mut rows, cells)
         })
         .collect()
 }
 
-/// The normal equations of `pixels`, traced `block` pixels at a time into `rows`.
-#[allow(clippy::too_many_arguments)]
+/// What [`group_equations`] traces against: the scene, the receivers and the VPLs.
+struct Traced<'a> {
+    scene: &'a Scene,
+    gbuffers: &'a [GBuffer<'a>],
+    soa: &'a VplSoa,
+    params: &'a RefitParams,
+    progress: Option<&'a Progress>,
+}
+
+/// One target's sums in [`group_equations`]: what of [`Normal`] reads `b`.
+struct TargetSums {
+    atb: Vec<f64>,
+    btb: f64,
+    lum_b: f64,
+    cells: BTreeMap<(usize, usize, usize), [f64; 3]>,
+}
+
+/// The normal equations of `pixels` for each target, traced `block` pixels at a time into
+/// `rows`: `A^T A` once, `A^T b` and `b^T b` per target.
 fn group_equations(
-    scene: &Scene,
-    sources: &[(GBuffer<'_>, &[f32])],
-    soa: &VplSoa,
+    traced: &Traced<'_>,
+    targets: &[Vec<&[f32]>],
     pixels: &[(usize, usize)],
     block: usize,
     rows: &mut [f64],
-    params: &RefitParams,
     cells: bool,
-    progress: Option<&Progress>,
-) -> Result<Normal> {
+) -> Result<Vec<Normal>> {
+    let Traced {
+        scene,
+        gbuffers,
+        soa,
+        params,
+        progress,
+    } = *traced;
     let n = soa.len();
     let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
     let eps = scene.ray_epsilon();
     let mut out = Normal::zero(n);
+    let mut sums: Vec<TargetSums> = targets
+        .iter()
+        .map(|_| TargetSums {
+            atb: vec![0.0; n],
+            btb: 0.0,
+            lum_b: 0.0,
+            cells: BTreeMap::new(),
+        })
+        .collect();
     for chunk in pixels.chunks(block) {
         if cancelled() {
             return Err(VplaceError::Cancelled);
@@ -437,7 +484,7 @@ fn group_equations(
                     .chunks_mut(3 * n)
                     .zip(task_pixels)
                     .map(|(px_rows, &(v, p))| {
-                        let recv = Receiver::of_pixel(&sources[v].0, p, eps);
+                        let recv = Receiver::of_pixel(&gbuffers[v], p, eps);
                         let occluded = |ray: &_| scene.occluded_ray(&mut state, ray);
                         pixel_rows(&recv, soa, params.profile, &mut batch, occluded, px_rows)
                     })
@@ -445,7 +492,7 @@ fn group_equations(
             })
             .sum::<u64>();
         for (k, &(v, p)) in chunk.iter().enumerate() {
-            let w = sources[v].0.width;
+            let w = gbuffers[v].width;
             let key = (v, (p % w) / CV_CELL_PX, (p / w) / CV_CELL_PX);
             let mut cell = cells.then(|| {
                 out.cells.entry(key).or_insert_with(|| Cell {
@@ -458,18 +505,25 @@ fn group_equations(
                 cell.pixels += 1;
             }
             for (c, &y) in LUMINANCE_F64.iter().enumerate() {
-                let b = f64::from(sources[v].1[3 * p + c]);
-                out.btb += b * b;
-                out.lum_b += y * b;
                 let row = &rows[(3 * k + c) * n..(3 * k + c + 1) * n];
-                for ((acc, lum), &a) in out.atb.iter_mut().zip(&mut out.lum_a).zip(row) {
-                    *acc += a * b;
+                for (lum, &a) in out.lum_a.iter_mut().zip(row) {
                     *lum += y * a;
                 }
                 if let Some(cell) = cell.as_mut() {
-                    cell.b[c] += b;
                     let sums = &mut cell.a[c * n..(c + 1) * n];
                     sums.iter_mut().zip(row).for_each(|(acc, &a)| *acc += a);
+                }
+                for (t, target) in sums.iter_mut().zip(targets) {
+                    let b = f64::from(target[v][3 * p + c]);
+                    t.btb += b * b;
+                    t.lum_b += y * b;
+                    t.atb
+                        .iter_mut()
+                        .zip(row)
+                        .for_each(|(acc, &a)| *acc += a * b);
+                    if cells {
+                        t.cells.entry(key).or_insert([0.0; 3])[c] += b;
+                    }
                 }
             }
         }
@@ -497,7 +551,24 @@ fn group_equations(
         }
     }
     out.vpl_trace = (0..n).map(|i| out.gram[i * n + i]).sum();
-    Ok(out)
+    // One copy of the traced sums per target, with that target's own.
+    let last = sums.len().saturating_sub(1);
+    let mut per_target = Vec::with_capacity(sums.len());
+    for (t, target) in sums.into_iter().enumerate() {
+        let mut ne = if t == last {
+            std::mem::replace(&mut out, Normal::zero(0))
+        } else {
+            out.clone()
+        };
+        ne.atb = target.atb;
+        ne.btb = target.btb;
+        ne.lum_b = target.lum_b;
+        for (key, cell) in &mut ne.cells {
+            cell.b = target.cells.get(key).copied().unwrap_or([0.0; 3]);
+        }
+        per_target.push(ne);
+    }
+    Ok(per_target)
 }
 
 /// `s^T Q s` for the column-major `n x n` matrix `q`.
@@ -897,6 +968,52 @@ fn unseen_weights(
 
 /// Refits the flux of `vpls` against the indirect image `indirect` (`I = G - D`, `H x W x 3`,
 /// finite on covered pixels) over the covered pixels of the strided grid of `gbuffer`.
+/// Checks that frame `f` (`scene`, `views`) has the first frame's occluders and G-buffers
+/// ([`refit_frames`]): then its rows of `A` are the first frame's.
+fn same_transport(
+    first: &Scene,
+    first_views: &[&View],
+    scene: &Scene,
+    views: &[&View],
+    f: usize,
+) -> Result<()> {
+    if views.len() != first_views.len() {
+        return Err(VplaceError::Shape {
+            what: format!("frame {f}'s views"),
+            expected: format!("{} views, as the first frame", first_views.len()),
+            got: format!("{} views", views.len()),
+        });
+    }
+    if !first.same_occluders(scene) {
+        return Err(VplaceError::Invalid {
+            what: format!("frame {f}'s scene"),
+            reason: "its triangles or surfaces differ from the first frame's: refit the frames \
+                     one by one"
+                .into(),
+        });
+    }
+    for (a, b) in first_views.iter().zip(views) {
+        let (ga, gb) = (a.gbuffer(), b.gbuffer());
+        let same = ga.width == gb.width
+            && ga.height == gb.height
+            && ga.position == gb.position
+            && ga.normal == gb.normal
+            && ga.albedo == gb.albedo
+            && ga.covered == gb.covered;
+        if !same {
+            return Err(VplaceError::Invalid {
+                what: format!("frame {f}'s view {:?}", b.name),
+                reason: format!(
+                    "its G-buffer differs from the first frame's view {:?}: refit the frames \
+                     one by one",
+                    a.name
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
 /// [`refit_with_coverage`] without coverage views.
 ///
 /// Errors: shape mismatches, non-finite values on covered pixels, no VPLs or more than
@@ -927,14 +1044,56 @@ pub fn refit_with_coverage(
     params: &RefitParams,
     progress: Option<&Progress>,
 ) -> Result<Refitted> {
+    let mut refits = refit_frames(&[scene], &[views], coverage, vpls, params, progress)?;
+    Ok(refits.remove(0))
+}
+
+/// [`refit_with_coverage`] of the same VPLs on several frames at once, where only the light
+/// differs: `frames[f]` are frame `f`'s views, each with its own indirect image, on the first
+/// frame's G-buffers bit for bit (size, position, normal, albedo, covered pixels), and
+/// `scenes[f]` its scene, whose occluders are the first's ([`Scene::same_occluders`]; its
+/// lights may differ: the refit does not read them). Every frame's rows of `A` are then the
+/// same, so they are traced once: F frames cost one frame's shadow rays and Gram matrix, and
+/// F solves. Each frame's result is the one [`refit_with_coverage`] gives it alone, bit for
+/// bit (the ridge's cross-validation, the gain and the solve are per frame). Each result's
+/// `seconds` is the tracing's share (over the frames) plus its own solve, its `shadow_rays`
+/// the rays traced for all of them.
+///
+/// Errors: those of [`refit_with_coverage`]; no frame; `scenes` and `frames` of different
+/// lengths; a frame with another number of views than the first, or whose G-buffers or
+/// occluders are not the first frame's.
+pub fn refit_frames(
+    scenes: &[&Scene],
+    frames: &[&[&View]],
+    coverage: &[&View],
+    vpls: &[Vpl],
+    params: &RefitParams,
+    progress: Option<&Progress>,
+) -> Result<Vec<Refitted>> {
     let start = Instant::now();
+    let (Some(&scene), Some(&views)) = (scenes.first(), frames.first()) else {
+        return Err(VplaceError::Empty {
+            what: "frames".into(),
+            hint: "the refit needs at least one frame's scene and views".into(),
+        });
+    };
+    if scenes.len() != frames.len() {
+        return Err(VplaceError::Shape {
+            what: "frames".into(),
+            expected: format!("one scene per frame of views ({})", frames.len()),
+            got: format!("{} scenes", scenes.len()),
+        });
+    }
     if views.is_empty() {
         return Err(VplaceError::Empty {
             what: "views".into(),
             hint: "the refit needs at least one view with its indirect image".into(),
         });
     }
-    let targets = targets(views)?;
+    for (f, (other, frame)) in scenes.iter().zip(frames).enumerate().skip(1) {
+        same_transport(scene, views, other, frame, f)?;
+    }
+    let targets: Vec<Vec<&[f32]>> = frames.iter().map(|f| targets(f)).collect::<Result<_>>()?;
     validate_vpls(vpls)?;
     check_radius(params.radius)?;
     if vpls.is_empty() {
@@ -978,8 +1137,7 @@ pub fn refit_with_coverage(
             expected: ">= 0 and finite".into(),
         });
     }
-    let sources: Vec<(GBuffer<'_>, &[f32])> =
-        views.iter().map(|v| v.gbuffer()).zip(targets).collect();
+    let gbuffers: Vec<GBuffer<'_>> = views.iter().map(|v| v.gbuffer()).collect();
     let pixels = strided_pixels(views, params.stride);
     let n = vpls.len();
     let by_view = params.leave_out_views && views.len() >= LOVO_MIN_VIEWS;
@@ -990,7 +1148,7 @@ pub fn refit_with_coverage(
     };
     let mut groups = vec![Vec::new(); folds];
     for &(v, p) in &pixels {
-        let w = sources[v].0.width;
+        let w = gbuffers[v].width;
         let fold = if by_view {
             v % folds
         } else {
@@ -1000,7 +1158,7 @@ pub fn refit_with_coverage(
     }
     // The VPLs with their near-field radii, once for the captures and the coverage views.
     let soa = VplSoa::new(vpls, &near_field_radii(vpls, params.radius));
-    let mut parts = normal_equations(scene, &sources, &soa, &groups, params, progress)?;
+    let per_fold = normal_equations(scene, &gbuffers, &targets, &soa, &groups, params, progress)?;
     let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
     let (unseen, unseen_pixels) = unseen_weights(
         scene,
@@ -1011,116 +1169,131 @@ pub fn refit_with_coverage(
         pixels.len(),
         &cancelled,
     )?;
-    for part in &mut parts {
-        part.unseen.clone_from(&unseen);
-    }
+    let traced = start.elapsed().as_secs_f64() / frames.len() as f64;
     // Power groups: the solve runs on one scale per group ([`RefitParams::group`]).
-    let full_n = n;
-    let (member, parts, n) = if params.group > 1 {
-        let (member, k) = power_groups(vpls, params.group);
-        let parts: Vec<Normal> = parts.iter().map(|p| project(p, &member, k)).collect();
-        (member, parts, k)
+    let (member, n) = if params.group > 1 {
+        power_groups(vpls, params.group)
     } else {
-        ((0..n).collect(), parts, n)
+        ((0..n).collect(), n)
     };
-    let mut ne = Normal::zero(n);
-    for part in &parts {
-        add_to(&mut ne, part);
-    }
     // The ridge: the one of the grid whose refits on all folds but one predict the left-out
     // fold best (summed squared error); ties to the larger ridge. Folds without pixels are
     // skipped; with fewer than two usable folds the ridge is not selected.
     let usable: Vec<usize> = (0..folds).filter(|&k| !groups[k].is_empty()).collect();
-    let (mut cv, mut gain_cv) = (Vec::new(), Vec::new());
-    let (mut ridge, mut free) = (params.ridge, false);
-    if usable.len() >= 2 {
-        let mut best = f64::INFINITY;
-        let trains: Vec<Normal> = usable
-            .iter()
-            .map(|&k| {
-                let mut train = Normal::zero(n);
-                for part in (0..folds).filter(|&j| j != k).map(|j| &parts[j]) {
-                    add_to(&mut train, part);
+    // Per frame, its folds' normal equations (traced per fold, one per frame each).
+    let mut by_frame: Vec<Vec<Normal>> = frames.iter().map(|_| Vec::new()).collect();
+    for fold in per_fold {
+        for (parts, part) in by_frame.iter_mut().zip(fold) {
+            parts.push(part);
+        }
+    }
+    let solve_frame = |mut parts: Vec<Normal>| -> Result<Refitted> {
+        let begun = Instant::now();
+        for part in &mut parts {
+            part.unseen.clone_from(&unseen);
+        }
+        if params.group > 1 {
+            parts = parts.iter().map(|p| project(p, &member, n)).collect();
+        }
+        let mut ne = Normal::zero(n);
+        for part in &parts {
+            add_to(&mut ne, part);
+        }
+        // The ridge: the one of the grid whose refits on all folds but one predict the left-out
+        // fold best (summed squared error); ties to the larger ridge. Folds without pixels are
+        // skipped; with fewer than two usable folds the ridge is not selected.
+        let (mut cv, mut gain_cv) = (Vec::new(), Vec::new());
+        let (mut ridge, mut free) = (params.ridge, false);
+        if usable.len() >= 2 {
+            let mut best = f64::INFINITY;
+            let trains: Vec<Normal> = usable
+                .iter()
+                .map(|&k| {
+                    let mut train = Normal::zero(n);
+                    for part in (0..folds).filter(|&j| j != k).map(|j| &parts[j]) {
+                        add_to(&mut train, part);
+                    }
+                    train
+                })
+                .collect();
+            let cells: usize = usable.iter().map(|&k| parts[k].cells.len()).sum();
+            // Per ridge, the summed error pulling toward 1 and (free gain) toward the gain.
+            let mut errs = vec![[0.0f64; 2]; RIDGE_GRID.len()];
+            for (train, &k) in trains.iter().zip(&usable) {
+                let pulls: &[f64] = if params.free_gain {
+                    &[1.0, train.gain()]
+                } else {
+                    &[1.0]
+                };
+                for (e, &r) in errs.iter_mut().zip(&RIDGE_GRID) {
+                    for (m, solved) in solve(train, r, pulls, &cancelled)?.iter().enumerate() {
+                        e[m] += parts[k].cell_error(&solved.s);
+                    }
                 }
-                train
+            }
+            let rmse = |err: f64| (err / (3.0 * cells.max(1) as f64)).sqrt();
+            // Ties: to the larger ridge.
+            for (e, &r) in errs.iter().zip(&RIDGE_GRID) {
+                cv.push((r, rmse(e[0])));
+                if e[0] <= best {
+                    (best, ridge) = (e[0], r);
+                }
+            }
+            if params.free_gain {
+                let mut best_gain = (f64::INFINITY, params.ridge);
+                for (e, &r) in errs.iter().zip(&RIDGE_GRID) {
+                    gain_cv.push((r, rmse(e[1])));
+                    if e[1] <= best_gain.0 {
+                        best_gain = (e[1], r);
+                    }
+                }
+                if rmse(best_gain.0) < (1.0 - GAIN_MARGIN) * rmse(best) {
+                    (ridge, free) = (best_gain.1, true);
+                }
+            }
+        }
+        let gain = if free { ne.gain() } else { 1.0 };
+        let ones = vec![1.0f64; n];
+        let solved = solve(&ne, ridge, &[gain], &cancelled)?.remove(0);
+        let (mut scales, exchanges) = (solved.s, solved.exchanges);
+        let rows = 3.0 * pixels.len().max(1) as f64;
+        let before = ne.sq_error(&ones);
+        let mut after = ne.sq_error(&scales);
+        // Worse than no refit (rounding), or not a number: keep the original powers.
+        if !scales.iter().all(|s| s.is_finite()) || after.is_nan() || after > before {
+            scales = ones;
+            after = before;
+        }
+        if let Some(p) = progress {
+            p.done.fetch_add(1, Ordering::Relaxed);
+        }
+        let scales: Vec<f64> = member.iter().map(|&m| scales[m]).collect();
+        let refitted = vpls
+            .iter()
+            .zip(&scales)
+            .map(|(v, &s)| Vpl {
+                flux: v.flux * s as f32,
+                ..*v
             })
             .collect();
-        let cells: usize = usable.iter().map(|&k| parts[k].cells.len()).sum();
-        // Per ridge, the summed error pulling toward 1 and (free gain) toward the gain.
-        let mut errs = vec![[0.0f64; 2]; RIDGE_GRID.len()];
-        for (train, &k) in trains.iter().zip(&usable) {
-            let pulls: &[f64] = if params.free_gain {
-                &[1.0, train.gain()]
-            } else {
-                &[1.0]
-            };
-            for (e, &r) in errs.iter_mut().zip(&RIDGE_GRID) {
-                for (m, solved) in solve(train, r, pulls, &cancelled)?.iter().enumerate() {
-                    e[m] += parts[k].cell_error(&solved.s);
-                }
-            }
-        }
-        let rmse = |err: f64| (err / (3.0 * cells.max(1) as f64)).sqrt();
-        // Ties: to the larger ridge.
-        for (e, &r) in errs.iter().zip(&RIDGE_GRID) {
-            cv.push((r, rmse(e[0])));
-            if e[0] <= best {
-                (best, ridge) = (e[0], r);
-            }
-        }
-        if params.free_gain {
-            let mut best_gain = (f64::INFINITY, params.ridge);
-            for (e, &r) in errs.iter().zip(&RIDGE_GRID) {
-                gain_cv.push((r, rmse(e[1])));
-                if e[1] <= best_gain.0 {
-                    best_gain = (e[1], r);
-                }
-            }
-            if rmse(best_gain.0) < (1.0 - GAIN_MARGIN) * rmse(best) {
-                (ridge, free) = (best_gain.1, true);
-            }
-        }
-    }
-    let gain = if free { ne.gain() } else { 1.0 };
-    let ones = vec![1.0f64; n];
-    let solved = solve(&ne, ridge, &[gain], &cancelled)?.remove(0);
-    let (mut scales, exchanges) = (solved.s, solved.exchanges);
-    let rows = 3.0 * pixels.len().max(1) as f64;
-    let before = ne.sq_error(&ones);
-    let mut after = ne.sq_error(&scales);
-    // Worse than no refit (rounding), or not a number: keep the original powers.
-    if !scales.iter().all(|s| s.is_finite()) || after.is_nan() || after > before {
-        scales = ones;
-        after = before;
-    }
-    if let Some(p) = progress {
-        p.done.fetch_add(1, Ordering::Relaxed);
-    }
-    let scales: Vec<f64> = (0..full_n).map(|i| scales[member[i]]).collect();
-    let refitted = vpls
-        .iter()
-        .zip(&scales)
-        .map(|(v, &s)| Vpl {
-            flux: v.flux * s as f32,
-            ..*v
+        Ok(Refitted {
+            vpls: refitted,
+            scales,
+            error_before: (before / rows).sqrt(),
+            error_after: (after / rows).sqrt(),
+            pixels: pixels.len(),
+            shadow_rays: ne.rays,
+            exchanges,
+            ridge,
+            cv,
+            gain_cv,
+            gain,
+            groups: n,
+            unseen_pixels,
+            seconds: traced + begun.elapsed().as_secs_f64(),
         })
-        .collect();
-    Ok(Refitted {
-        vpls: refitted,
-        scales,
-        error_before: (before / rows).sqrt(),
-        error_after: (after / rows).sqrt(),
-        pixels: pixels.len(),
-        shadow_rays: ne.rays,
-        exchanges,
-        ridge,
-        cv,
-        gain_cv,
-        gain,
-        groups: n,
-        unseen_pixels,
-        seconds: start.elapsed().as_secs_f64(),
-    })
+    };
+    by_frame.into_iter().map(solve_frame).collect()
 }
 
 #[cfg(test)]
@@ -1662,11 +1835,12 @@ mod tests {
                 }
                 // The normal equations of the reference rows (pixel-major, R G B per pixel).
                 let target: Vec<f32> = (0..3 * 144).map(|i| 0.01 * (i % 7) as f32).collect();
-                let sources = [(g, &target[..])];
+                let targets = [vec![&target[..]]];
                 let pairs: Vec<(usize, usize)> = pixels.iter().map(|&p| (0, p)).collect();
                 let groups = [pairs];
-                let ne = normal_equations(&scene, &sources, &soa, &groups, &params, None)
+                let ne = normal_equations(&scene, &[g], &targets, &soa, &groups, &params, None)
                     .unwrap()
+                    .remove(0)
                     .remove(0);
                 assert_eq!(ne.rays, expect_rays);
                 let (mut atb, mut gram) = (vec![0.0f64; n], vec![0.0f64; n * n]);
@@ -1914,5 +2088,104 @@ mod tests {
         for (a, b) in one.scales.iter().zip(&two.scales) {
             assert!((a - b).abs() < 1e-6, "{:?} {:?}", one.scales, two.scales);
         }
+    }
+
+    #[test]
+    fn frames_on_the_same_gbuffers_refit_as_each_alone() {
+        // Three frames of one floor, each lit by other powers (a moving lamp): refitted at
+        // once, each is what its refit alone gives, bit for bit, for every fold mode and group.
+        let scene = closed_box(vec![crate::scene::Light::point(
+            Vec3::new(0.2, 0.1, 1.5),
+            Vec3::ONE,
+        )]);
+        let moved = closed_box(vec![crate::scene::Light::point(
+            Vec3::new(-0.5, 0.3, 1.2),
+            Vec3::ONE,
+        )]);
+        let fv = FloorView::new(64, Vec3::new(0.0, 0.0, 1.0), 10.0);
+        let base = vpls();
+        let powers: [&[f32]; 3] = [
+            &[0.5, 2.0, 1.0, 0.0, 1.5, 0.8, 3.0],
+            &[1.5, 0.5, 1.0, 2.0, 0.5, 0.8, 3.0],
+            &[1.0, 1.0, 0.2, 0.5, 2.5, 0.1, 1.0],
+        ];
+        let views: Vec<View> = powers
+            .iter()
+            .map(|p| fv.view_with(Some(&render(&scene, &fv, &scaled(&base, p)))))
+            .collect();
+        let scenes = [&scene, &moved, &scene];
+        for params in [
+            PER_VPL,
+            RefitParams {
+                stride: 2,
+                group: 3,
+                ..RefitParams::DEFAULT
+            },
+            params(3, 0.1),
+        ] {
+            for n_views in [1, 3] {
+                // Frame f sees the floor n_views times (the leave-one-view-out folds at 3).
+                let frames: Vec<Vec<&View>> = views.iter().map(|v| vec![v; n_views]).collect();
+                let refs: Vec<&[&View]> = frames.iter().map(Vec::as_slice).collect();
+                let together = refit_frames(&scenes, &refs, &[], &base, &params, None).unwrap();
+                assert_eq!(together.len(), 3);
+                for (f, got) in together.iter().enumerate() {
+                    let alone = refit(scenes[f], refs[f], &base, &params, None).unwrap();
+                    assert_eq!(got.scales, alone.scales, "frame {f}");
+                    assert_eq!(got.vpls, alone.vpls);
+                    assert_eq!(got.cv, alone.cv);
+                    assert_eq!(got.gain_cv, alone.gain_cv);
+                    assert_eq!(got.ridge, alone.ridge);
+                    assert_eq!(got.error_after, alone.error_after);
+                    assert_eq!(got.shadow_rays, alone.shadow_rays);
+                }
+                assert_ne!(together[0].scales, together[1].scales);
+            }
+        }
+        // Another floor (a G-buffer that differs), other occluders, other view counts: errors.
+        let mut elsewhere = views[1].clone();
+        elsewhere.albedo[0] = 0.1;
+        let p = PER_VPL;
+        let err = refit_frames(
+            &[&scene, &scene],
+            &[&[&views[0]], &[&elsewhere]],
+            &[],
+            &base,
+            &p,
+            None,
+        );
+        assert!(matches!(err, Err(VplaceError::Invalid { .. })), "{err:?}");
+        let (walled, _, _) = crate::test_util::emissive_cube_in_box();
+        let err = refit_frames(
+            &[&scene, &walled],
+            &[&[&views[0]], &[&views[1]]],
+            &[],
+            &base,
+            &p,
+            None,
+        );
+        assert!(matches!(err, Err(VplaceError::Invalid { .. })), "{err:?}");
+        let err = refit_frames(
+            &[&scene, &scene],
+            &[&[&views[0]], &[&views[1], &views[1]]],
+            &[],
+            &base,
+            &p,
+            None,
+        );
+        assert!(matches!(err, Err(VplaceError::Shape { .. })), "{err:?}");
+        let err = refit_frames(
+            &[&scene],
+            &[&[&views[0]], &[&views[1]]],
+            &[],
+            &base,
+            &p,
+            None,
+        );
+        assert!(matches!(err, Err(VplaceError::Shape { .. })), "{err:?}");
+        assert!(matches!(
+            refit_frames(&[], &[], &[], &base, &p, None),
+            Err(VplaceError::Empty { .. })
+        ));
     }
 }

@@ -151,6 +151,7 @@ impl LightBounces {
 }
 
 /// What textured and alpha-tested materials need at a hit.
+#[derive(PartialEq)]
 struct Surfaces {
     textures: Vec<Texture>,
     materials: Vec<Material>,
@@ -392,6 +393,25 @@ impl Scene {
     #[must_use]
     pub fn ray_epsilon(&self) -> f32 {
         1e-4 * self.scale
+    }
+
+    /// True when every shadow ray is blocked in `other` exactly where it is here: the same
+    /// triangles in the same BVH order, the same textured and alpha-tested surfaces, the same
+    /// ray offset ([`Scene::ray_epsilon`]). The lights may differ. (A frame of an animation
+    /// whose sun or lamp moves keeps its occluders; one whose objects move does not.)
+    #[must_use]
+    pub fn same_occluders(&self, other: &Scene) -> bool {
+        let same_triangle =
+            |a: &Triangle, b: &Triangle| a.v0 == b.v0 && a.v1 == b.v1 && a.v2 == b.v2;
+        self.scale == other.scale
+            && self.bvh_ids == other.bvh_ids
+            && self.bvh_triangles.len() == other.bvh_triangles.len()
+            && self
+                .bvh_triangles
+                .iter()
+                .zip(&other.bvh_triangles)
+                .all(|(a, b)| same_triangle(a, b))
+            && self.surfaces == other.surfaces
     }
 
     /// Unit geometric normal of triangle `t` (zero if degenerate).

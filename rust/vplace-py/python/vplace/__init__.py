@@ -28,7 +28,9 @@ The pieces, in pipeline order:
   cells of every view and the off-screen light paths, the budget split by predicted indirect
   light, then iterations against every view's indirect image); :func:`refit` refits the VPL
   powers against every view at once (non-negative least squares; ``coverage=`` views hold the
-  VPLs lighting what no view saw); :func:`uniform_vpls` (Keller)
+  VPLs lighting what no view saw); :func:`refit_frames` refits them on several frames whose
+  light alone differs (the same G-buffers, ``Scene.same_occluders``), tracing the shadow rays
+  once for all, each frame's result what :func:`refit` gives it; :func:`uniform_vpls` (Keller)
   and :func:`rsm_vpls` are the baselines.
 - :func:`direct_light` estimates every light source's direct light over a view's G-buffer
   with shadow rays (irradiance / pi, what Cycles' DiffDir pass holds).
@@ -83,6 +85,7 @@ from vplace._native import (
     fit_design,
     layout,
     refit,
+    refit_frames,
     relative_mse,
     rmse,
     rmse_noise_free,
@@ -134,6 +137,7 @@ __all__ = [
     "fit_design",
     "layout",
     "refit",
+    "refit_frames",
     "refit_stride_for",
     "relative_mse",
     "rmse",

@@ -143,6 +143,7 @@ class Scene:
     def texture_count(self) -> int: ...
     @property
     def has_alpha_tests(self) -> bool: ...
+    def same_occluders(self, other: Scene) -> bool: ...
     @property
     def triangle_count(self) -> int: ...
     @property
@@ -631,6 +632,15 @@ def refit(
     coverage: Sequence[View] | None = None,
     progress: Progress | None = None,
 ) -> Refit: ...
+def refit_frames(
+    scenes: Sequence[Scene],
+    frames: Sequence[Sequence[View]],
+    vpls: VplSet,
+    params: RefitParams | None = None,
+    *,
+    coverage: Sequence[View] | None = None,
+    progress: Progress | None = None,
+) -> list[Refit]: ...
 
 # --- the direct-light estimator (direct.rs) -----------------------------------------------
 MAX_DIRECT_SAMPLES: int

@@ -129,7 +129,8 @@ def refit_powers(
     progress: vplace.Progress | None = None,
 ) -> vplace.Refit:
     """The power refit of ``vpls`` for ``views``, as every refitting caller runs it (the still
-    layout, :func:`lay_out`, and each frame of ``vplace.temporal.shared_layout``): fitted to
+    layout, :func:`lay_out`, and, through :func:`refit_frame_powers`, each frame of
+    ``vplace.temporal.shared_layout``): fitted to
     the captured views of ``views`` (or ``refit_views`` in their place) at
     ``vplace.refit_stride_for`` of them; ``group``: VPLs per power group (default
     ``RefitParams.DEFAULT``'s).
@@ -148,10 +149,72 @@ def refit_powers(
         scene,
         captured,
         vpls,
-        vplace.RefitParams(stride=vplace.refit_stride_for(captured), group=group),
+        _refit_params(captured, group),
         coverage=[v for v in views if is_coverage(v)] if hold_unseen else None,
         progress=progress,
     )
+
+
+def _refit_params(captured: Sequence[vplace.View], group: int | None) -> vplace.RefitParams:
+    """The refit's settings for ``captured`` (:func:`refit_powers`): its own stride."""
+    return vplace.RefitParams(stride=vplace.refit_stride_for(captured), group=group)
+
+
+def same_gbuffers(a: Sequence[vplace.View], b: Sequence[vplace.View]) -> bool:
+    """True when views ``a`` and ``b`` are the same G-buffers, one for one, bit for bit (size,
+    position, normal, albedo, covered pixels): what the refit reads of a view besides its
+    target."""
+    return len(a) == len(b) and all(
+        (x.width, x.height) == (y.width, y.height)
+        and all(
+            np.array_equal(getattr(x, k), getattr(y, k))
+            for k in ("position", "normal", "albedo", "covered")
+        )
+        for x, y in zip(a, b, strict=True)
+    )
+
+
+def refit_frame_powers(
+    scenes: Sequence[vplace.Scene],
+    views: Sequence[Sequence[vplace.View]],
+    vpls: vplace.VplSet,
+    *,
+    group: int | None = None,
+    progress: vplace.Progress | None = None,
+) -> list[vplace.Refit]:
+    """:func:`refit_powers` of the same ``vpls`` on each frame ``f`` (``scenes[f]``, its
+    captured views of ``views[f]``), without the coverage views' hold (``hold_unseen=False``,
+    as a shared layout refits: ``vplace.temporal.shared_layout``). The frames whose light alone
+    differs (a moving sun or lamp: their captures' G-buffers, :func:`same_gbuffers`, and their
+    scenes' occluders, ``Scene.same_occluders``, are the same) are refitted together
+    (``vplace.refit_frames``): their shadow rays and Gram matrix are traced once, each frame's
+    result the one :func:`refit_powers` gives it alone. A frame whose objects or camera move
+    is refitted on its own."""
+    if len(scenes) != len(views):
+        raise ValueError(f"{len(scenes)} scenes for {len(views)} frames of views")
+    captured = [captures_of(v) for v in views]
+    groups: list[list[int]] = []
+    for f in range(len(scenes)):
+        for members in groups:
+            first = members[0]
+            if scenes[first].same_occluders(scenes[f]) and same_gbuffers(
+                captured[first], captured[f]
+            ):
+                members.append(f)
+                break
+        else:
+            groups.append([f])
+    out: dict[int, vplace.Refit] = {}
+    for members in groups:
+        refits = vplace.refit_frames(
+            [scenes[f] for f in members],
+            [captured[f] for f in members],
+            vpls,
+            _refit_params(captured[members[0]], group),
+            progress=progress,
+        )
+        out.update(zip(members, refits, strict=True))
+    return [out[f] for f in range(len(scenes))]
 
 
 def lay_out(

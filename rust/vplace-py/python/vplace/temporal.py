@@ -24,9 +24,10 @@ and the keyed lights at any frame between the captured ones, as Blender interpol
   times the light); then each frame refits every power on its own captures, as the still
   layout refits (``vplace.job.refit_powers``: at its stride; without the coverage views'
   penalty, which would hold VPLs at other frames' powers; README, "Each frame's refit is the
-  still layout's"). The keyed lights then stand still and only
-  their powers change. Why: a frame's own layout differs from the
-  next frame's in the places it picks, and that change is what flickers. Capturing more frames
+  still layout's"); frames whose light alone differs trace the refit's shadow rays once for
+  all (``vplace.job.refit_frame_powers``). The keyed lights then stand still and only their
+  powers change. Why: a frame's own layout differs from the next frame's in the places it
+  picks, and that change is what flickers. Capturing more frames
   made the keyed lights flicker more, not less (evaluator temporal error, step 4 -> 2 -> 1:
   ``cornell_moving`` .0105 -> .0159 -> .0299, ``skyroom_afternoon`` .0332 -> .0440 -> .0664),
   while positions shared over the captured frames gave .0060 and .0230 at step 4 (README,
@@ -304,16 +305,12 @@ def shared_layout(
         profile=parts[0].profile,
         radius=parts[0].radius,
     )
-    out = []
-    for scene, frame_views in zip(scenes, views, strict=True):
-        # One scale per VPL (not power groups): the refit picks each frame's lights out of
-        # the union, and a group would tie a light of this frame to its neighbour of another.
-        # Nothing held at the union's powers: they are other frames' (refit_powers).
-        refit = vplace.job.refit_powers(
-            scene, frame_views, union, group=1, hold_unseen=False, progress=progress
-        )
-        out.append(refit.vpls)
-    return out
+    # One scale per VPL (not power groups): the refit picks each frame's lights out of the
+    # union, and a group would tie a light of this frame to its neighbour of another. Nothing
+    # held at the union's powers: they are other frames' (refit_powers). Frames whose light
+    # alone differs share their shadow rays (refit_frame_powers).
+    refits = vplace.job.refit_frame_powers(scenes, views, union, group=1, progress=progress)
+    return [r.vpls for r in refits]
 
 
 def at_frame(keyed: Keyed, frames: Sequence[float], frame: float) -> vplace.VplSet:
