@@ -125,6 +125,26 @@ impl PyRefit {
     }
 }
 
+impl PyRefit {
+    /// A core refit of `vpls` (whose profile and radius the refitted set keeps).
+    fn of(r: Refitted, vpls: &PyVplSet) -> PyResult<Self> {
+        Ok(Self {
+            vpls: PyVplSet::new_checked(r.vpls.clone(), vpls.profile, vpls.radius)?,
+            r,
+        })
+    }
+}
+
+/// The refit's settings for `vpls`: `params` (or the defaults) with the set's profile and
+/// radius.
+fn refit_params(vpls: &PyVplSet, params: Option<&PyRefitParams>) -> RefitParams {
+    RefitParams {
+        profile: vpls.profile,
+        radius: vpls.radius,
+        ..params.map_or(RefitParams::DEFAULT, |p| p.inner)
+    }
+}
+
 /// Non-negative least squares on the VPL powers against every view's indirect image, each VPL
 /// also held by its light on what the `coverage` views show and no view sees (see
 /// `vplace.refit`).
@@ -145,11 +165,7 @@ fn refit(
     vpls.check_no_given_radii("refit")?;
     let views = views_of(&views);
     let coverage = views_of(&coverage.unwrap_or_default());
-    let params = RefitParams {
-        profile: vpls.profile,
-        radius: vpls.radius,
-        ..params.map_or(RefitParams::DEFAULT, |p| p.inner)
-    };
+    let params = refit_params(vpls, params);
     let s = Arc::clone(&scene.inner);
     let set = Arc::clone(&vpls.vpls);
     let prog = progress.map(|p| Arc::clone(&p.inner));
@@ -158,10 +174,7 @@ fn refit(
         let cover: Vec<&View> = coverage.iter().map(|v| v.as_ref()).collect();
         refit_with_coverage(&s, &refs, &cover, &set, &params, prog.as_deref())
     })?;
-    Ok(PyRefit {
-        vpls: PyVplSet::new_checked(r.vpls.clone(), vpls.profile, vpls.radius)?,
-        r,
-    })
+    PyRefit::of(r, vpls)
 }
 
 /// The refit of the same VPLs on several frames whose light alone differs (see
@@ -195,11 +208,7 @@ fn refit_frames(
     vpls.check_no_given_radii("refit_frames")?;
     let frames: Vec<_> = frames.iter().map(|f| views_of(f)).collect();
     let coverage = views_of(&coverage.unwrap_or_default());
-    let params = RefitParams {
-        profile: vpls.profile,
-        radius: vpls.radius,
-        ..params.map_or(RefitParams::DEFAULT, |p| p.inner)
-    };
+    let params = refit_params(vpls, params);
     let scenes: Vec<_> = scenes.iter().map(|s| Arc::clone(&s.inner)).collect();
     let set = Arc::clone(&vpls.vpls);
     let prog = progress.map(|p| Arc::clone(&p.inner));
@@ -220,15 +229,7 @@ fn refit_frames(
             prog.as_deref(),
         )
     })?;
-    refits
-        .into_iter()
-        .map(|r| {
-            Ok(PyRefit {
-                vpls: PyVplSet::new_checked(r.vpls.clone(), vpls.profile, vpls.radius)?,
-                r,
-            })
-        })
-        .collect()
+    refits.into_iter().map(|r| PyRefit::of(r, vpls)).collect()
 }
 
 /// Registers this file's classes and functions.

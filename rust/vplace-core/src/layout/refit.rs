@@ -408,25 +408,11 @@ fn normal_equations(
         .iter()
         .map(|pixels| {
             let cells = groups.len() > 1;
-            let traced = Traced {
-                scene,
-                gbuffers,
-                soa,
-                params,
-                progress,
-            };
-            group_equations(&traced, targets, pixels, block, &mut rows, cells)
+            group_equations(
+                scene, gbuffers, targets, soa, pixels, block, &mut rows, params, cells, progress,
+            )
         })
         .collect()
-}
-
-/// What [`group_equations`] traces against: the scene, the receivers and the VPLs.
-struct Traced<'a> {
-    scene: &'a Scene,
-    gbuffers: &'a [GBuffer<'a>],
-    soa: &'a VplSoa,
-    params: &'a RefitParams,
-    progress: Option<&'a Progress>,
 }
 
 /// One target's sums in [`group_equations`]: what of [`Normal`] reads `b`.
@@ -439,21 +425,19 @@ struct TargetSums {
 
 /// The normal equations of `pixels` for each target, traced `block` pixels at a time into
 /// `rows`: `A^T A` once, `A^T b` and `b^T b` per target.
+#[allow(clippy::too_many_arguments)]
 fn group_equations(
-    traced: &Traced<'_>,
+    scene: &Scene,
+    gbuffers: &[GBuffer<'_>],
     targets: &[Vec<&[f32]>],
+    soa: &VplSoa,
     pixels: &[(usize, usize)],
     block: usize,
     rows: &mut [f64],
+    params: &RefitParams,
     cells: bool,
+    progress: Option<&Progress>,
 ) -> Result<Vec<Normal>> {
-    let Traced {
-        scene,
-        gbuffers,
-        soa,
-        params,
-        progress,
-    } = *traced;
     let n = soa.len();
     let cancelled = || progress.is_some_and(|p| p.cancel.load(Ordering::Relaxed));
     let eps = scene.ray_epsilon();
@@ -966,8 +950,6 @@ fn unseen_weights(
     Ok((sums.iter().map(|x| k * x).collect(), unseen.len()))
 }
 
-/// Refits the flux of `vpls` against the indirect image `indirect` (`I = G - D`, `H x W x 3`,
-/// finite on covered pixels) over the covered pixels of the strided grid of `gbuffer`.
 /// Checks that frame `f` (`scene`, `views`) has the first frame's occluders and G-buffers
 /// ([`refit_frames`]): then its rows of `A` are the first frame's.
 fn same_transport(
@@ -1014,6 +996,8 @@ fn same_transport(
     Ok(())
 }
 
+/// Refits the flux of `vpls` against the indirect image `indirect` (`I = G - D`, `H x W x 3`,
+/// finite on covered pixels) over the covered pixels of the strided grid of `gbuffer`.
 /// [`refit_with_coverage`] without coverage views.
 ///
 /// Errors: shape mismatches, non-finite values on covered pixels, no VPLs or more than
@@ -1199,9 +1183,6 @@ pub fn refit_frames(
         for part in &parts {
             add_to(&mut ne, part);
         }
-        // The ridge: the one of the grid whose refits on all folds but one predict the left-out
-        // fold best (summed squared error); ties to the larger ridge. Folds without pixels are
-        // skipped; with fewer than two usable folds the ridge is not selected.
         let (mut cv, mut gain_cv) = (Vec::new(), Vec::new());
         let (mut ridge, mut free) = (params.ridge, false);
         if usable.len() >= 2 {
