@@ -145,7 +145,23 @@ pub(super) fn largest(counts: &[usize]) -> (usize, usize) {
     (k, most)
 }
 
-/// Splits `budget` over the strata by largest remainder of `budget * shares`, then pools the
+/// The least part of its light-path share that a stratum the views see gets, whatever its
+/// predicted importance: the strata the views see split what they get together (the sum of
+/// their shares) at least this much in proportion to their flux, before the weights are
+/// normalized again.
+///
+/// Without it a sparsely drawn stratum's few VPLs each carry its whole flux: one VPL of a sunlit
+/// window reveal carried 14 times the mean light-path VPL's flux in the L room and drew the hard
+/// edge of its aperture across a view no capture saw. With it a VPL of a stratum the views see
+/// carries at most about `(1 + f) / f` times (3 times) the flux of a light-path VPL. 0.5 was
+/// measured against 0 and 1 with the refit, 8 seeds (ARCHITECTURE.md, "Layout strata and
+/// flux"): at 0.5 every view of the four rooms gained or stayed within .0002 and Sponza's views
+/// moved within their seeds' spread; 0.25 gained less, and at 1 one seed of a sky-room view had
+/// 0.145 % hot pixels.
+pub const LIGHT_PATH_FLOOR: f64 = 0.5;
+
+/// Splits `budget` over the strata by largest remainder of `budget * shares`, each stratum the
+/// views see raised first to [`LIGHT_PATH_FLOOR`] of its light-path share, then pools the
 /// strata that hold flux but got no VPL: the pool gets `max(1, round(budget * their shares))`
 /// VPLs, taken one by one from the stratum with the most (the lowest index on ties).
 pub fn allocate(strata: &Strata, shares: &[f64], budget: usize) -> Result<Allocation> {
@@ -165,10 +181,21 @@ pub fn allocate(strata: &Strata, shares: &[f64], budget: usize) -> Result<Alloca
     }
     let lum = strata.luminance();
     // A stratum without flux cannot emit, whatever its share.
-    let w: Vec<f64> = shares
-        .iter()
-        .zip(&lum)
-        .map(|(&s, &l)| if l > 0.0 { s } else { 0.0 })
+    let seen = |k: usize| lum[k] > 0.0 && strata.view_weight[k] > 0.0;
+    let seen_lum: f64 = (0..lum.len()).filter(|&k| seen(k)).map(|k| lum[k]).sum();
+    let seen_share: f64 = (0..lum.len()).filter(|&k| seen(k)).map(|k| shares[k]).sum();
+    // Each stratum the views see gets at least `LIGHT_PATH_FLOOR` of its light-path part of
+    // what those strata get together (a no-op when the shares follow the flux).
+    let w: Vec<f64> = (0..lum.len())
+        .map(|k| {
+            if lum[k] <= 0.0 {
+                0.0
+            } else if seen(k) {
+                shares[k].max(LIGHT_PATH_FLOOR * seen_share * lum[k] / seen_lum)
+            } else {
+                shares[k]
+            }
+        })
         .collect();
     let mut counts = largest_remainder(&w, budget);
     // A dark stratum (view weight 0) with flux keeps one VPL of its own: pooled, its large flux

@@ -268,6 +268,58 @@ mod tests {
         assert!(a1.counts[last] < uniform.counts[last]);
     }
 
+    /// A stratum the views see that the prediction gives nothing keeps its floor of VPLs, so no
+    /// few VPLs carry its whole flux; the floor leaves a layout that follows the flux alone.
+    #[test]
+    fn a_stratum_the_views_see_keeps_its_light_path_floor() {
+        let (scene, fv) = setup();
+        let params = LayoutParams {
+            cell_px: 8,
+            light_rays: 2000,
+            bounces: 1,
+            ..LayoutParams::DEFAULT
+        };
+        let s = build_strata(&scene, &[&fv.view()], None, &params).unwrap();
+        let lum = s.luminance();
+        let seen: Vec<usize> = (0..s.strata())
+            .filter(|&k| lum[k] > 0.0 && s.view_weight[k] > 0.0)
+            .collect();
+        assert!(seen.len() > 10);
+        let seen_lum: f64 = seen.iter().map(|&k| lum[k]).sum();
+        // Every predicted dL on the first cell: fully guided, the other cells' share is 0.
+        let mut pred = vec![0.0; s.offscreen()];
+        pred[0] = 1.0;
+        let sh = shares(&s, Some(std::slice::from_ref(&pred)), 1.0).unwrap();
+        assert!(seen[1..]
+            .iter()
+            .all(|&k| k >= s.offscreen() || sh[k] == 0.0));
+        let budget = 256;
+        let a = allocate(&s, &sh, budget).unwrap();
+        assert_eq!(a.counts.iter().sum::<usize>() + a.pool_count, budget);
+        let f = LIGHT_PATH_FLOOR;
+        let mut floored = 0;
+        for &k in &seen[1..] {
+            // At least f of the light-path share, the weights normalized by at most 1 + f.
+            let least = (budget as f64 * f / (1.0 + f) * lum[k] / seen_lum).floor() as usize;
+            assert!(
+                a.counts[k] >= least,
+                "stratum {k}: {} < {least}",
+                a.counts[k]
+            );
+            floored += usize::from(least >= 1);
+        }
+        assert!(floored > 5, "{floored}");
+        // The favoured cell still gains over the light-path share.
+        let light_path = budget as f64 * lum[seen[0]] / seen_lum;
+        assert!(a.counts[seen[0]] as f64 > 10.0 * light_path);
+        // A layout that follows the flux is left as it was.
+        let u = shares(&s, None, 1.0).unwrap();
+        assert_eq!(
+            allocate(&s, &u, budget).unwrap().counts,
+            largest_remainder(&u, budget)
+        );
+    }
+
     #[test]
     fn deterministic_per_seed() {
         let (scene, fv) = setup();
