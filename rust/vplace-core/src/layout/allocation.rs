@@ -180,12 +180,12 @@ pub fn allocate(strata: &Strata, shares: &[f64], budget: usize) -> Result<Alloca
         });
     }
     let lum = strata.luminance();
-    // A stratum without flux cannot emit, whatever its share.
     let seen = |k: usize| lum[k] > 0.0 && strata.view_weight[k] > 0.0;
     let seen_lum: f64 = (0..lum.len()).filter(|&k| seen(k)).map(|k| lum[k]).sum();
     let seen_share: f64 = (0..lum.len()).filter(|&k| seen(k)).map(|k| shares[k]).sum();
-    // Each stratum the views see gets at least `LIGHT_PATH_FLOOR` of its light-path part of
-    // what those strata get together (a no-op when the shares follow the flux).
+    // A stratum without flux cannot emit, whatever its share; each stratum the views see gets
+    // at least `LIGHT_PATH_FLOOR` of its light-path part of what those strata get together (a
+    // no-op when the shares follow the flux).
     let w: Vec<f64> = (0..lum.len())
         .map(|k| {
             if lum[k] <= 0.0 {
