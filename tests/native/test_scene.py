@@ -223,3 +223,45 @@ def test_vpl_radii_are_the_patches_they_stand_for():
     assert np.array_equal(s.with_flux(2 * np.ones_like(p)).radii, r)  # positions only
     assert (vplace.VplSet(p, n, np.ones_like(p), profile="omni", radius=0.01).radii == 0).all()
     assert (vplace.VplSet(p, n, np.ones_like(p)).radii == 0).all()
+
+
+def corner_gbuffer(w=24, s=0.02):
+    """A concave corner seen head-on: the wall ``x = 0`` (left half, normal +X, unlit) and the
+    floor ``z = 0`` (right half, normal +Z, lit: diffuse direct 1)."""
+    c = np.arange(w)
+    left = c < w // 2
+    z = np.where(left, (w // 2 - c - 0.5) * s, 0.0)
+    x = np.where(left, 0.0, (c - w // 2 + 0.5) * s)
+    y = (np.arange(w) + 0.5) * s
+    pos = np.stack(np.broadcast_arrays(x[None, :], y[:, None], z[None, :]), -1)
+    nor = np.where(left[None, :, None], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]) * np.ones((w, w, 1))
+    dd = np.where(left[None, :, None], 0.0, 1.0) * np.ones((w, w, 3))
+    return {
+        "position": pos.astype(np.float32),
+        "normal": nor.astype(np.float32),
+        "albedo": np.full((w, w, 3), 0.5, np.float32),
+        "covered": np.ones((w, w), bool),
+        "diffuse_direct": dd.astype(np.float32),
+    }
+
+
+def test_near_field_light_fills_a_corner_only_when_asked():
+    w = 24
+    v = view(corner_gbuffer(w))
+    scene = vplace.Scene(*quad_scene())
+    vpls = vplace.VplSet(
+        np.array([[0.3, 0.2, 0.5], [0.1, 0.3, 0.4]], np.float32),
+        np.array([[0, 0, -1], [0, 0, -1]], np.float32),
+        np.zeros((2, 3), np.float32),
+        radius=0.05,
+    )
+    plain, stats = vplace.evaluate(scene, v, vpls)
+    near, near_stats = vplace.evaluate(scene, v, vpls, near_field=True)
+    assert stats.near_field_distance == 0.0 and not plain.any()
+    # Half the median of the set's near-field radii.
+    assert near_stats.near_field_distance == pytest.approx(0.5 * float(np.median(vpls.radii)))
+    # The unlit wall beside the corner takes light from the lit floor; the floor takes none
+    # from the dark wall, and the wall's light falls off away from the corner.
+    row = near[w // 2, :, 0]
+    assert row[w // 2 - 1] > 0.05 and (row[w // 2 :] == 0).all()
+    assert row[w // 2 - 1] > row[w // 2 - 3] >= row[0]

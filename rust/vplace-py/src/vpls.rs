@@ -7,6 +7,7 @@ use std::sync::Arc;
 use vplace_core::{
     layout::rsm,
     shade::evaluator::{self, check_radii, validate_vpls, EvalParams, EvalStats},
+    shade::near_field,
     vpl::{self, near_field_radii, Profile, Vpl},
 };
 
@@ -273,6 +274,9 @@ pub struct PyEvalStats {
     pub pairs: u64,
     /// Wall time, seconds.
     pub seconds: f64,
+    /// The distance within which the near-field light was gathered from the view's pixels
+    /// (`vplace_core::shade::near_field`), world units; 0 when it was not.
+    pub near_field_distance: f32,
 }
 
 #[pymethods]
@@ -290,8 +294,8 @@ impl PyEvalStats {
 
     fn __repr__(&self) -> String {
         format!(
-            "EvalStats(shadow_rays={}, pairs={}, seconds={:.3})",
-            self.shadow_rays, self.pairs, self.seconds
+            "EvalStats(shadow_rays={}, pairs={}, seconds={:.3}, near_field_distance={:.4})",
+            self.shadow_rays, self.pairs, self.seconds, self.near_field_distance
         )
     }
 }
@@ -335,9 +339,12 @@ fn rsm_vpls(
     PyVplSet::new_checked(vpls, profile, default_radius(scene, radius))
 }
 
-/// The indirect image of `vpls` over `view` (see `vplace.evaluate`).
+/// The indirect image of `vpls` over `view` (see `vplace.evaluate`). With `near_field`, the
+/// short-range light the set cannot carry is gathered from the view's pixels and added
+/// (`vplace_core::shade::near_field`); its distance is in the stats (0 without).
 #[pyfunction]
-#[pyo3(signature = (scene, view, vpls, *, tile = 16, progress = None, brute_force = false))]
+#[pyo3(signature = (scene, view, vpls, *, tile = 16, progress = None, brute_force = false, near_field = false))]
+#[allow(clippy::too_many_arguments)]
 fn evaluate<'py>(
     py: Python<'py>,
     scene: &PyScene,
@@ -346,6 +353,7 @@ fn evaluate<'py>(
     tile: usize,
     progress: Option<&PyProgress>,
     brute_force: bool,
+    near_field: bool,
 ) -> PyResult<(Bound<'py, PyAny>, PyEvalStats)> {
     let s = Arc::clone(&scene.inner);
     let v = Arc::clone(&view.inner);
@@ -354,23 +362,28 @@ fn evaluate<'py>(
     let given = vpls.given_radii.clone();
     let prog = progress.map(|p| Arc::clone(&p.inner));
     let (h, w) = (v.height, v.width);
-    let (image, stats) = run(py, move || {
+    let (image, stats, distance) = run(py, move || {
         let g = v.gbuffer();
-        if let Some(radii) = given {
-            evaluator::evaluate_with_radii(
-                &s,
-                &g,
-                &set,
-                &radii,
-                &params,
-                prog.as_deref(),
-                brute_force,
-            )
-        } else if brute_force {
-            evaluator::evaluate_brute_force(&s, &g, &set, &params, prog.as_deref())
+        let radii = given.unwrap_or_else(|| Arc::new(vpl::near_field_radii(&set, params.radius)));
+        let (mut image, stats) = evaluator::evaluate_with_radii(
+            &s,
+            &g,
+            &set,
+            &radii,
+            &params,
+            prog.as_deref(),
+            brute_force,
+        )?;
+        let distance = if near_field {
+            near_field::gather_distance(&radii)
         } else {
-            evaluator::evaluate(&s, &g, &set, &params, prog.as_deref())
+            0.0
+        };
+        if distance > 0.0 {
+            let near = near_field::near_field_light(&v, &image, distance)?;
+            image.iter_mut().zip(near).for_each(|(a, b)| *a += b);
         }
+        Ok((image, stats, distance))
     })?;
     let out = PyArray1::from_vec(py, image).reshape([h, w, 3])?.into_any();
     Ok((
@@ -379,6 +392,7 @@ fn evaluate<'py>(
             shadow_rays: stats.shadow_rays,
             pairs: stats.pairs,
             seconds: stats.seconds,
+            near_field_distance: distance,
         },
     ))
 }

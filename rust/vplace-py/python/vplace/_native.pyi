@@ -272,6 +272,8 @@ class EvalStats:
     def seconds(self) -> float: ...
     @property
     def rays_per_second(self) -> float: ...
+    @property
+    def near_field_distance(self) -> float: ...
 
 def uniform_vpls(
     scene: Scene,
@@ -293,6 +295,7 @@ def evaluate(
     tile: int = 16,
     progress: Progress | None = None,
     brute_force: bool = False,
+    near_field: bool = False,
 ) -> tuple[_F32, EvalStats]: ...
 
 # --- features and regression (fit.rs) -----------------------------------------------------
