@@ -260,6 +260,9 @@ def test_near_field_light_fills_a_corner_only_when_asked():
     assert stats.near_field_distance == 0.0 and not plain.any()
     # Half the median of the set's near-field radii.
     assert near_stats.near_field_distance == pytest.approx(0.5 * float(np.median(vpls.radii)))
+    assert vpls.near_field_distance == near_stats.near_field_distance
+    omni = vplace.VplSet(vpls.position, vpls.normal, vpls.flux, profile="omni", radius=0.05)
+    assert omni.near_field_distance == 0.0
     # The unlit wall beside the corner takes light from the lit floor; the floor takes none
     # from the dark wall, and the wall's light falls off away from the corner.
     row = near[w // 2, :, 0]

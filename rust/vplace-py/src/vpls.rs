@@ -235,12 +235,16 @@ impl PyVplSet {
     /// and the write-back writes it (AREA disk of diameter `2 R_j`). Omni VPLs are points: all 0.
     #[getter]
     fn radii<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
-        let radii = match (&self.given_radii, self.profile) {
-            (Some(r), _) => r.to_vec(),
-            (None, Profile::Cosine) => near_field_radii(&self.vpls, self.radius),
-            (None, Profile::Omni) => vec![0.0; self.vpls.len()],
-        };
-        PyArray1::from_vec(py, radii)
+        PyArray1::from_vec(py, self.radii_vec())
+    }
+
+    /// The distance within which `evaluate(..., near_field=True)` gathers the short-range light
+    /// the set cannot carry (`vplace_core::shade::near_field::gather_distance` of
+    /// :attr:`radii`), world units; 0 for omni VPLs. The write-back sets EEVEE's fast GI to
+    /// gather within it.
+    #[getter]
+    fn near_field_distance(&self) -> f32 {
+        near_field::gather_distance(&self.radii_vec())
     }
 
     /// Whether the radii were given (`VplSet(..., radii=...)`) rather than computed from the
@@ -339,6 +343,17 @@ fn rsm_vpls(
     PyVplSet::new_checked(vpls, profile, default_radius(scene, radius))
 }
 
+impl PyVplSet {
+    /// The radii of :attr:`radii`: given, or from the set's spacing; zeros for omni VPLs.
+    fn radii_vec(&self) -> Vec<f32> {
+        match (&self.given_radii, self.profile) {
+            (Some(r), _) => r.to_vec(),
+            (None, Profile::Cosine) => near_field_radii(&self.vpls, self.radius),
+            (None, Profile::Omni) => vec![0.0; self.vpls.len()],
+        }
+    }
+}
+
 /// The indirect image of `vpls` over `view` (see `vplace.evaluate`). With `near_field`, the
 /// short-range light the set cannot carry is gathered from the view's pixels and added
 /// (`vplace_core::shade::near_field`); its distance is in the stats (0 without).
@@ -360,6 +375,7 @@ fn evaluate<'py>(
     let set = Arc::clone(&vpls.vpls);
     let params = vpls.eval_params(tile);
     let given = vpls.given_radii.clone();
+    let distance = vpls.near_field_distance();
     let prog = progress.map(|p| Arc::clone(&p.inner));
     let (h, w) = (v.height, v.width);
     let (image, stats, distance) = run(py, move || {
@@ -374,13 +390,9 @@ fn evaluate<'py>(
             prog.as_deref(),
             brute_force,
         )?;
-        let distance = if near_field {
-            near_field::gather_distance(&radii)
-        } else {
-            0.0
-        };
+        let distance = if near_field { distance } else { 0.0 };
         if distance > 0.0 {
-            let near = near_field::near_field_light(&v, &image, distance)?;
+            let near = near_field::near_field_light(&v, &image, distance, Some(&s))?;
             image.iter_mut().zip(near).for_each(|(a, b)| *a += b);
         }
         Ok((image, stats, distance))
@@ -397,6 +409,13 @@ fn evaluate<'py>(
     ))
 }
 
+/// The near-field gather distance of VPLs of near-field radii `radii` (see
+/// `VplSet.near_field_distance`).
+#[pyfunction]
+fn near_field_distance(radii: Vec<f32>) -> f32 {
+    near_field::gather_distance(&radii)
+}
+
 /// Registers this file's classes and functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyVplSet>()?;
@@ -404,6 +423,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(uniform_vpls, m)?)?;
     m.add_function(wrap_pyfunction!(rsm_vpls, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(near_field_distance, m)?)?;
     m.add("VPL_SURFACE_OFFSET", vpl::Vpl::SURFACE_OFFSET)?;
     m.add("MAX_BOUNCES", vpl::MAX_BOUNCES)?;
     Ok(())

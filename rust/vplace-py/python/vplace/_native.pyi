@@ -261,6 +261,8 @@ class VplSet:
     def radii(self) -> npt.NDArray[np.float32]: ...
     @property
     def radii_given(self) -> bool: ...
+    @property
+    def near_field_distance(self) -> float: ...
 
 @final
 class EvalStats:
@@ -297,6 +299,7 @@ def evaluate(
     brute_force: bool = False,
     near_field: bool = False,
 ) -> tuple[_F32, EvalStats]: ...
+def near_field_distance(radii: Sequence[float] | npt.NDArray[np.float32]) -> float: ...
 
 # --- features and regression (fit.rs) -----------------------------------------------------
 @final
