@@ -240,8 +240,8 @@ impl PyVplSet {
 
     /// The distance within which `evaluate(..., near_field=True)` gathers the short-range light
     /// the set cannot carry (`vplace_core::shade::near_field::gather_distance` of
-    /// :attr:`radii`), world units; 0 for omni VPLs. The write-back sets EEVEE's fast GI to
-    /// gather within it.
+    /// :attr:`radii`), world units; 0 for omni VPLs. EEVEE's fast GI gathers the same light
+    /// within it (ray tracing on, global illumination); the write-back does not set that yet.
     #[getter]
     fn near_field_distance(&self) -> f32 {
         near_field::gather_distance(&self.radii_vec())
@@ -375,12 +375,18 @@ fn evaluate<'py>(
     let set = Arc::clone(&vpls.vpls);
     let params = vpls.eval_params(tile);
     let given = vpls.given_radii.clone();
-    let distance = vpls.near_field_distance();
+    // The set's radii as `VplSet.radii` gives them (omni VPLs without given radii: points).
+    let points = given.is_none() && vpls.profile == Profile::Omni;
     let prog = progress.map(|p| Arc::clone(&p.inner));
     let (h, w) = (v.height, v.width);
     let (image, stats, distance) = run(py, move || {
         let g = v.gbuffer();
         let radii = given.unwrap_or_else(|| Arc::new(vpl::near_field_radii(&set, params.radius)));
+        let distance = if near_field && !points {
+            near_field::gather_distance(&radii)
+        } else {
+            0.0
+        };
         let (mut image, stats) = evaluator::evaluate_with_radii(
             &s,
             &g,
@@ -390,7 +396,6 @@ fn evaluate<'py>(
             prog.as_deref(),
             brute_force,
         )?;
-        let distance = if near_field { distance } else { 0.0 };
         if distance > 0.0 {
             let near = near_field::near_field_light(&v, &image, distance, Some(&s))?;
             image.iter_mut().zip(near).for_each(|(a, b)| *a += b);
