@@ -253,7 +253,10 @@ def lay_out_frames(
         return vplace.temporal.shared_layout(
             [p.scene for p in prepared], [p.views for p in prepared], job, progress=progress
         )
-    return [vplace.job.lay_out(p.scene, p.views, job, progress=progress).vpls for p in prepared]
+    return [
+        vplace.job.lay_out(p.scene, p.views, job, progress=progress, judge_near_field=False).vpls
+        for p in prepared
+    ]
 
 
 def key_lights(

@@ -432,6 +432,8 @@ def summary(
         evaluator.refit_cv = [list(c) for c in laid.refit.cv] or None
         evaluator.refit_gain = laid.refit.gain
         evaluator.refit_gain_cv = [list(c) for c in laid.refit.gain_cv] or None
+    if laid.near_field is not None:
+        evaluator.near_field = dataclasses.asdict(laid.near_field)
     return vplace.job.JobSummary(
         scene=scene_label(bl_scene),
         triangles=prepared.scene.triangle_count,

@@ -285,6 +285,11 @@ class RowDetails:
     #: the captures' gain where the cross-validation took it.
     refit_gain: float | None = None
     switched_off: int | None = None
+    #: Regression-guided layouts: whether their light includes the near-field gather
+    #: (``vplace.job.choose_near_field``), and the captures' luminance RMSE without and with it.
+    near_field: bool | None = None
+    near_field_without: float | None = None
+    near_field_with: float | None = None
     #: EEVEE rows of written VPLs: where EEVEE's error comes from (``vplace.job.Attribution``).
     attribution: dict[str, Any] | None = None
     #: Rows averaged over seeds (``summary.aggregate``): how many, each seed's scores, spreads.

@@ -327,12 +327,11 @@ def lay_out_all(
                     best_iteration=layout.best,
                     shared_pixels=layout.shared_pixels,
                 )
-                vpls = layout.vpls
                 if method == "vplace+refit":
                     refitted = guided.refit
                     assert refitted is not None
-                    t += guided.refit_seconds
-                    vpls = refitted.vpls
+                    t += guided.refit_seconds + guided.near_field_seconds
+                    vpls, near = guided.vpls, guided.near_field
                     details = replace(
                         details,
                         refit_seconds=guided.refit_seconds,
@@ -341,6 +340,24 @@ def lay_out_all(
                         refit_ridge=refitted.ridge,
                         refit_gain=refitted.gain,
                         switched_off=int((refitted.scales == 0).sum()),
+                    )
+                elif guided.refit is None:
+                    vpls, near = guided.vpls, guided.near_field
+                    t += guided.near_field_seconds
+                else:
+                    # The layout's own set, judged on its own (lay_out judged the refitted one).
+                    start = time.perf_counter()
+                    near = vplace.job.choose_near_field(
+                        prepared.scene, vplace.coverage.captures_of(prepared.views), layout.vpls
+                    )
+                    vpls = layout.vpls.with_near_field(near.on)
+                    t += time.perf_counter() - start
+                if near is not None:
+                    details = replace(
+                        details,
+                        near_field=near.on,
+                        near_field_without=near.without,
+                        near_field_with=near.with_gather,
                     )
                 rows.append(LaidSet(method, n, seed, vpls, t, details))
     return rows
@@ -447,6 +464,7 @@ def capture_curve_rows(
                 fitted=fitted,
             )
             once = capture_seconds + fit_seconds + laid.layout_seconds + laid.refit_seconds
+            once += laid.near_field_seconds
             for view in data.views:
                 indirect, stats = vplace.evaluate(prepared.scene, view.view, laid.vpls)
                 rows.append(

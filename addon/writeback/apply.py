@@ -83,6 +83,10 @@ REGION_KEY = "vplace_region"
 #: (``stand_ins.StandIns.closed``): EEVEE's world must light nothing
 #: (``eevee_setup.world_shut_out``).
 CLOSED_KEY = "vplace_closed"
+#: The VPL collection's custom property holding the distance within which EEVEE's fast GI
+#: gathers the light between nearby surfaces (``vplace.VplSet.near_field_distance``): what the
+#: evaluator adds with ``near_field=True`` (``eevee_setup.set_up``). Absent for points.
+NEAR_FIELD_KEY = "vplace_near_field_distance"
 #: EEVEE renders 8,192 lights; beyond 65,536 it drops them (DESIGN). We refuse more than this.
 MAX_VPLS = 8192
 #: The custom cutoff distance of every VPL light, in scene diagonals (see the module docs).
@@ -314,15 +318,20 @@ def world_sun_light(scene: bpy.types.Scene) -> bpy.types.Object | None:
 Region = tuple[Sequence[float], Sequence[float]]
 
 
-def new_collection(name: str, region: Region | None, closed: bool = False) -> bpy.types.Collection:
+def new_collection(
+    name: str, region: Region | None, closed: bool = False, near_field: float = 0.0
+) -> bpy.types.Collection:
     """A new, unlinked VPL collection to write ``name`` into, marked as vplace's, with
-    ``region`` under :data:`REGION_KEY` when given and ``closed`` under :data:`CLOSED_KEY`."""
+    ``region`` under :data:`REGION_KEY` when given, ``closed`` under :data:`CLOSED_KEY` and a
+    positive ``near_field`` under :data:`NEAR_FIELD_KEY`."""
     coll = bpy.data.collections.new(name + " (writing)")
     coll[VPL_MARKER] = True
     if region is not None:
         coll[REGION_KEY] = [float(v) for corner in region for v in corner]
     if closed:
         coll[CLOSED_KEY] = True
+    if near_field > 0.0:
+        coll[NEAR_FIELD_KEY] = float(near_field)
     return coll
 
 
@@ -330,6 +339,13 @@ def _stored(name: str, key: str) -> Any:
     """The custom property ``key`` of the VPL collection ``name`` (one vplace marked), or None."""
     coll = bpy.data.collections.get(name)
     return coll.get(key) if coll is not None and coll.get(VPL_MARKER, False) else None
+
+
+def stored_near_field(name: str = COLLECTION_NAME) -> float:
+    """The near-field distance kept on the VPL collection ``name`` (:data:`NEAR_FIELD_KEY`), 0
+    without one."""
+    value = _stored(name, NEAR_FIELD_KEY)
+    return float(value) if value is not None else 0.0
 
 
 def stored_region(name: str = COLLECTION_NAME) -> Region | None:
@@ -381,7 +397,8 @@ def write_vpls(
     position, normal, flux = vpls.position, vpls.normal, vpls.flux
     power = vpls.blender_power
     # Build the new collection unlinked; only a complete one replaces the old one.
-    coll = new_collection(name, region, closed)
+    near = vpls.near_field_distance if vpls.near_field else 0.0
+    coll = new_collection(name, region, closed, near)
     lum = power @ np.asarray(vplace.LUMINANCE, dtype=np.float64)
     lit = np.flatnonzero(power.max(axis=1) > 0)
     shadowed = set(lit[np.argsort(-lum[lit], kind="stable")[:MAX_SHADOWED_VPLS]].tolist())

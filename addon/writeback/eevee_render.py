@@ -12,7 +12,10 @@ The ways to render a view, each a :class:`Setup` (what a user would set up):
 
 - ``vpl``: EEVEE with the written VPLs, ray tracing off (the VPLs carry the bounce light;
   EEVEE's screen-space GI would count it twice), shadows on and a pool that holds them
-  (:mod:`eevee_setup`);
+  (:mod:`eevee_setup`); for lights written with the near-field gather
+  (``vplace.VplSet.near_field``), ray tracing on with the fast GI gathering global
+  illumination within their near-field distance (``eevee_setup.fast_gi_for``), the light
+  between nearby surfaces that the evaluator adds and no VPL carries;
 - ``vpl+rt``: the same plus EEVEE's ray tracing for glossy reflections, its fast GI set to
   ambient occlusion only (the global-illumination one would add the bounce again): what
   :func:`eevee_setup.set_up` applies;
@@ -103,20 +106,27 @@ class Setup:
         threshold = eevee_setup.threshold_for(scene)
         if threshold != e.light_threshold:
             g.set(e, "light_threshold", threshold)
-        g.set(e, "use_raytracing", self.raytracing)
+        # Lights written with the near-field gather leave it to the fast GI, which EEVEE
+        # applies only with ray tracing on.
+        method, near = eevee_setup.fast_gi_for(scene) if self.vpls else ("", 0.0)
+        raytracing = self.raytracing or near > 0.0
+        g.set(e, "use_raytracing", raytracing)
         if hasattr(e, "use_fast_gi"):  # Blender 4.5 on; 4.2's fast GI is on with ray tracing
             g.set(e, "use_fast_gi", self.fast_gi)
-        if self.raytracing:
+        if raytracing:
             g.set(e, "ray_tracing_method", "SCREEN")
         if self.vpls:
             # What eevee_setup.set_up applies: shadows on, a pool that holds them, and ray
-            # tracing (when on) with ambient-occlusion-only fast GI: no second bounce.
+            # tracing (when on) with the fast GI of the written lights: ambient occlusion only
+            # (no second bounce), or global illumination within their near-field distance.
             g.set(e, "use_shadows", True)
             mb = eevee_setup.pool_for(eevee_setup.shadow_pages(scene))
             if int(e.shadow_pool_size) < mb:
                 g.set(e, "shadow_pool_size", str(mb))
-            if self.raytracing:
-                g.set(e, "fast_gi_method", "AMBIENT_OCCLUSION_ONLY")
+            if raytracing:
+                g.set(e, "fast_gi_method", method)
+                if near > 0.0:
+                    g.set(e, "fast_gi_distance", near)
             # vplace wrote the world's sun as a lamp: EEVEE must not extract it a second time.
             world = scene.world
             if world is not None and world.sun_threshold > 0.0 and apply.world_sun_light(scene):
@@ -242,6 +252,10 @@ def _key(
     h.update(repr(render_key.plain_values(camera.data)).encode())
     name = setup.name if setup is not None else "scene"
     h.update(repr((resolution, samples, engine, name, seed, RENDER_VERSION, renderer)).encode())
+    if setup is not None and setup.vpls and engine != "CYCLES":
+        method, near = eevee_setup.fast_gi_for(scene)
+        if near > 0.0:  # the fast GI the set-up applies follows the written lights
+            h.update(repr((method, near)).encode())
     return h.hexdigest()[:24]
 
 

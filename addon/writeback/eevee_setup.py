@@ -13,7 +13,11 @@ settings that fix it:
 - **no second bounce**: EEVEE's ray tracing with the "global illumination" fast GI, or a light
   probe volume that captures indirect light, adds the lamps' bounce again (x2 the direct light in
   a test room): ray tracing is kept for reflections with fast GI set to ambient occlusion only,
-  and a volume vplace bakes captures no indirect light;
+  and a volume vplace bakes captures no indirect light. Where the written lights' light
+  includes the near-field gather (``vplace.VplSet.near_field``: the light between nearby
+  surfaces, a room's corners, that no VPL carries; the VPL collection keeps its distance,
+  ``apply.NEAR_FIELD_KEY``), the fast GI gathers global illumination within that distance and
+  no further (:func:`fast_gi_for`): what the evaluator adds;
 - **the world where it is partly kept out**: EEVEE lights surfaces with the world unoccluded
   (+10 % of the direct light in a closed room with the default grey world). When the world
   emits and neither portals nor a closed room (below) shut it out, a light probe volume
@@ -409,7 +413,27 @@ def problems(scene: bpy.types.Scene) -> list[Problem]:
             )
         )
     # Blender 4.2 has no use_fast_gi switch: its fast GI is on whenever ray tracing is.
+    near = apply.stored_near_field()
     if (
+        e.use_raytracing
+        and getattr(e, "use_fast_gi", True)
+        and e.fast_gi_method == "GLOBAL_ILLUMINATION"
+        and not (near > 0.0 and abs(e.fast_gi_distance - near) <= 0.01 * near)
+    ):
+        found.append(
+            Problem(
+                "scene.eevee.fast_gi_method",
+                "ray tracing with the global-illumination fast GI adds the bounce light the VPLs "
+                "already carry (counted twice): "
+                + (
+                    "gather only within the lights' near-field distance "
+                    f"({near * unit_scale(scene):.3g} m)"
+                    if near > 0.0
+                    else "use ambient occlusion only"
+                ),
+            )
+        )
+    if near > 0.0 and not (
         e.use_raytracing
         and getattr(e, "use_fast_gi", True)
         and e.fast_gi_method == "GLOBAL_ILLUMINATION"
@@ -417,8 +441,8 @@ def problems(scene: bpy.types.Scene) -> list[Problem]:
         found.append(
             Problem(
                 "scene.eevee.fast_gi_method",
-                "ray tracing with the global-illumination fast GI adds the bounce light the VPLs "
-                "already carry (counted twice): use ambient occlusion only",
+                "the written lights leave the light between nearby surfaces to EEVEE's fast GI: "
+                f"ray tracing on, global illumination within {near * unit_scale(scene):.3g} m",
             )
         )
     for obj in scene.objects:
@@ -734,6 +758,17 @@ def _probe_collection(scene: bpy.types.Scene) -> bpy.types.Collection:
     return coll
 
 
+def fast_gi_for(scene: bpy.types.Scene) -> tuple[str, float]:
+    """The fast GI that shows the written lights as the evaluator computes them: with the
+    near-field distance the VPL collection keeps (``apply.stored_near_field``), global
+    illumination within that distance (the light between nearby surfaces that no VPL carries,
+    ``vplace.evaluate(..., near_field=True)``); without, ambient occlusion only. Either way no
+    second bounce from beyond the distance, which the VPLs carry."""
+    del scene  # the VPL collection is found by name, as everywhere in the write-back
+    near = apply.stored_near_field()
+    return ("GLOBAL_ILLUMINATION", near) if near > 0.0 else ("AMBIENT_OCCLUSION_ONLY", 0.0)
+
+
 def set_up(scene: bpy.types.Scene, *, bake_volume: bool = True) -> list[str]:
     """Applies the settings of the module docs to ``scene`` (EEVEE settings; with sky portals
     or in a closed room an EEVEE-only World Output, :func:`camera_only`; else a probe volume in
@@ -755,7 +790,10 @@ def set_up(scene: bpy.types.Scene, *, bake_volume: bool = True) -> list[str]:
     put(e, "use_raytracing", True, "scene.eevee.use_raytracing")
     if hasattr(e, "use_fast_gi"):  # Blender 4.5 on
         put(e, "use_fast_gi", True, "scene.eevee.use_fast_gi")
-    put(e, "fast_gi_method", "AMBIENT_OCCLUSION_ONLY", "scene.eevee.fast_gi_method")
+    method, near = fast_gi_for(scene)
+    put(e, "fast_gi_method", method, "scene.eevee.fast_gi_method")
+    if near > 0.0:
+        put(e, "fast_gi_distance", near, "scene.eevee.fast_gi_distance")
     if scene.world is not None and apply.world_sun_light(scene):
         put(scene.world, "sun_threshold", 0.0, "world.sun_threshold")
     shut = world_shut_out(scene)

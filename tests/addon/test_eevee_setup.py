@@ -206,3 +206,39 @@ def test_an_area_lights_spread_is_noted_as_what_eevee_ignores(scene):
     assert "Spread of 1 of your area lights (e.g. 'light', 60 degrees)" in note
     lamp.hide_render = True
     assert eevee_setup.lamp_notes(scene) == []
+
+
+def test_lights_with_disks_get_the_fast_gi_of_their_near_field(scene):
+    rng = np.random.default_rng(5)
+    n = 40
+    pos = rng.uniform(-0.8, 0.8, (n, 3)).astype(np.float32) + np.float32([0, 0, 1])
+    up = np.tile(np.float32([0, 0, 1]), (n, 1))
+    flux = rng.uniform(0.1, 1.0, (n, 3)).astype(np.float32)
+    vpls = vplace.VplSet(pos, up, flux, radius=0.035)
+    # A set without the near-field gather (as every new set) keeps ambient occlusion only.
+    apply.write_vpls(scene, vpls, scene_diagonal=3.5)
+    assert apply.stored_near_field() == 0.0
+    vpls = vpls.with_near_field(True)
+    coll = apply.write_vpls(scene, vpls, scene_diagonal=3.5)
+    near = vpls.near_field_distance
+    assert near > 0 and coll[apply.NEAR_FIELD_KEY] == pytest.approx(near)
+    assert apply.stored_near_field() == pytest.approx(near)
+    e = scene.eevee
+    e.use_raytracing, e.fast_gi_method = True, "AMBIENT_OCCLUSION_ONLY"
+    changed = eevee_setup.set_up(scene, bake_volume=False)
+    # EEVEE gathers the light between nearby surfaces within the lights' distance, as the
+    # evaluator does with near_field=True, and no further.
+    assert e.fast_gi_method == "GLOBAL_ILLUMINATION" and e.use_raytracing
+    assert e.fast_gi_distance == pytest.approx(near, rel=1e-6)
+    assert any("fast_gi_distance" in c for c in changed)
+    assert "scene.eevee.fast_gi_method" not in settings(eevee_setup.problems(scene))
+    # Reaching further counts the VPLs' bounce twice: named, with the distance to use.
+    e.fast_gi_distance = 4 * near
+    (problem,) = [p for p in eevee_setup.problems(scene) if p.setting.endswith("fast_gi_method")]
+    assert f"{near:.3g}" in problem.message
+    # Points (radius 0) gather nothing: ambient-occlusion-only fast GI.
+    points = vplace.VplSet(pos, up, flux).with_near_field(True)
+    apply.write_vpls(scene, points, scene_diagonal=3.5)
+    assert apply.stored_near_field() == 0.0
+    eevee_setup.set_up(scene, bake_volume=False)
+    assert e.fast_gi_method == "AMBIENT_OCCLUSION_ONLY"

@@ -4,6 +4,7 @@ input."""
 import numpy as np
 import pytest
 import vplace
+import vplace.job
 from views import view
 
 
@@ -268,3 +269,36 @@ def test_near_field_light_fills_a_corner_only_when_asked():
     row = near[w // 2, :, 0]
     assert row[w // 2 - 1] > 0.05 and (row[w // 2 :] == 0).all()
     assert row[w // 2 - 1] > row[w // 2 - 3] >= row[0]
+
+
+def test_a_set_takes_the_near_field_where_its_captures_show_it():
+    w = 24
+    g = corner_gbuffer(w)
+    scene = vplace.Scene(*quad_scene())
+    vpls = vplace.VplSet(
+        np.array([[0.3, 0.2, 0.5], [0.1, 0.3, 0.4]], np.float32),
+        np.array([[0, 0, -1], [0, 0, -1]], np.float32),
+        np.full((2, 3), 0.2, np.float32),
+        radius=0.05,
+    )
+    plain, _ = vplace.evaluate(scene, view(g), vpls, near_field=False)
+    gathered, _ = vplace.evaluate(scene, view(g), vpls, near_field=True)
+    assert (gathered >= plain).all() and (gathered - plain).max() > 0.05
+    # Captures whose indirect light holds the corner's light: on, and the set says so.
+    corner = vplace.job.choose_near_field(scene, [view(g, indirect=gathered)], vpls)
+    assert corner.on and corner.with_gather < 1e-6 < corner.without
+    assert corner.views == 1 and corner.distance == pytest.approx(vpls.near_field_distance)
+    # Captures without it: off (the gather would count light the captures do not have).
+    flat = vplace.job.choose_near_field(scene, [view(g, indirect=plain)], vpls)
+    assert not flat.on and flat.without < 1e-6 < flat.with_gather
+    # Nothing to judge on (no indirect image), or nothing to gather (points): off.
+    assert not vplace.job.choose_near_field(scene, [view(g)], vpls).on
+    points = vplace.VplSet(vpls.position, vpls.normal, vpls.flux, profile="omni", radius=0.05)
+    assert not vplace.job.choose_near_field(scene, [view(g, indirect=gathered)], points).on
+    # evaluate() follows the set's own choice unless told, and the choice survives new flux.
+    on = vpls.with_near_field(True)
+    assert on.near_field and not vpls.near_field and "near field" in repr(on)
+    assert np.array_equal(vplace.evaluate(scene, view(g), on)[0], gathered)
+    assert np.array_equal(vplace.evaluate(scene, view(g), on, near_field=False)[0], plain)
+    assert np.array_equal(vplace.evaluate(scene, view(g), vpls)[0], plain)
+    assert on.with_flux(np.asarray(on.flux)).near_field

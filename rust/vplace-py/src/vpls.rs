@@ -45,6 +45,9 @@ pub struct PyVplSet {
     /// Each VPL's near-field radius when given (`VplSet(..., radii=...)`), else `None`: those
     /// of the set's spacing.
     pub given_radii: Option<Arc<Vec<f32>>>,
+    /// Whether the set's light includes the near-field gather (`VplSet.near_field`): what
+    /// `evaluate` adds by default, and what the write-back has EEVEE's fast GI add.
+    pub near_field: bool,
 }
 
 impl PyVplSet {
@@ -61,6 +64,7 @@ impl PyVplSet {
             profile,
             radius,
             given_radii: None,
+            near_field: false,
         })
     }
 
@@ -171,11 +175,31 @@ impl PyVplSet {
                 ..*v
             })
             .collect();
-        let set = Self::new_checked(vpls, self.profile, self.radius)?;
+        let mut set = Self::new_checked(vpls, self.profile, self.radius)?;
+        set.near_field = self.near_field;
         match &self.given_radii {
             Some(r) => set.with_given_radii(r.to_vec()),
             None => Ok(set),
         }
+    }
+
+    /// The same VPLs, their light with (`on`) or without the near-field gather
+    /// (:attr:`near_field`).
+    fn with_near_field(&self, on: bool) -> Self {
+        Self {
+            near_field: on,
+            ..self.clone()
+        }
+    }
+
+    /// Whether the set's light includes the light between nearby surfaces that no VPL
+    /// carries, gathered from the view's pixels within :attr:`near_field_distance`
+    /// (`vplace_core::shade::near_field`): what `evaluate` adds unless told otherwise, and what
+    /// the write-back has EEVEE's fast GI add. False for a new set; `vplace.job.lay_out` turns
+    /// it on where the captures say it helps (`vplace.job.choose_near_field`).
+    #[getter]
+    fn near_field(&self) -> bool {
+        self.near_field
     }
 
     fn __len__(&self) -> usize {
@@ -241,7 +265,8 @@ impl PyVplSet {
     /// The distance within which `evaluate(..., near_field=True)` gathers the short-range light
     /// the set cannot carry (`vplace_core::shade::near_field::gather_distance` of
     /// :attr:`radii`), world units; 0 for omni VPLs. EEVEE's fast GI gathers the same light
-    /// within it (ray tracing on, global illumination); the write-back does not set that yet.
+    /// within it (ray tracing on, global illumination): the write-back keeps it on the VPL
+    /// collection of a set with :attr:`near_field`, and EEVEE's set-up applies it.
     #[getter]
     fn near_field_distance(&self) -> f32 {
         near_field::gather_distance(&self.radii_vec())
@@ -256,7 +281,7 @@ impl PyVplSet {
 
     fn __repr__(&self) -> String {
         format!(
-            "VplSet({} VPLs, profile={:?}, radius={}{})",
+            "VplSet({} VPLs, profile={:?}, radius={}{}{})",
             self.vpls.len(),
             profile_name(self.profile),
             self.radius,
@@ -264,7 +289,8 @@ impl PyVplSet {
                 ", radii given"
             } else {
                 ""
-            }
+            },
+            if self.near_field { ", near field" } else { "" }
         )
     }
 }
@@ -354,11 +380,12 @@ impl PyVplSet {
     }
 }
 
-/// The indirect image of `vpls` over `view` (see `vplace.evaluate`). With `near_field`, the
-/// short-range light the set cannot carry is gathered from the view's pixels and added
-/// (`vplace_core::shade::near_field`); its distance is in the stats (0 without).
+/// The indirect image of `vpls` over `view` (see `vplace.evaluate`). With `near_field` (None:
+/// the set's own, `VplSet.near_field`), the short-range light the set cannot carry is gathered
+/// from the view's pixels and added (`vplace_core::shade::near_field`); its distance is in the
+/// stats (0 without).
 #[pyfunction]
-#[pyo3(signature = (scene, view, vpls, *, tile = 16, progress = None, brute_force = false, near_field = false))]
+#[pyo3(signature = (scene, view, vpls, *, tile = 16, progress = None, brute_force = false, near_field = None))]
 #[allow(clippy::too_many_arguments)]
 fn evaluate<'py>(
     py: Python<'py>,
@@ -368,8 +395,9 @@ fn evaluate<'py>(
     tile: usize,
     progress: Option<&PyProgress>,
     brute_force: bool,
-    near_field: bool,
+    near_field: Option<bool>,
 ) -> PyResult<(Bound<'py, PyAny>, PyEvalStats)> {
+    let near_field = near_field.unwrap_or(vpls.near_field);
     let s = Arc::clone(&scene.inner);
     let v = Arc::clone(&view.inner);
     let set = Arc::clone(&vpls.vpls);

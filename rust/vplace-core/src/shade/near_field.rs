@@ -22,10 +22,11 @@
 //! This is the light EEVEE's horizon scan gives when, with ray tracing on, its fast GI gathers
 //! global illumination within the same distance: a screen-space gather of the surfaces on
 //! screen. Measured on the L room's back view (EEVEE, no VPLs, 192 x 108): the fast GI's light
-//! and this gather have the same mean to 1 % and correlate at .86 per pixel. The write-back does
-//! not set EEVEE so yet, and the gather is off by default (ARCHITECTURE.md, "Near-field light
-//! gathered from the view": where VPLs are dense, as on Sponza's sunlit floor, it counts their
-//! light a second time).
+//! and this gather have the same mean to 1 % and correlate at .86 per pixel. The add-on's
+//! pipeline gives a set the gather where its captures show it helps, and has EEVEE's fast GI
+//! add it (ARCHITECTURE.md, "Near-field light gathered from the view": where VPLs are dense, as
+//! on Sponza's sunlit floor, it counts their light a second time, and the captures leave it
+//! out there).
 //!
 //! The distance is [`gather_distance`]: half the median near-field radius of the set, below
 //! which its VPLs no longer resolve the light between surfaces.

@@ -36,11 +36,13 @@ The pieces, in pipeline order:
   with shadow rays (irradiance / pi, what Cycles' DiffDir pass holds).
 - :func:`evaluate` renders a VPL set's indirect light over a view's G-buffer with shadow rays.
   A :class:`VplSet` carries its ``profile`` (``"cosine"``: AREA disk lights, ``"omni"``: POINT
-  lights) and near-field ``radius``: exactly the lights the add-on writes. With
-  ``near_field=True`` it adds the light between nearby surfaces (a room's corners) that no VPL
-  can carry, gathered from the view's pixels within :func:`near_field_distance` of the set's
-  radii (``VplSet.near_field_distance``): what EEVEE's global-illumination fast GI gives within
-  that distance with ray tracing on (the write-back does not set it yet; off by default).
+  lights) and near-field ``radius``: exactly the lights the add-on writes. For a set with
+  ``VplSet.near_field`` (or with ``near_field=True``) it adds the light between nearby surfaces
+  (a room's corners) that no VPL can carry, gathered from the view's pixels within
+  :func:`near_field_distance` of the set's radii (``VplSet.near_field_distance``): what EEVEE's
+  global-illumination fast GI gives within that distance with ray tracing on, as the
+  write-back and EEVEE's set-up apply it for such a set. ``vplace.job.lay_out`` gives it to the
+  regression-guided sets whose captures it brings closer (``vplace.job.choose_near_field``).
 - :func:`rmse`, :func:`relative_mse`, :func:`ssim`: the metrics of DESIGN.md;
   :func:`ssim_noise_free`, :func:`ssim_ceiling` and :func:`rmse_noise_free`: SSIM and RMSE seen
   through the truth's own noise, from two renders of the truth with different seeds.

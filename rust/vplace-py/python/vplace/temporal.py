@@ -295,7 +295,9 @@ def shared_layout(
     frames = len(scenes)
     per_frame = replace(settings, n_vpls=max(settings.n_vpls // frames, 1))
     parts = [
-        vplace.job.lay_out(scene, frame_views, per_frame, progress=progress).vpls
+        vplace.job.lay_out(
+            scene, frame_views, per_frame, progress=progress, judge_near_field=False
+        ).vpls
         for scene, frame_views in zip(scenes, views, strict=True)
     ]
     union = vplace.VplSet(
