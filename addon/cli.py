@@ -159,6 +159,11 @@ def _demo_options(sub: argparse._SubParsersAction) -> None:
         help="refit the powers so that EEVEE's direct light plus the VPLs' light matches the "
         "captures (an EEVEE render per captured view first; not with --animate)",
     )  # fmt: skip
+    demo.add_argument(
+        "--no-near-field", action="store_true",
+        help="never add the light between nearby surfaces (the near-field gather, EEVEE's "
+        "global-illumination fast GI within the lights' distance); by default the captures decide",
+    )  # fmt: skip
     demo.add_argument("--iterations", type=int, default=3, help="layout iterations (cap)")
     demo.add_argument(
         "--feature-mode",
@@ -363,6 +368,7 @@ def run(args: argparse.Namespace) -> None:
         iterations=args.iterations,
         feature_mode=args.feature_mode,
         match_eevee=args.match_eevee,
+        near_field=not args.no_near_field,
     ).in_scene_units(unit_scale(bpy.context.scene))
     extra = (
         args.score_between,

@@ -140,6 +140,7 @@ class Job(vplace.job.LayoutSettings):
             views=settings.view_set(),
             cache_dir=cache_dir,
             match_eevee=settings.match_eevee,
+            near_field=settings.near_field,
         )
 
 

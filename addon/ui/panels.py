@@ -61,6 +61,9 @@ class VPLACE_PT_main(_Panel, bpy.types.Panel):
         sub = col.column(align=True)
         sub.active = settings.refit and settings.method == "vplace"
         sub.prop(settings, "match_eevee")
+        sub = col.column(align=True)
+        sub.active = settings.method == "vplace"
+        sub.prop(settings, "near_field")
         col.prop(settings, "iterations")
         col.prop(settings, "feature_mode")
         col = layout.column(align=True)

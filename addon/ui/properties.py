@@ -179,6 +179,14 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
         "scene's lamps smoothly darker or brighter than Cycles; needs Refit powers",
         default=False,
     )
+    near_field: BoolProperty(  # type: ignore[valid-type]
+        name="Light between nearby surfaces",
+        description="Add the light a room's corners get from the walls beside them, which no VPL "
+        "carries, where the captures show it helps: EEVEE's fast GI gathers it (global "
+        "illumination within the lights' near-field distance, ray tracing on; Set up EEVEE for "
+        "vplace sets it). Off: never, and EEVEE's fast GI stays ambient occlusion only",
+        default=True,
+    )
     check_eevee: BoolProperty(  # type: ignore[valid-type]
         name="Check in EEVEE",
         description="After Lay out and apply, render the lights with EEVEE from the scene camera "

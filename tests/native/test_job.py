@@ -344,3 +344,24 @@ def test_the_panel_says_whose_part_eevees_difference_is_after_a_check_in_eevee()
     del eevee["attribution_stand_in_share"]
     lines = vjob.PanelReport(eevee=eevee).eevee_lines()
     assert lines[0] == "EEVEE: SSIM 0.961, RMSE 0.0062" and len(lines) == 4
+
+
+def test_the_captures_decide_the_near_field_and_the_settings_can_forbid_it(room):
+    scene, v, ref = room
+    laid = vjob.lay_out(scene, [v], settings(method="vplace+refit"))
+    choice = laid.near_field
+    assert choice is not None and choice.views == 1
+    assert choice.distance == pytest.approx(laid.vpls.near_field_distance) and choice.distance > 0
+    assert laid.vpls.near_field == choice.on == (choice.with_gather < choice.without)
+    # Captures that hold the gather's light on top of the VPLs': on.
+    plain, _ = vplace.evaluate(scene, v, laid.vpls, near_field=False)
+    gathered, _ = vplace.evaluate(scene, v, laid.vpls, near_field=True)
+    assert (gathered - plain).max() > 0
+    cap = bench_layout.synthetic_capture(48, 32)
+    lifted = ref.modelled_indirect + (gathered - plain)
+    assert vjob.choose_near_field(scene, [view(cap, indirect=lifted)], laid.vpls).on
+    # Forbidden: the same lights, never judged, never with it; other methods are not judged.
+    off = vjob.lay_out(scene, [v], settings(method="vplace+refit", near_field=False))
+    assert off.near_field is None and not off.vpls.near_field
+    assert np.array_equal(off.vpls.flux, laid.vpls.flux)
+    assert vjob.lay_out(scene, [v], settings(method="uniform")).near_field is None

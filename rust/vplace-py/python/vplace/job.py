@@ -82,6 +82,10 @@ class LayoutSettings:
     iterations: int = 3
     #: One of :data:`FEATURE_MODES`.
     feature_mode: str = "auto"
+    #: Give the regression-guided sets the near-field gather where their captures show it
+    #: helps (:func:`choose_near_field`); False: never (EEVEE's fast GI stays ambient
+    #: occlusion only, and ray tracing may stay off).
+    near_field: bool = True
 
     def radius_in(self, scene: vplace.Scene) -> float:
         """The near-field radius in ``scene``: :attr:`radius`, or the scene's own."""
@@ -377,7 +381,7 @@ def lay_out(
             )
             out.refit_seconds = time.perf_counter() - start
         out.vpls = out.refit.vpls
-    if judge_near_field and any(v.has_indirect for v in views):
+    if judge_near_field and settings.near_field and any(v.has_indirect for v in views):
         with timer.stage("near-field light: with or without"):
             start = time.perf_counter()
             judged = captures_of(views) if refit_views is None else list(refit_views)
