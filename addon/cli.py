@@ -249,6 +249,10 @@ def _report_options(sub: argparse._SubParsersAction) -> None:
     rep.add_argument("--eevee-samples", type=int, default=None, help="EEVEE's render samples")
     rep.add_argument("--feature-mode", choices=FEATURE_MODES, default="auto")
     rep.add_argument(
+        "--no-near-field", action="store_true",
+        help="never add the light between nearby surfaces (by default the captures decide)",
+    )  # fmt: skip
+    rep.add_argument(
         "--radius", type=float, default=None,
         help="near-field radius of the VPLs, m (default: 1%% of the scene's diagonal)",
     )  # fmt: skip
@@ -331,6 +335,7 @@ def run(args: argparse.Namespace) -> None:
             eevee_methods=args.eevee_methods,
             alternatives=args.alternatives,
             feature_mode=args.feature_mode,
+            near_field=not args.no_near_field,
             capture_curve=args.capture_curve,
             par2d=not args.no_par2d,
             cache_dir=args.cache,

@@ -141,6 +141,9 @@ class ReportConfig:
     cell_px: int = 16
     #: One of :data:`pipeline.FEATURE_MODES`.
     feature_mode: str = "auto"
+    #: Let the captures give the regression-guided sets the near-field gather
+    #: (``Job.near_field``); False: never.
+    near_field: bool = True
     #: Seeds of the stochastic layouts (uniform, vplace); tables and plots show their mean.
     seeds: Sequence[int] = (0, 1, 2)
     #: Score the grid budget's lights with EEVEE, beside EEVEE's own GI.

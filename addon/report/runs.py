@@ -213,6 +213,7 @@ def load_scene(
         alpha=config.alpha,
         iterations=config.iterations,
         feature_mode=config.feature_mode,
+        near_field=config.near_field,
         cache_dir=cache_dir,
         views=ViewSet(coverage=config.coverage, region_radius=config.region_radius),
         radius=config.radius,
