@@ -80,6 +80,7 @@ def test_panel_shows_settings_buttons_and_last_results(scene):
         "samples",
         "profile",
         "feature_mode",
+        "near_field",
     } <= props
     ops = [name for kind, name in log if kind == "operator"]
     assert ops == [
@@ -92,6 +93,9 @@ def test_panel_shows_settings_buttons_and_last_results(scene):
         "vplace.bake_par2d",
     ]
     assert not [t for kind, t in log if kind == "label"]  # no results yet
+    # Whether the captures give the lights the near-field gather differs between Blenders'
+    # renders; lights with it ask for EEVEE's fast GI (test_eevee_setup). Here: without.
+    scene.vplace.near_field = False
     assert bpy.ops.vplace.apply() == {"FINISHED"}
     labels = [t for kind, t in draw(scene) if kind == "label"]
     assert any(t.startswith("RMSE vs Cycles GI") for t in labels)
