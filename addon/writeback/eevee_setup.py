@@ -414,12 +414,12 @@ def problems(scene: bpy.types.Scene) -> list[Problem]:
         )
     # Blender 4.2 has no use_fast_gi switch: its fast GI is on whenever ray tracing is.
     near = apply.stored_near_field()
-    if (
+    gathers = (
         e.use_raytracing
         and getattr(e, "use_fast_gi", True)
         and e.fast_gi_method == "GLOBAL_ILLUMINATION"
-        and not (near > 0.0 and abs(e.fast_gi_distance - near) <= 0.01 * near)
-    ):
+    )
+    if gathers and not (near > 0.0 and abs(e.fast_gi_distance - near) <= 0.01 * near):
         found.append(
             Problem(
                 "scene.eevee.fast_gi_method",
@@ -433,11 +433,7 @@ def problems(scene: bpy.types.Scene) -> list[Problem]:
                 ),
             )
         )
-    if near > 0.0 and not (
-        e.use_raytracing
-        and getattr(e, "use_fast_gi", True)
-        and e.fast_gi_method == "GLOBAL_ILLUMINATION"
-    ):
+    if near > 0.0 and not gathers:
         found.append(
             Problem(
                 "scene.eevee.fast_gi_method",
