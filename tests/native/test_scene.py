@@ -271,6 +271,36 @@ def test_near_field_light_fills_a_corner_only_when_asked():
     assert row[w // 2 - 1] > row[w // 2 - 3] >= row[0]
 
 
+def test_the_gather_alone_is_what_evaluate_adds_and_bad_images_are_refused():
+    w = 24
+    v = view(corner_gbuffer(w))
+    scene = vplace.Scene(*quad_scene())
+    vpls = vplace.VplSet(
+        np.array([[0.3, 0.2, 0.5], [0.1, 0.3, 0.4]], np.float32),
+        np.array([[0, 0, -1], [0, 0, -1]], np.float32),
+        np.full((2, 3), 0.2, np.float32),
+        radius=0.05,
+    )
+    plain, _ = vplace.evaluate(scene, v, vpls, near_field=False)
+    gathered, _ = vplace.evaluate(scene, v, vpls, near_field=True)
+    near = vplace.near_field_light(scene, v, plain, vpls.near_field_distance)
+    assert near.shape == (w, w, 3) and near.dtype == np.float32 and near.max() > 0.05
+    # Bit for bit what evaluate adds, from one evaluation of the VPLs.
+    assert np.array_equal(plain + near, gathered)
+    assert not vplace.near_field_light(scene, v, plain, 0.0).any()
+    with pytest.raises(vplace.InputError, match=r"vpl_indirect must have shape \(24, 24, 3\)"):
+        vplace.near_field_light(scene, v, plain[:-1], 0.1)
+    with pytest.raises(vplace.InputError, match="dtype float32"):
+        vplace.near_field_light(scene, v, plain.astype(np.float64), 0.1)
+    bad = plain.copy()
+    bad[3, 5, 1] = np.nan
+    with pytest.raises(vplace.InputError, match=r"non-finite value at pixel \(3, 5\)"):
+        vplace.near_field_light(scene, v, bad, 0.1)
+    for distance in (-0.1, float("inf"), float("nan")):
+        with pytest.raises(vplace.InputError, match="distance must be finite"):
+            vplace.near_field_light(scene, v, plain, distance)
+
+
 def test_a_set_takes_the_near_field_where_its_captures_show_it():
     w = 24
     g = corner_gbuffer(w)

@@ -442,6 +442,47 @@ fn evaluate<'py>(
     ))
 }
 
+/// The near-field light of `view` gathered within `distance` (scene units) from the VPLs'
+/// indirect image `vpl_indirect` of that view (see `vplace.near_field_light`): what
+/// `evaluate(..., near_field=True)` adds to the image it returns with `near_field=False`,
+/// without evaluating the VPLs again.
+#[pyfunction]
+fn near_field_light<'py>(
+    py: Python<'py>,
+    scene: &PyScene,
+    view: &PyView,
+    vpl_indirect: &Bound<'py, PyAny>,
+    distance: f32,
+) -> PyResult<Bound<'py, PyAny>> {
+    let v = Arc::clone(&view.inner);
+    let (h, w) = (v.height, v.width);
+    let checked = array::<f32>(
+        vpl_indirect,
+        "vpl_indirect",
+        &[Dim::Is(h), Dim::Is(w), Dim::Is(3)],
+        "float32",
+    )?;
+    let values = slice(&checked, "vpl_indirect")?;
+    if let Some(i) = values.iter().position(|x| !x.is_finite()) {
+        return Err(input_error(format!(
+            "vpl_indirect holds a non-finite value at pixel ({}, {})",
+            i / 3 / w,
+            i / 3 % w
+        )));
+    }
+    if !(distance >= 0.0 && distance.is_finite()) {
+        return Err(input_error(format!(
+            "distance must be finite and >= 0, got {distance}"
+        )));
+    }
+    let image = values.to_vec();
+    let s = Arc::clone(&scene.inner);
+    let near = run(py, move || {
+        near_field::near_field_light(&v, &image, distance, Some(&s))
+    })?;
+    Ok(PyArray1::from_vec(py, near).reshape([h, w, 3])?.into_any())
+}
+
 /// The near-field gather distance of VPLs of near-field radii `radii` (see
 /// `VplSet.near_field_distance`).
 #[pyfunction]
@@ -457,6 +498,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(rsm_vpls, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(near_field_distance, m)?)?;
+    m.add_function(wrap_pyfunction!(near_field_light, m)?)?;
     m.add("VPL_SURFACE_OFFSET", vpl::Vpl::SURFACE_OFFSET)?;
     m.add("MAX_BOUNCES", vpl::MAX_BOUNCES)?;
     Ok(())

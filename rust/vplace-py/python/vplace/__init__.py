@@ -43,6 +43,7 @@ The pieces, in pipeline order:
   global-illumination fast GI gives within that distance with ray tracing on, as the
   write-back and EEVEE's set-up apply it for such a set. ``vplace.job.lay_out`` gives it to the
   regression-guided sets whose captures it brings closer (``vplace.job.choose_near_field``).
+  :func:`near_field_light` gives that gather alone, from an image ``evaluate`` already made.
 - :func:`rmse`, :func:`relative_mse`, :func:`ssim`: the metrics of DESIGN.md;
   :func:`ssim_noise_free`, :func:`ssim_ceiling` and :func:`rmse_noise_free`: SSIM and RMSE seen
   through the truth's own noise, from two renders of the truth with different seeds.
@@ -91,6 +92,7 @@ from vplace._native import (
     fit_design,
     layout,
     near_field_distance,
+    near_field_light,
     refit,
     refit_frames,
     relative_mse,
@@ -144,6 +146,7 @@ __all__ = [
     "fit_design",
     "layout",
     "near_field_distance",
+    "near_field_light",
     "refit",
     "refit_frames",
     "refit_stride_for",

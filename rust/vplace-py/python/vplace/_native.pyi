@@ -303,6 +303,9 @@ def evaluate(
     near_field: bool | None = None,
 ) -> tuple[_F32, EvalStats]: ...
 def near_field_distance(radii: Sequence[float] | npt.NDArray[np.float32]) -> float: ...
+def near_field_light(
+    scene: Scene, view: View, vpl_indirect: npt.NDArray[np.float32], distance: float
+) -> _F32: ...
 
 # --- features and regression (fit.rs) -----------------------------------------------------
 @final

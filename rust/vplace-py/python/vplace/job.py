@@ -200,8 +200,10 @@ def choose_near_field(
         )
         weight = _block_means(covered.astype(np.float64), covered, NEAR_FIELD_BLOCK) > 0
         count += int(weight.sum())
-        for k, on in enumerate((False, True)):
-            image, _ = vplace.evaluate(scene, view, vpls, near_field=on, progress=progress)
+        # One evaluation: the gather is added to it as ``evaluate(near_field=True)`` adds it.
+        plain, _ = vplace.evaluate(scene, view, vpls, near_field=False, progress=progress)
+        gathered = plain + vplace.near_field_light(scene, view, plain, distance)
+        for k, image in enumerate((plain, gathered)):
             mine = _block_means(
                 np.asarray(image, dtype=np.float64) @ lum, covered, NEAR_FIELD_BLOCK
             )
