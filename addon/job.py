@@ -433,6 +433,10 @@ def summary(
         evaluator.refit_cv = [list(c) for c in laid.refit.cv] or None
         evaluator.refit_gain = laid.refit.gain
         evaluator.refit_gain_cv = [list(c) for c in laid.refit.gain_cv] or None
+        weights = laid.refit.view_weights
+        if len(weights) > 1:
+            names = [v.name for v in prepared.captured_views]
+            evaluator.refit_view_weights = dict(zip(names, weights, strict=True))
     if laid.near_field is not None:
         evaluator.near_field = dataclasses.asdict(laid.near_field)
     return vplace.job.JobSummary(

@@ -51,6 +51,18 @@ def test_job_report_rows():
     assert "written as lights" not in text
 
 
+def test_job_report_names_the_refits_view_weights():
+    assert "weighed" not in vjob.job_report(_report())
+    weighed = vjob.EvaluatorSummary(1000, 2000, 0.5, 2e6, refit_view_weights={"A": 0.85})
+    assert "weighed" not in vjob.job_report(_report(evaluator=weighed))
+    weighed.refit_view_weights = {"Main": 0.852, "Balcony": 2.388}
+    assert (
+        "The refit weighed each captured view's pixels by the inverse of its indirect light, "
+        "so that a dim view's relative error counts as a bright one's: Main 0.85, Balcony "
+        "2.39.\n" in vjob.job_report(_report(evaluator=weighed))
+    )
+
+
 def test_job_report_says_how_many_vpls_were_written():
     # The refit can leave VPLs with no power; they are not written, and the header says so.
     text = vjob.job_report(_report(lights_written=7))

@@ -122,6 +122,34 @@ def test_coverage_holds_a_vpl_that_lights_what_no_capture_saw(setup):
             )
 
 
+def test_a_dim_capture_weighs_as_much_as_a_bright_one(setup):
+    """Two captures of the floor, one a fifth as bright: each view's pixels weigh by the
+    inverse of its light (the weighted targets keeping their energy), so the dim one's relative
+    error counts as the bright one's; ``balance_views=False`` sums plain pixel errors."""
+    scene, d = setup
+    base = vplace.uniform_vpls(scene, 24, seed=3)
+    target, _ = vplace.evaluate(scene, view(d), base)
+    bright = view(d, indirect=target)
+    dim = view(d, name="dim", indirect=np.ascontiguousarray(0.2 * target, dtype=np.float32))
+    p = vplace.RefitParams(stride=2, ridge=1e-3)
+    assert p.balance_views and "balance_views=True" in repr(p)
+    out = vplace.refit(scene, [bright, dim], base, p)
+    w = np.asarray(out.view_weights)
+    assert w[1] / w[0] == pytest.approx(5.0, rel=1e-6)
+    # The weighted targets hold the unweighted energy: w0^2 + (0.2 w1)^2 == 1 + 0.2^2 (the
+    # dim target is 0.2x in float32).
+    assert (w[0] ** 2 + (0.2 * w[1]) ** 2) == pytest.approx(1.04, rel=1e-6)
+    off = vplace.RefitParams(stride=2, ridge=1e-3, balance_views=False)
+    assert not off.balance_views
+    plain = vplace.refit(scene, [bright, dim], base, off)
+    assert plain.view_weights == [1.0, 1.0]
+    # The two targets disagree by 5x: balanced, the fit lands nearer the dim one's light.
+    assert np.median(out.scales) < np.median(plain.scales)
+    # One view, or views equally bright: nothing to balance.
+    assert vplace.refit(scene, [dim], base, p).view_weights == [1.0]
+    assert vplace.refit(scene, [bright, bright], base, p).view_weights == [1.0, 1.0]
+
+
 def test_never_worse_and_deterministic(setup):
     scene, d = setup
     vpls = vplace.uniform_vpls(scene, 48, seed=2)

@@ -329,10 +329,13 @@ impl PyRefitParams {
     /// `REFIT_GROUP`, 1): VPLs per power group, one scale per group of neighbouring VPLs; 1:
     /// one scale per VPL. `unseen_weight` (default `UNSEEN_WEIGHT`, 1): the weight of the
     /// coverage views' pixels no capture sees (`refit(..., coverage=...)`), per coverage view
-    /// relative to one captured view; 0 turns it off.
+    /// relative to one captured view; 0 turns it off. `balance_views` (default True): each
+    /// view's pixels weigh by the inverse of its light (`Refit.view_weights`), so that a dim
+    /// view's relative error counts as a bright one's.
     #[new]
     #[pyo3(signature = (*, stride = None, ridge = None, leave_out_views = None, free_gain = None,
-        group = None, unseen_weight = None))]
+        group = None, unseen_weight = None, balance_views = None))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         stride: Option<usize>,
         ridge: Option<f64>,
@@ -340,6 +343,7 @@ impl PyRefitParams {
         free_gain: Option<bool>,
         group: Option<usize>,
         unseen_weight: Option<f64>,
+        balance_views: Option<bool>,
     ) -> Self {
         let d = RefitParams::DEFAULT;
         Self {
@@ -351,6 +355,7 @@ impl PyRefitParams {
                 free_gain: free_gain.unwrap_or(d.free_gain),
                 group: group.unwrap_or(d.group),
                 unseen_weight: unseen_weight.unwrap_or(d.unseen_weight),
+                balance_views: balance_views.unwrap_or(d.balance_views),
                 ..d
             },
         }
@@ -405,17 +410,24 @@ impl PyRefitParams {
         self.inner.unseen_weight
     }
 
+    /// Whether each view's pixels weigh by the inverse of its light.
+    #[getter]
+    fn balance_views(&self) -> bool {
+        self.inner.balance_views
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "RefitParams(stride={}, ridge={:?}, select_ridge={}, leave_out_views={}, free_gain={}, \
-             group={}, unseen_weight={:?})",
+             group={}, unseen_weight={:?}, balance_views={})",
             self.inner.stride,
             self.inner.ridge,
             py_bool(self.inner.select_ridge),
             py_bool(self.inner.leave_out_views),
             py_bool(self.inner.free_gain),
             self.inner.group,
-            self.inner.unseen_weight
+            self.inner.unseen_weight,
+            py_bool(self.inner.balance_views)
         )
     }
 }

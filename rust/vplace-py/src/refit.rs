@@ -65,6 +65,15 @@ impl PyRefit {
         self.r.unseen_pixels
     }
 
+    /// The weight of each view's pixels in the refit (`RefitParams.balance_views`): the
+    /// inverse of the view's mean indirect light, scaled so the targets keep their energy; all
+    /// 1 with one view or without the balance. `error_before` and `error_after` are of the
+    /// weighted pixels.
+    #[getter]
+    fn view_weights(&self) -> Vec<f64> {
+        self.r.view_weights.clone()
+    }
+
     /// Covered pixels on the strided grids of every view.
     #[getter]
     fn pixels(&self) -> usize {

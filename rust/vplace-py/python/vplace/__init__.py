@@ -27,8 +27,9 @@ The pieces, in pipeline order:
 - :func:`layout` lays out one world-space :class:`VplSet` for a list of views (strata over the
   cells of every view and the off-screen light paths, the budget split by predicted indirect
   light, then iterations against every view's indirect image); :func:`refit` refits the VPL
-  powers against every view at once (non-negative least squares; ``coverage=`` views hold the
-  VPLs lighting what no view saw); :func:`refit_frames` refits them on several frames whose
+  powers against every view at once (non-negative least squares, each view's pixels weighed by
+  the inverse of its light, ``Refit.view_weights``; ``coverage=`` views hold the VPLs lighting
+  what no view saw); :func:`refit_frames` refits them on several frames whose
   light alone differs (the same G-buffers, ``Scene.same_occluders``), tracing the shadow rays
   once for all, each frame's result what :func:`refit` gives it; :func:`uniform_vpls` (Keller)
   and :func:`rsm_vpls` are the baselines.

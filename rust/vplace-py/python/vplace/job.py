@@ -800,6 +800,9 @@ class EvaluatorSummary:
     #: gain, taken where the cross-validation preferred it) and that pull's validation.
     refit_gain: float | None = None
     refit_gain_cv: list[list[float]] | None = None
+    #: With several captured views, the weight of each one's pixels in the refit
+    #: (``Refit.view_weights``: the inverse of its light), by view name.
+    refit_view_weights: dict[str, float] | None = None
     #: Whether the lights' light includes the near-field gather (:func:`choose_near_field`):
     #: ``on``, the captures' luminance RMSE ``without`` and ``with_gather``, the ``distance``.
     near_field: dict[str, Any] | None = None
@@ -1199,12 +1202,25 @@ def job_report(report: JobSummary) -> str:
         ],
         *[line for note in report.eevee_lamp_notes for line in (note + ".", "")],
         *[line for note in eevee_matched_notes(report.eevee_matched) for line in (note, "")],
+        *_view_weight_lines(s.refit_view_weights),
         *_near_field_lines(s.near_field, report.unit_scale),
         f"Evaluator: {s.shadow_rays} shadow rays in {s.seconds:.3f} s "
         f"= {s.rays_per_second / 1e6:.2f} M rays/s",
         "",
     ]
     return "\n".join(lines)
+
+
+def _view_weight_lines(weights: dict[str, float] | None) -> list[str]:
+    """What the report says of the refit's view weights (``RefitParams.balance_views``)."""
+    if not weights or len(weights) < 2:
+        return []
+    each = ", ".join(f"{name} {w:.2f}" for name, w in weights.items())
+    return [
+        "The refit weighed each captured view's pixels by the inverse of its indirect light, "
+        f"so that a dim view's relative error counts as a bright one's: {each}.",
+        "",
+    ]
 
 
 def _near_field_lines(near: dict[str, Any] | None, unit_scale: float) -> list[str]:
