@@ -434,7 +434,7 @@ def summary(
         evaluator.refit_gain = laid.refit.gain
         evaluator.refit_gain_cv = [list(c) for c in laid.refit.gain_cv] or None
         weights = laid.refit.view_weights
-        if len(weights) > 1:
+        if any(w != 1.0 for w in weights):  # balanced (several captures, unequally lit)
             names = [v.name for v in prepared.captured_views]
             evaluator.refit_view_weights = dict(zip(names, weights, strict=True))
     if laid.near_field is not None:

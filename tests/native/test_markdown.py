@@ -53,7 +53,7 @@ def test_job_report_rows():
 
 def test_job_report_names_the_refits_view_weights():
     assert "weighed" not in vjob.job_report(_report())
-    weighed = vjob.EvaluatorSummary(1000, 2000, 0.5, 2e6, refit_view_weights={"A": 0.85})
+    weighed = vjob.EvaluatorSummary(1000, 2000, 0.5, 2e6, refit_view_weights={"A": 1.0, "B": 1.0})
     assert "weighed" not in vjob.job_report(_report(evaluator=weighed))
     weighed.refit_view_weights = {"Main": 0.852, "Balcony": 2.388}
     assert (

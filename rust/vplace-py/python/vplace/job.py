@@ -800,7 +800,7 @@ class EvaluatorSummary:
     #: gain, taken where the cross-validation preferred it) and that pull's validation.
     refit_gain: float | None = None
     refit_gain_cv: list[list[float]] | None = None
-    #: With several captured views, the weight of each one's pixels in the refit
+    #: Where the refit weighed its captured views unequally, the weight of each one's pixels
     #: (``Refit.view_weights``: the inverse of its light), by view name.
     refit_view_weights: dict[str, float] | None = None
     #: Whether the lights' light includes the near-field gather (:func:`choose_near_field`):
@@ -1213,7 +1213,7 @@ def job_report(report: JobSummary) -> str:
 
 def _view_weight_lines(weights: dict[str, float] | None) -> list[str]:
     """What the report says of the refit's view weights (``RefitParams.balance_views``)."""
-    if not weights or len(weights) < 2:
+    if not weights or all(w == 1.0 for w in weights.values()):
         return []
     each = ", ".join(f"{name} {w:.2f}" for name, w in weights.items())
     return [
