@@ -67,8 +67,8 @@ impl PyRefit {
 
     /// The weight of each view's pixels in the refit (`RefitParams.balance_views`): the
     /// inverse of the view's mean indirect light, scaled so the targets keep their energy; all
-    /// 1 with one view or without the balance. `error_before` and `error_after` are of the
-    /// weighted pixels.
+    /// 1 with one view, views equally lit, or without the balance. `error_before` and
+    /// `error_after` are of the weighted pixels.
     #[getter]
     fn view_weights(&self) -> Vec<f64> {
         self.r.view_weights.clone()
