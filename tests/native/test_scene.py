@@ -246,16 +246,21 @@ def corner_gbuffer(w=24, s=0.02):
     }
 
 
+def corner_vpls(flux: float) -> vplace.VplSet:
+    """Two floor-facing VPLs above :func:`corner_gbuffer`'s corner, each of ``flux`` a channel."""
+    return vplace.VplSet(
+        np.array([[0.3, 0.2, 0.5], [0.1, 0.3, 0.4]], np.float32),
+        np.array([[0, 0, -1], [0, 0, -1]], np.float32),
+        np.full((2, 3), flux, np.float32),
+        radius=0.05,
+    )
+
+
 def test_near_field_light_fills_a_corner_only_when_asked():
     w = 24
     v = view(corner_gbuffer(w))
     scene = vplace.Scene(*quad_scene())
-    vpls = vplace.VplSet(
-        np.array([[0.3, 0.2, 0.5], [0.1, 0.3, 0.4]], np.float32),
-        np.array([[0, 0, -1], [0, 0, -1]], np.float32),
-        np.zeros((2, 3), np.float32),
-        radius=0.05,
-    )
+    vpls = corner_vpls(0.0)
     plain, stats = vplace.evaluate(scene, v, vpls)
     near, near_stats = vplace.evaluate(scene, v, vpls, near_field=True)
     assert stats.near_field_distance == 0.0 and not plain.any()
@@ -275,12 +280,7 @@ def test_the_gather_alone_is_what_evaluate_adds_and_bad_images_are_refused():
     w = 24
     v = view(corner_gbuffer(w))
     scene = vplace.Scene(*quad_scene())
-    vpls = vplace.VplSet(
-        np.array([[0.3, 0.2, 0.5], [0.1, 0.3, 0.4]], np.float32),
-        np.array([[0, 0, -1], [0, 0, -1]], np.float32),
-        np.full((2, 3), 0.2, np.float32),
-        radius=0.05,
-    )
+    vpls = corner_vpls(0.2)
     plain, _ = vplace.evaluate(scene, v, vpls, near_field=False)
     gathered, _ = vplace.evaluate(scene, v, vpls, near_field=True)
     near = vplace.near_field_light(scene, v, plain, vpls.near_field_distance)
@@ -305,12 +305,7 @@ def test_a_set_takes_the_near_field_where_its_captures_show_it():
     w = 24
     g = corner_gbuffer(w)
     scene = vplace.Scene(*quad_scene())
-    vpls = vplace.VplSet(
-        np.array([[0.3, 0.2, 0.5], [0.1, 0.3, 0.4]], np.float32),
-        np.array([[0, 0, -1], [0, 0, -1]], np.float32),
-        np.full((2, 3), 0.2, np.float32),
-        radius=0.05,
-    )
+    vpls = corner_vpls(0.2)
     plain, _ = vplace.evaluate(scene, view(g), vpls, near_field=False)
     gathered, _ = vplace.evaluate(scene, view(g), vpls, near_field=True)
     assert (gathered >= plain).all() and (gathered - plain).max() > 0.05

@@ -518,12 +518,12 @@ pub fn view_weights(gbuffers: &[GBuffer<'_>], target: &[&[f32]], balance: bool) 
     if raw.iter().all(|&w| w == raw[0]) {
         return ones; // views of one brightness: nothing to balance, exactly
     }
-    let energy = |w: &dyn Fn(usize) -> f64| -> f64 {
+    let energy = |w: &[f64]| -> f64 {
         (0..mean.len())
-            .map(|v| count[v] * (w(v) * mean[v]).powi(2))
+            .map(|v| count[v] * (w[v] * mean[v]).powi(2))
             .sum()
     };
-    let (before, after) = (energy(&|_| 1.0), energy(&|v| raw[v]));
+    let (before, after) = (energy(&ones), energy(&raw));
     let scale = (before / after).sqrt();
     if !(scale > 0.0 && scale.is_finite()) {
         return ones;
