@@ -26,7 +26,11 @@ def view_set(args: argparse.Namespace) -> ViewSet:
     """The views of the ``demo`` options (default: the scene camera)."""
     from .capture.views import ViewSet
 
-    region = {"coverage": args.coverage, "region_radius": args.region_radius}
+    region = {
+        "coverage": args.coverage,
+        "region_radius": args.region_radius,
+        "render_coverage": args.render_coverage,
+    }
     if args.cameras:
         return ViewSet(mode="cameras", cameras=tuple(args.cameras), **region)
     if args.frames:
@@ -41,7 +45,7 @@ def view_set(args: argparse.Namespace) -> ViewSet:
 
 
 def add_region_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--coverage N`` and ``--region-radius M`` (``vplace.coverage``)."""
+    """``--coverage N``, ``--region-radius M`` and ``--render-coverage`` (``vplace.coverage``)."""
     from .capture.views import ViewSet
 
     parser.add_argument(
@@ -52,6 +56,11 @@ def add_region_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--region-radius", type=float, default=0.0, metavar="M",
         help="metres a camera may move from the user's (default 0: the room it stands in)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--render-coverage", action="store_true",
+        help="render the coverage views with Cycles and fit them as captures (slower; by "
+        "default they are traced, lit by light-path VPLs)",
     )  # fmt: skip
 
 
@@ -341,6 +350,7 @@ def run(args: argparse.Namespace) -> None:
             cache_dir=args.cache,
             coverage=args.coverage,
             region_radius=args.region_radius,
+            render_coverage=args.render_coverage,
             generated_views=args.generated_views,
             truth_noise=not args.single_truth,
             radius=args.radius,

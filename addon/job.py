@@ -257,6 +257,7 @@ def prepare(
             region=region,
             profile=job.profile,
             radius=job.radius,
+            render_coverage=job.views.render_coverage,
         )
     cover = captured.coverage
     ref = None

@@ -21,7 +21,11 @@ from ..native import vplace
 from ..scene.export import ExportedScene
 from .native_view import gloss_mask, spared_materials, view_of, vpl_specular
 from .passes import Capture, capture
-from .views import ViewSpec
+from .views import ViewSpec, pose_camera
+
+#: The names of the coverage views rendered by Cycles start with this (not
+#: ``vplace.coverage.PREFIX``: rendered, they are captures, fitted as the user's are).
+RENDERED_COVERAGE_PREFIX = "region view "
 
 
 @dataclass
@@ -71,10 +75,13 @@ def capture_views(
     region: vplace.coverage.Region | None = None,
     profile: str = "cosine",
     radius: float | None = None,
+    render_coverage: bool = False,
 ) -> Captured:
     """Captures each view of ``specs``, then, with a ``region`` of one or more views, adds the
     coverage views of that region around them (``vplace.coverage``: ray traced, no render;
-    ``profile`` and ``radius`` those of the job's VPLs). A view that sees no geometry, or that
+    ``profile`` and ``radius`` those of the job's VPLs). With ``render_coverage`` the coverage
+    views are rendered by Cycles instead (:func:`rendered_coverage`) and follow the captures as
+    captures. A view that sees no geometry, or that
     renders exactly what an earlier view renders (the same capture key), is left out and said
     so; only when no view is left is it an error. ``stage`` is the job timer's ``stage``."""
     last = [0.0]
@@ -130,7 +137,26 @@ def capture_views(
     gloss = masks if specular else [None] * len(captures)
     views = [view_of(c, gloss=g) for c, g in zip(captures, gloss, strict=True)]
     cover = None
-    if region is not None and region.count > 0:
+    if region is not None and region.count > 0 and render_coverage:
+        cover, rendered = rendered_coverage(
+            bl_scene,
+            scene,
+            exported,
+            views,
+            region,
+            frame=specs[0].frame,
+            samples=samples,
+            seed=seed,
+            cache_dir=cache_dir,
+            stage=stage,
+            on_progress=on_progress,
+        )
+        masks = [gloss_mask(scene, exported, c) if specular else None for c in rendered]
+        captures += rendered
+        gloss += masks
+        views += [view_of(c, gloss=g) for c, g in zip(rendered, masks, strict=True)]
+        log(f"[vplace] {cover.describe(exported.unit_scale)}, rendered by Cycles")
+    elif region is not None and region.count > 0:
         with stage("coverage views (ray traced)"):
             cover = vplace.coverage.cover(
                 scene,
@@ -143,6 +169,52 @@ def capture_views(
             )
         log(f"[vplace] {cover.describe(exported.unit_scale)}")
     return Captured(captures, views, gloss, skipped, cover)
+
+
+def rendered_coverage(
+    bl_scene: bpy.types.Scene,
+    scene: vplace.Scene,
+    exported: ExportedScene,
+    views: Sequence[vplace.View],
+    region: vplace.coverage.Region,
+    *,
+    frame: int | None,
+    samples: int,
+    seed: int,
+    cache_dir: Path | None,
+    stage: Callable[[str], AbstractContextManager[None]],
+    on_progress: Callable[[str], None] | None = None,
+) -> tuple[vplace.coverage.Coverage, list[Capture]]:
+    """The coverage views of ``region`` around the captured ``views`` rendered by Cycles: the
+    poses ``vplace.coverage.pick`` chooses (traced probes), each captured from a temporary
+    camera (:func:`views.pose_camera`, removed after) at ``region.size`` pixels square with the
+    captures' ``samples`` and ``seed`` at ``frame``, named :data:`RENDERED_COVERAGE_PREFIX` ``k``.
+    Their indirect light is then Cycles', not light-path VPLs' estimate, and they are fitted as
+    captures. A pose that sees no geometry is left out. The ``Coverage`` holds the poses (its
+    ``views`` empty) and the seconds of the pick; the renders' own are the captures'."""
+    start = time.perf_counter()
+    poses, before, after, radii = vplace.coverage.pick(
+        scene, exported.vertices[exported.triangles], views, region
+    )
+    picked = time.perf_counter() - start
+    rendered = []
+    for k, pose in enumerate(poses, start=1):
+        name = f"{RENDERED_COVERAGE_PREFIX}{k}"
+        with stage(f"capture {name} (Cycles)"), pose_camera(bl_scene, pose, name) as camera:
+            cap = capture(
+                bl_scene,
+                camera=camera,
+                frame=frame,
+                name=name,
+                resolution=(region.size, region.size),
+                samples=samples,
+                seed=seed,
+                cache_dir=cache_dir,
+                on_progress=on_progress,
+            )
+        if cap.covered.any():
+            rendered.append(cap)
+    return vplace.coverage.Coverage([], poses, before, after, radii, picked), rendered
 
 
 def reference_of(

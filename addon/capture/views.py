@@ -33,6 +33,8 @@ from .passes import camera_matrices
 VIEW_MODES = ("active", "cameras", "frames", "orbit")
 #: Custom property marking the temporary cameras of an orbit (removed after the capture).
 ORBIT_MARKER = "vplace_orbit_camera"
+#: Custom property marking the temporary camera of a coverage view rendered by Cycles.
+COVERAGE_MARKER = "vplace_coverage_camera"
 
 
 @dataclass(frozen=True)
@@ -56,6 +58,11 @@ class ViewSet:
     #: The region's radius around each camera, scene units; 0: from the room the camera stands
     #: in.
     region_radius: float = 0.0
+    #: Render the coverage views with Cycles (at the capture's samples, the region's ``size``
+    #: pixels square) and fit them as captures, instead of tracing them with light-path VPLs
+    #: as their indirect image (``capture.stage.rendered_coverage``; off: the sky room's
+    #: held-out views got hot pixels, ARCHITECTURE.md).
+    render_coverage: bool = False
 
     def region(self) -> vplace.coverage.Region:
         """The region the coverage views stand for."""
@@ -167,6 +174,35 @@ def generated_cameras(scene: bpy.types.Scene, views: ViewSet) -> Iterator[list[b
                 bpy.data.objects.remove(obj)
                 if data is not None and data.users == 0:
                     bpy.data.cameras.remove(data)
+
+
+def pose_matrix(pose: vplace.coverage.Pose) -> Matrix:
+    """The world matrix of a camera at ``pose`` (Blender's camera looks down its -Z axis)."""
+    f, right, up = pose.basis()
+    rot = Matrix((right, up, -f)).transposed()  # columns: the camera's x, y and z axes
+    return Matrix.Translation(Vector(pose.eye.tolist())) @ rot.to_4x4()
+
+
+@contextlib.contextmanager
+def pose_camera(
+    scene: bpy.types.Scene, pose: vplace.coverage.Pose, name: str
+) -> Iterator[bpy.types.Object]:
+    """A temporary camera at a coverage ``pose``: the 90-degree square view ``vplace.coverage``
+    traces, linked to ``scene`` for the block and always removed after it (its data too)."""
+    data = bpy.data.cameras.new(name)
+    data.sensor_fit = "AUTO"
+    data.angle = math.pi / 2.0
+    data.clip_start, data.clip_end = vplace.coverage.NEAR, vplace.coverage.FAR
+    obj = bpy.data.objects.new(name, data)
+    obj[COVERAGE_MARKER] = True
+    obj.matrix_world = pose_matrix(pose)
+    try:
+        scene.collection.objects.link(obj)
+        yield obj
+    finally:
+        bpy.data.objects.remove(obj)
+        if data.users == 0:
+            bpy.data.cameras.remove(data)
 
 
 def resolve(

@@ -44,12 +44,12 @@ from typing import Any
 
 import bpy
 import numpy as np
-from mathutils import Matrix, Vector
+from mathutils import Vector
 
 from .. import job as pipeline
 from ..capture import passes as capture
 from ..capture.native_view import gloss_mask, view_of
-from ..capture.views import ViewSet, ViewSpec, eye_positions
+from ..capture.views import ViewSet, ViewSpec, eye_positions, pose_matrix
 from ..errors import ReportError, output_folder
 from ..native import vplace
 from ..scene import export
@@ -174,13 +174,11 @@ def generate_held_out(
         )
     made = []
     for k, pose in enumerate(poses, start=1):
-        f, right, up = pose.basis()
-        rot = Matrix((right, up, -f)).transposed()  # columns: the camera's x, y and z axes
         data = camera.data.copy()
         if through_wall:
             data.clip_start = min(data.clip_start, GENERATED_CLIP_START)
         obj = bpy.data.objects.new(f"{GENERATED_PREFIX}{k}", data)
-        obj.matrix_world = Matrix.Translation(Vector(pose.eye.tolist())) @ rot.to_4x4()
+        obj.matrix_world = pose_matrix(pose)
         bl_scene.collection.objects.link(obj)
         made.append(obj)
     return made
@@ -215,7 +213,11 @@ def load_scene(
         feature_mode=config.feature_mode,
         near_field=config.near_field,
         cache_dir=cache_dir,
-        views=ViewSet(coverage=config.coverage, region_radius=config.region_radius),
+        views=ViewSet(
+            coverage=config.coverage,
+            region_radius=config.region_radius,
+            render_coverage=config.render_coverage,
+        ),
         radius=config.radius,
     ).in_scene_units(export.unit_scale(bl_scene))
     cams = {}

@@ -168,6 +168,7 @@ class VPLACE_PT_views(_Panel, bpy.types.Panel):
         sub = col.column(align=True)
         sub.active = settings.coverage > 0
         sub.prop(settings, "region_radius")
+        sub.prop(settings, "render_coverage")
 
 
 CLASSES = (VPLACE_UL_cameras, VPLACE_PT_main, VPLACE_PT_views)

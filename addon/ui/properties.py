@@ -151,6 +151,13 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
         min=0.0,
         unit="LENGTH",
     )
+    render_coverage: BoolProperty(  # type: ignore[valid-type]
+        name="Render coverage views",
+        description="Render the coverage views with Cycles and fit the lights to them as to the "
+        "captures: a few small renders more; better from views far from the cameras, but lights "
+        "by room corners may get too bright (off: traced, lit by light-path VPLs)",
+        default=ViewSet.render_coverage,
+    )
     samples: IntProperty(  # type: ignore[valid-type]
         name="Capture samples",
         description="Cycles samples of the capture",
@@ -226,6 +233,7 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
             orbit_angle=self.orbit_angle,
             coverage=self.coverage,
             region_radius=self.region_radius,
+            render_coverage=self.render_coverage,
         )
 
 

@@ -4,12 +4,14 @@ views that cannot be used are left out with a message, and the file is left as i
 import math
 
 import bpy
+import numpy as np
 import pytest
 from blender_util import add_lamp, addon_cornell, data_snapshot, diff, empty_file
 
 from addon import job as pipeline
 from addon.capture import views
 from addon.errors import AddonError, CaptureError
+from addon.native import vplace
 from addon.scenes.registry import CORNELL_HELD_OUT_CAMERA
 from addon.writeback import apply
 
@@ -160,3 +162,31 @@ def test_a_camera_that_sees_through_a_wall_stands_in_the_room_behind_it():
     assert poses
     for p in poses:  # inside the room's walls, not in front of its facade
         assert -6.0 < p.eye[0] < 6.0 and -4.5 < p.eye[1] < 4.5 and 0.0 < p.eye[2] < 3.0, p.eye
+
+
+def test_rendered_coverage_views_are_cycles_captures_of_the_traced_poses(scene):
+    # "Render coverage views": the poses the traced coverage picks, each rendered by Cycles from
+    # a temporary camera, fitted as captures (their indirect light is Cycles', not light-path
+    # VPLs'). A camera turned the wrong way would render another view: the rendered G-buffer
+    # must be the traced one's, pixel for pixel, and the file must be left as it was.
+    traced = prepared(scene, coverage=2)
+    assert len(traced.coverage.poses) == 2 and len(traced.captures) == 1
+    before = data_snapshot()
+    rendered = prepared(scene, coverage=2, render_coverage=True)
+    assert diff(before, data_snapshot()) == []
+    assert not [o for o in bpy.data.objects if o.get(views.COVERAGE_MARKER)]
+    assert [p.eye.tolist() for p in rendered.coverage.poses] == [
+        p.eye.tolist() for p in traced.coverage.poses
+    ]
+    names = [c.view for c in rendered.captures]
+    assert names == ["Cornell camera", "region view 1", "region view 2"]
+    assert len(rendered.views) == 3  # no traced coverage view beside them
+    fitted = vplace.coverage.captures_of(rendered.views)
+    assert [v.name for v in fitted] == names
+    for cap, view in zip(rendered.captures[1:], traced.views[1:], strict=True):
+        assert (cap.width, cap.height) == (view.width, view.height) == (48, 48)
+        both = cap.covered & view.covered
+        assert both.sum() > 0.9 * view.covered.sum()
+        dist = np.linalg.norm(cap.position[both] - view.position[both], axis=1)
+        assert np.median(dist) < 0.01 * rendered.scene.scale, np.median(dist)
+        assert cap.indirect.sum() > 0.0

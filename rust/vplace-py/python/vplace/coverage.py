@@ -31,7 +31,9 @@ their VPLs from few, heavy off-screen draws, and a refit trades them away for th
   (``vplace.refit(..., coverage=...)``).
 
 No Cycles render is made: a coverage view costs rays only (about ``size^2`` primary rays,
-``samples`` shadow rays per pixel and emitter, and ``TARGET_VPLS`` shadow rays per pixel).
+``samples`` shadow rays per pixel and emitter, and ``TARGET_VPLS`` shadow rays per pixel). The
+add-on can render the poses :func:`pick` chooses with Cycles instead and fit them as captures
+(``addon.capture.stage.rendered_coverage``, off by default).
 """
 
 from __future__ import annotations
@@ -155,6 +157,7 @@ class Pose:
 class Coverage:
     """The picked coverage views and what they cover."""
 
+    #: The traced views (empty where the add-on rendered the poses: then they are captures).
     views: list[View]
     poses: list[Pose]
     #: Share of the region's surface voxels the user's views cover, then with the coverage views.
@@ -166,7 +169,7 @@ class Coverage:
     def describe(self, unit_scale: float = 1.0) -> str:
         """One line for the log and the report; ``unit_scale``: metres per scene unit."""
         return (
-            f"{len(self.views)} coverage views (region radius "
+            f"{len(self.poses)} coverage views (region radius "
             + ", ".join(f"{r * unit_scale:.3g}" for r in self.radius)
             + f" m): the region's surfaces {self.covered_before:.0%} covered by the captures, "
             f"{self.covered_after:.0%} with them ({self.seconds:.2f} s)"
