@@ -849,6 +849,7 @@ def _run_scene(
         "vpl_specular": data.prepared.vpl_specular,
         "vpl_unlit": data.prepared.vpl_unlit,
     }
+    regions = _regions(data)
     for view in data.views:
         cap = view.truth
         info["views"][view.name] = {
@@ -860,6 +861,8 @@ def _run_scene(
             "truth_noise": view.truth_noise(),
             "triangles": data.prepared.scene.triangle_count,
         }
+        if view.name in regions:
+            info["views"][view.name]["region"] = regions[view.name]
         stem = f"{preset.name}_{report_plots.slug(view.name)}"
         for key, prefix, pictures, what in (
             ("grid", "grid", images[view.name], "the evaluator"),
@@ -883,6 +886,41 @@ def _run_scene(
             )
             info["views"][view.name]["vpl_difference"] = picture.name
     return rows, info
+
+
+def _regions(data: SceneData) -> dict[str, dict[str, Any]]:
+    """Per held-out view, the fit camera whose region it stands deepest in (the least distance
+    from eye to eye, ``vplace.coverage.camera_eye``, over that camera's region radius,
+    ``vplace.coverage.region_radius``), the distance and the radius in metres, and whether it
+    stands inside: whether the view is one a camera in the region the lights were laid out for
+    can take."""
+    scene, metres = data.prepared.scene, data.prepared.exported.unit_scale
+
+    def eye(v: ViewData) -> np.ndarray:
+        return vplace.coverage.camera_eye(scene, v.truth.camera_position, v.truth.world_to_clip)
+
+    fits = [
+        (v.name, e, vplace.coverage.region_radius(scene, e, data.job.views.region_radius))
+        for v in data.views
+        if v.role == "fit"
+        for e in (eye(v),)
+    ]
+    out: dict[str, dict[str, Any]] = {}
+    for v in data.views:
+        if v.role != "held-out" or not fits:
+            continue
+        at = eye(v)
+        name, distance, radius = min(
+            ((n, float(np.linalg.norm(e - at)), r) for n, e, r in fits),
+            key=lambda f: f[1] / max(f[2], 1e-9),
+        )
+        out[v.name] = {
+            "camera": name,
+            "distance": distance * metres,
+            "radius": radius * metres,
+            "inside": distance <= radius,
+        }
+    return out
 
 
 def run_report(

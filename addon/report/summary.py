@@ -763,6 +763,18 @@ def _light_lines(info: dict[str, Any]) -> list[str]:
     return [text + ".", ""]
 
 
+def region_sentence(region: dict[str, Any] | None) -> str:
+    """A held-out view's place against the region its lights were laid out for (``runs.
+    _regions``), as a sentence to follow its header line ('' without)."""
+    if not region:
+        return ""
+    where = "inside" if region["inside"] else "outside"
+    return (
+        f" It stands {region['distance']:.2g} m from {region['camera']}, {where} the region "
+        f"around it (radius {region['radius']:.2g} m), which the coverage views stand for."
+    )
+
+
 def _scene_lines(name: str, info: dict[str, Any], rows: Sequence[Row]) -> list[str]:
     """One scene's section: the fit, then per view the evaluator's and the renderers' tables."""
     fit = info["fit"]
@@ -787,7 +799,8 @@ def _scene_lines(name: str, info: dict[str, Any], rows: Sequence[Row]) -> list[s
             f"{v['resolution'][0]}x{v['resolution'][1]} px, {v['triangles']} triangles; ground "
             f"truth {v['truth_samples']} spp in {v['truth_seconds']:.1f} s. Images: "
             + ", ".join(f"`{v[k]}`" for k in ("grid", "eevee_grid", "vpl_difference") if k in v)
-            + ".",
+            + "."
+            + region_sentence(v.get("region")),
             "",
             "Evaluator, SSIM (sd) / RMSE by VPL budget:",
             "",

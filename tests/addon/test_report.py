@@ -529,3 +529,14 @@ def test_the_scene_section_names_the_objects_the_vpls_do_not_light():
         "or glass, Light Linking), whose reflections are EEVEE's ray tracing's."
     )
     assert summary._light_lines({}) == []  # a run from before they were recorded
+
+
+def test_a_held_out_view_says_whether_it_stands_in_the_region():
+    far = {"camera": "CameraWest", "distance": 6.43, "radius": 3.29, "inside": False}
+    assert summary.region_sentence(far) == (
+        " It stands 6.4 m from CameraWest, outside the region around it (radius 3.3 m), which "
+        "the coverage views stand for."
+    )
+    near = dict(far, distance=1.2, inside=True)
+    assert "1.2 m from CameraWest, inside the region" in summary.region_sentence(near)
+    assert summary.region_sentence(None) == ""

@@ -48,6 +48,11 @@ def test_coverage_views_see_what_the_camera_does_not(scene):
     again = coverage.cover(scene, BOX_V[BOX_T], [user], coverage.Region(count=4, size=16))
     for a, b in zip(cov.views, again.views, strict=True):  # deterministic
         np.testing.assert_array_equal(a.indirect, b.indirect)
+    # The region's radius, as the report states it for a held-out view: the one the pick used.
+    eye = np.asarray(user.camera_position)
+    assert coverage.region_radius(scene, eye) == pytest.approx(cov.radius[0])
+    assert 0.5 < cov.radius[0] < 2.0  # the free distance inside a 2 m box
+    assert coverage.region_radius(scene, eye, 0.3) == pytest.approx(0.3)
 
 
 def test_the_fit_learns_from_the_captures_only(scene):

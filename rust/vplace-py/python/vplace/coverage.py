@@ -238,6 +238,13 @@ def _region(scene: Scene, eye: np.ndarray, radius: float) -> tuple[float, bool]:
     return r, math.isfinite(median)
 
 
+def region_radius(scene: Scene, eye: np.ndarray, radius: float = 0.0) -> float:
+    """The radius of the region around a camera standing at ``eye`` (scene units): ``radius``
+    where given, else :data:`REGION_FRACTION` of the median free distance around it (at most
+    the working scale), as :func:`pick` takes it."""
+    return _region(scene, np.asarray(eye, dtype=np.float32), radius)[0]
+
+
 def reach(radius: float, hit: float, inside: bool) -> float:
     """How far a region point may stand from its camera along a ray that meets a surface at
     ``hit`` (inf: it escapes): the region's ``radius``, pulled back by :data:`WALL_MARGIN` from
