@@ -151,10 +151,10 @@ def capture_views(
             stage=stage,
             on_progress=on_progress,
         )
-        masks = [gloss_mask(scene, exported, c) if specular else None for c in rendered]
+        rendered_gloss = [gloss_mask(scene, exported, c) if specular else None for c in rendered]
         captures += rendered
-        gloss += masks
-        views += [view_of(c, gloss=g) for c, g in zip(rendered, masks, strict=True)]
+        gloss = gloss + rendered_gloss
+        views += [view_of(c, gloss=g) for c, g in zip(rendered, rendered_gloss, strict=True)]
         log(f"[vplace] {cover.describe(exported.unit_scale)}, rendered by Cycles")
     elif region is not None and region.count > 0:
         with stage("coverage views (ray traced)"):

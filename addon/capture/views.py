@@ -170,10 +170,15 @@ def generated_cameras(scene: bpy.types.Scene, views: ViewSet) -> Iterator[list[b
     finally:
         for obj in made:
             if obj.get(ORBIT_MARKER, False):
-                data = obj.data
-                bpy.data.objects.remove(obj)
-                if data is not None and data.users == 0:
-                    bpy.data.cameras.remove(data)
+                remove_camera(obj)
+
+
+def remove_camera(obj: bpy.types.Object) -> None:
+    """Removes a temporary camera object, and its camera data where nothing else uses it."""
+    data = obj.data
+    bpy.data.objects.remove(obj)
+    if data is not None and data.users == 0:
+        bpy.data.cameras.remove(data)
 
 
 def pose_matrix(pose: vplace.coverage.Pose) -> Matrix:
@@ -200,9 +205,7 @@ def pose_camera(
         scene.collection.objects.link(obj)
         yield obj
     finally:
-        bpy.data.objects.remove(obj)
-        if data.users == 0:
-            bpy.data.cameras.remove(data)
+        remove_camera(obj)
 
 
 def resolve(

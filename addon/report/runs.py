@@ -49,7 +49,7 @@ from mathutils import Vector
 from .. import job as pipeline
 from ..capture import passes as capture
 from ..capture.native_view import gloss_mask, view_of
-from ..capture.views import ViewSet, ViewSpec, eye_positions, pose_matrix
+from ..capture.views import ViewSet, ViewSpec, eye_positions, pose_matrix, remove_camera
 from ..errors import ReportError, output_folder
 from ..native import vplace
 from ..scene import export
@@ -187,10 +187,7 @@ def generate_held_out(
 def remove_generated() -> None:
     """Removes the cameras :func:`generate_held_out` made (and their camera data)."""
     for obj in [o for o in bpy.data.objects if o.name.startswith(GENERATED_PREFIX)]:
-        data = obj.data
-        bpy.data.objects.remove(obj)
-        if data is not None and data.users == 0:
-            bpy.data.cameras.remove(data)
+        remove_camera(obj)
 
 
 def load_scene(
