@@ -50,17 +50,18 @@ def add_region_arguments(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument(
         "--coverage", type=int, default=ViewSet.coverage, metavar="N",
-        help="add N ray-traced coverage views of the region around the cameras, which the "
-        f"layout places for (0-16; default {ViewSet.coverage}; 0: the cameras' captures only)",
+        help="add N coverage views of the region around the cameras, which the lights are "
+        f"laid out for (0-16; default {ViewSet.coverage}; 0: the cameras' captures only)",
     )  # fmt: skip
     parser.add_argument(
         "--region-radius", type=float, default=0.0, metavar="M",
         help="metres a camera may move from the user's (default 0: the room it stands in)",
     )  # fmt: skip
     parser.add_argument(
-        "--render-coverage", action="store_true",
-        help="render the coverage views with Cycles and fit them as captures (slower; by "
-        "default they are traced, lit by light-path VPLs)",
+        "--render-coverage", action=argparse.BooleanOptionalAction,
+        default=ViewSet.render_coverage,
+        help="render the coverage views with Cycles and fit them as captures (the default); "
+        "--no-render-coverage: trace them, lit by light-path VPLs, with no render",
     )  # fmt: skip
 
 

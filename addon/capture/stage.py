@@ -24,8 +24,9 @@ from .passes import Capture, capture
 from .views import ViewSpec, pose_camera
 
 #: The names of the coverage views rendered by Cycles start with this (not
-#: ``vplace.coverage.PREFIX``: rendered, they are captures, fitted as the user's are).
-RENDERED_COVERAGE_PREFIX = "region view "
+#: ``vplace.coverage.PREFIX``: rendered, they are captures, fitted as the user's are; the
+#: refit bounds the scales where it fits them, ``vplace.job.REGION_MAX_SCALE``).
+RENDERED_COVERAGE_PREFIX = vplace.coverage.RENDERED_PREFIX
 
 
 @dataclass
@@ -78,10 +79,10 @@ def capture_views(
     render_coverage: bool = False,
 ) -> Captured:
     """Captures each view of ``specs``, then, with a ``region`` of one or more views, adds the
-    coverage views of that region around them (``vplace.coverage``: ray traced, no render;
-    ``profile`` and ``radius`` those of the job's VPLs). With ``render_coverage`` the coverage
-    views are rendered by Cycles instead (:func:`rendered_coverage`) and follow the captures as
-    captures. A view that sees no geometry, or that
+    coverage views of that region around them: with ``render_coverage`` (the job's default)
+    rendered by Cycles (:func:`rendered_coverage`), following the captures as captures; without,
+    ray traced (``vplace.coverage``, no render; ``profile`` and ``radius`` those of the job's
+    VPLs). A view that sees no geometry, or that
     renders exactly what an earlier view renders (the same capture key), is left out and said
     so; only when no view is left is it an error. ``stage`` is the job timer's ``stage``."""
     last = [0.0]

@@ -52,17 +52,17 @@ class ViewSet:
     orbit_radius: float = 0.0
     orbit_angle: float = 30.0
     #: Coverage views added for the region around these views (``vplace.coverage``; 0: none).
-    #: The layout places for them; the refit fits the captures only and holds the VPLs that
-    #: light what only the coverage views show.
+    #: Rendered (:attr:`render_coverage`), they are fitted as captures; traced, the layout
+    #: places for them and the refit holds the VPLs that light what only they show.
     coverage: int = vplace.coverage.DEFAULT_COUNT
     #: The region's radius around each camera, scene units; 0: from the room the camera stands
     #: in.
     region_radius: float = 0.0
     #: Render the coverage views with Cycles (at the capture's samples, the region's ``size``
-    #: pixels square) and fit them as captures, instead of tracing them with light-path VPLs
-    #: as their indirect image (``capture.stage.rendered_coverage``; off: the sky room's
-    #: held-out views got hot pixels, ARCHITECTURE.md).
-    render_coverage: bool = False
+    #: pixels square) and fit them as captures (``capture.stage.rendered_coverage``), instead
+    #: of tracing them with light-path VPLs as their indirect image: the default since stop 60,
+    #: with the refit's bound on the scales (``vplace.job.REGION_MAX_SCALE``, ARCHITECTURE.md).
+    render_coverage: bool = True
 
     def region(self) -> vplace.coverage.Region:
         """The region the coverage views stand for."""

@@ -162,11 +162,11 @@ class ReportConfig:
     volume_resolution: int = eevee_setup.VOLUME_PROBES
     par2d: bool = True
     cache_dir: Path | None = None
-    #: Ray-traced coverage views of the region around the fit cameras (``vplace.coverage``).
+    #: Coverage views of the region around the fit cameras (``vplace.coverage``).
     coverage: int = vplace.coverage.DEFAULT_COUNT
     region_radius: float = 0.0
     #: Render the coverage views with Cycles and fit them as captures (``ViewSet.render_coverage``).
-    render_coverage: bool = False
+    render_coverage: bool = True
     #: Held-out views made in the region around the first fit camera (``vplace.coverage.
     #: held_out_poses``): None, :data:`GENERATED_VIEWS` where the scene names no held-out
     #: camera (so every run scores views the lights were not laid out for), else none.

@@ -138,8 +138,8 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
     )
     coverage: IntProperty(  # type: ignore[valid-type]
         name="Coverage views",
-        description="Ray-traced views added around the cameras, so the lights also hold where "
-        "the camera moves next (0: the cameras' captures only)",
+        description="Views added around the cameras, so the lights also hold where the camera "
+        "moves next (0: the cameras' captures only)",
         default=ViewSet.coverage,
         min=0,
         max=16,
@@ -154,8 +154,8 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
     render_coverage: BoolProperty(  # type: ignore[valid-type]
         name="Render coverage views",
         description="Render the coverage views with Cycles and fit the lights to them as to the "
-        "captures: a few small renders more; better from views far from the cameras, but lights "
-        "by room corners may get too bright (off: traced, lit by light-path VPLs)",
+        "captures: a few small renders more, better from views far from the cameras (off: "
+        "traced, lit by light-path VPLs, no render)",
         default=ViewSet.render_coverage,
     )
     samples: IntProperty(  # type: ignore[valid-type]

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from addon.errors import ReportError
+from addon.native import vplace
 from addon.report import runs as report
 from addon.report import summary
 from addon.report.config import CAPTURE_CURVE, RELAYOUT, WITH_RT, ReportConfig, Row, RowDetails
@@ -165,7 +166,12 @@ def test_tiny_report_writes_csv_json_plots_and_markdown(tiny_report):
     for name in pngs:
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     md = (out / "report.md").read_text()
-    assert "Fit over 2 views" in md and "ground truth 32 spp" in md
+    # The two fit cameras and the region's coverage views, rendered and fitted beside them.
+    (scene,) = result["scenes"].values()
+    fitted = list(scene["fit"]["view_r2"])
+    assert fitted[:2] == FIT and len(fitted) > 2
+    assert all(v.startswith(vplace.coverage.RENDERED_PREFIX) for v in fitted[2:]), fitted
+    assert f"Fit over {len(fitted)} views" in md and "ground truth 32 spp" in md
     assert f"| {RELAYOUT} |" in md and "## Break-even" in md and "## Targets" in md
     assert "evaluator, same lights" in md and "Capture samples against layout quality" in md
     assert "(b) VPL light" in md and "vpl_difference_cornell_" in md
@@ -174,7 +180,6 @@ def test_tiny_report_writes_csv_json_plots_and_markdown(tiny_report):
     # truth, and each view states the ceiling its truth's noise puts on SSIM.
     assert all(np.isfinite(float(r["ssim_noise_free"])) for r in table)
     assert all(float(r["rmse_noise_free"]) >= 0.0 for r in table)
-    (scene,) = result["scenes"].values()
     for view, info in scene["views"].items():
         noise = info["truth_noise"]
         assert 0.0 < noise["truths_ssim"] < noise["ceiling"] <= 1.0, view

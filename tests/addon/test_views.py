@@ -28,6 +28,11 @@ def prepared(scene, **view_options):
     return pipeline.prepare(scene, job, pipeline.quiet_timer())
 
 
+def users(p):
+    """The captures of the user's views in ``p``: the rendered coverage views left out."""
+    return [c for c in p.captures if not c.view.startswith(vplace.coverage.RENDERED_PREFIX)]
+
+
 def test_two_chosen_cameras_give_one_set_of_lights(scene, tmp_path):
     s = scene.vplace
     s.view_mode = "cameras"
@@ -38,7 +43,9 @@ def test_two_chosen_cameras_give_one_set_of_lights(scene, tmp_path):
     assert bpy.ops.vplace.apply() == {"FINISHED"}
     report = s.report()
     assert report["views"] == ["Cornell camera", CORNELL_HELD_OUT_CAMERA]
-    assert set(report["fit"]["view_r2"]) == set(report["views"])
+    # The region's coverage views, rendered and fitted beside them (the default).
+    assert report["region_views"] == [f"region view {k}" for k in range(1, 5)]
+    assert set(report["fit"]["view_r2"]) == set(report["views"] + report["region_views"])
     assert len(apply.find_collection().objects) <= 8
     assert bpy.ops.vplace.camera_remove() == {"FINISHED"} and len(s.cameras) == 1
 
@@ -51,8 +58,8 @@ def test_frames_of_an_animated_camera(scene):
     cam.keyframe_insert("location", frame=11)
     scene.frame_set(5)
     p = prepared(scene, mode="frames", frame_start=1, frame_end=11, frame_step=10)
-    assert [c.view for c in p.captures] == ["Cornell camera frame 1", "Cornell camera frame 11"]
-    xs = [c.camera_position[0] for c in p.captures]
+    assert [c.view for c in users(p)] == ["Cornell camera frame 1", "Cornell camera frame 11"]
+    xs = [c.camera_position[0] for c in users(p)]
     assert xs == pytest.approx([-0.3, 0.3], abs=1e-5)
     assert scene.frame_current == 5  # the user's frame comes back
 
@@ -60,8 +67,8 @@ def test_frames_of_an_animated_camera(scene):
 def test_orbit_views_leave_the_file_as_it_was(scene):
     before = data_snapshot()
     p = prepared(scene, mode="orbit", orbit_count=3, orbit_angle=20.0)
-    assert len(p.captures) == 3 and p.captures[0].view == "Cornell camera"
-    positions = [tuple(c.camera_position) for c in p.captures]
+    assert len(users(p)) == 3 and p.captures[0].view == "Cornell camera"
+    positions = [tuple(c.camera_position) for c in users(p)]
     assert len(set(positions)) == 3
     assert diff(before, data_snapshot()) == []
     assert not [o for o in bpy.data.objects if o.get(views.ORBIT_MARKER)]
@@ -77,7 +84,7 @@ def test_bad_views_are_left_out_with_a_message_and_the_others_work(scene):
     job = pipeline.Job.from_settings(scene.vplace)
     job.views = views.ViewSet(mode="cameras", cameras=("Cornell camera", "Away", "Cornell camera"))
     p = pipeline.prepare(scene, job, pipeline.StageTimer(lines.append))
-    assert [c.view for c in p.captures] == ["Cornell camera"]
+    assert [c.view for c in users(p)] == ["Cornell camera"]
     assert p.skipped == {"Away": "the camera sees no geometry (only background)"}
     assert any("view 'Away' left out" in line for line in lines)
     # The same camera twice is one view (its name is listed once).
@@ -98,7 +105,7 @@ def test_two_views_rendering_the_same_image_count_once(scene):
     scene.collection.objects.link(twin)
     bpy.context.view_layer.update()
     p = prepared(scene, mode="cameras", cameras=("Cornell camera", "Twin camera"))
-    assert [c.view for c in p.captures] == ["Cornell camera"]
+    assert [c.view for c in users(p)] == ["Cornell camera"]
     assert p.skipped == {"Twin camera": "the same view as 'Cornell camera'"}
 
 
@@ -169,10 +176,10 @@ def test_rendered_coverage_views_are_cycles_captures_of_the_traced_poses(scene):
     # a temporary camera, fitted as captures (their indirect light is Cycles', not light-path
     # VPLs'). A camera turned the wrong way would render another view: the rendered G-buffer
     # must be the traced one's, pixel for pixel, and the file must be left as it was.
-    traced = prepared(scene, coverage=2)
+    traced = prepared(scene, coverage=2, render_coverage=False)
     assert len(traced.coverage.poses) == 2 and len(traced.captures) == 1
     before = data_snapshot()
-    rendered = prepared(scene, coverage=2, render_coverage=True)
+    rendered = prepared(scene, coverage=2)  # the default
     assert diff(before, data_snapshot()) == []
     assert not [o for o in bpy.data.objects if o.get(views.COVERAGE_MARKER)]
     assert [p.eye.tolist() for p in rendered.coverage.poses] == [

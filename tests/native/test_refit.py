@@ -4,6 +4,7 @@ images."""
 import numpy as np
 import pytest
 import vplace
+import vplace.job
 from test_layout import box_mesh, box_scene, floor_view
 from views import view
 
@@ -24,6 +25,17 @@ def inward_vpls() -> vplace.VplSet:
     return vplace.VplSet(*cols)
 
 
+def known_scales(scene, d):
+    """:func:`inward_vpls`, known scales for them (the seventh VPL unseen), and a view whose
+    indirect image is theirs scaled so."""
+    base = inward_vpls()
+    truth = np.array([0.5, 2.0, 1.0, 0.0, 1.5, 0.8, 3.0])
+    target, _ = vplace.evaluate(
+        scene, view(d), base.with_flux((base.flux * truth[:, None]).astype("f4"))
+    )
+    return base, truth, view(d, indirect=target)
+
+
 @pytest.fixture(scope="module")
 def setup():
     scene = box_scene()
@@ -35,12 +47,7 @@ def setup():
 
 def test_recovers_known_scales(setup):
     scene, d = setup
-    base = inward_vpls()
-    truth = np.array([0.5, 2.0, 1.0, 0.0, 1.5, 0.8, 3.0])
-    target, _ = vplace.evaluate(
-        scene, view(d), base.with_flux((base.flux * truth[:, None]).astype("f4"))
-    )
-    v = view(d, indirect=target)
+    base, truth, v = known_scales(scene, d)
     out = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, ridge=0.0, group=1))
     assert isinstance(out, vplace.Refit)
     assert len(out) == 7 and out.pixels == 16 * 16
@@ -61,6 +68,30 @@ def test_recovers_known_scales(setup):
     assert weak.error_after < near.error_after < near.error_before
     np.testing.assert_allclose(weak.scales[:6], truth[:6], atol=0.05)
     assert np.abs(near.scales[:6] - 1).sum() < np.abs(weak.scales[:6] - 1).sum()
+
+
+def test_max_scale_bounds_the_refit_where_it_fits_rendered_coverage_views(setup):
+    # The known scales above (up to 2 on a seen VPL), refitted with the bound the job puts on
+    # fits that include coverage views rendered by Cycles: the scale the captures ask for
+    # beyond it ends at the bound, and the others are refitted as the bound allows.
+    scene, d = setup
+    base, _, v = known_scales(scene, d)
+    assert vplace.RefitParams().max_scale == float("inf")  # no bound by default
+    free = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, ridge=0.0))
+    bounded = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, ridge=0.0, max_scale=1.6))
+    upper = 1.6 * max(bounded.gain, 1.0)
+    assert free.scales[1] > upper  # the bound binds
+    assert bounded.scales[1] == pytest.approx(upper, rel=1e-9)
+    assert np.all((bounded.scales >= 0) & (bounded.scales <= upper))
+    assert free.error_after < bounded.error_after < bounded.error_before
+    for bad in (0.5, float("nan")):
+        with pytest.raises(vplace.InputError, match="max_scale"):
+            vplace.refit(scene, [v], base, vplace.RefitParams(max_scale=bad))
+    # The job bounds a fit only where a capture is a rendered coverage view (by its name).
+    params = vplace.job._refit_params
+    rendered = view(d, name=f"{vplace.coverage.RENDERED_PREFIX}1")
+    assert params([v], None).max_scale == float("inf")
+    assert params([v, rendered], None).max_scale == vplace.job.REGION_MAX_SCALE == 2.0
 
 
 def test_power_groups_scale_neighbouring_vpls_together(setup):
@@ -227,12 +258,7 @@ def test_input_errors(setup):
 def test_the_ridge_is_chosen_by_held_out_blocks():
     scene = box_scene()
     d = floor_view(128)
-    base = inward_vpls()
-    truth = np.array([0.5, 2.0, 1.0, 0.0, 1.5, 0.8, 3.0])
-    target, _ = vplace.evaluate(
-        scene, view(d), base.with_flux((base.flux * truth[:, None]).astype("f4"))
-    )
-    v = view(d, indirect=target)
+    base, _, v = known_scales(scene, d)
     assert vplace.RefitParams().select_ridge and not vplace.RefitParams(ridge=1.0).select_ridge
     out = vplace.refit(scene, [v], base, vplace.RefitParams(stride=2, free_gain=False, group=1))
     # The VPLs reproduce the target exactly: the weakest pull predicts left-out blocks best.

@@ -331,10 +331,12 @@ impl PyRefitParams {
     /// coverage views' pixels no capture sees (`refit(..., coverage=...)`), per coverage view
     /// relative to one captured view; 0 turns it off. `balance_views` (default True): each
     /// view's pixels weigh by the inverse of its light (`Refit.view_weights`), so that a dim
-    /// view's relative error counts as a bright one's.
+    /// view's relative error counts as a bright one's. `max_scale` (default `inf`, no bound):
+    /// the largest scale, times the larger of 1 and what the scales are pulled toward, solved
+    /// as a bound in the refit (`>= 1`).
     #[new]
     #[pyo3(signature = (*, stride = None, ridge = None, leave_out_views = None, free_gain = None,
-        group = None, unseen_weight = None, balance_views = None))]
+        group = None, unseen_weight = None, balance_views = None, max_scale = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         stride: Option<usize>,
@@ -344,6 +346,7 @@ impl PyRefitParams {
         group: Option<usize>,
         unseen_weight: Option<f64>,
         balance_views: Option<bool>,
+        max_scale: Option<f64>,
     ) -> Self {
         let d = RefitParams::DEFAULT;
         Self {
@@ -356,6 +359,7 @@ impl PyRefitParams {
                 group: group.unwrap_or(d.group),
                 unseen_weight: unseen_weight.unwrap_or(d.unseen_weight),
                 balance_views: balance_views.unwrap_or(d.balance_views),
+                max_scale: max_scale.unwrap_or(d.max_scale),
                 ..d
             },
         }
@@ -416,10 +420,16 @@ impl PyRefitParams {
         self.inner.balance_views
     }
 
+    /// The largest scale, times the larger of 1 and the pull (`inf`: no bound).
+    #[getter]
+    fn max_scale(&self) -> f64 {
+        self.inner.max_scale
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "RefitParams(stride={}, ridge={:?}, select_ridge={}, leave_out_views={}, free_gain={}, \
-             group={}, unseen_weight={:?}, balance_views={})",
+             group={}, unseen_weight={:?}, balance_views={}, max_scale={})",
             self.inner.stride,
             self.inner.ridge,
             py_bool(self.inner.select_ridge),
@@ -427,8 +437,18 @@ impl PyRefitParams {
             py_bool(self.inner.free_gain),
             self.inner.group,
             self.inner.unseen_weight,
-            py_bool(self.inner.balance_views)
+            py_bool(self.inner.balance_views),
+            py_float(self.inner.max_scale)
         )
+    }
+}
+
+/// A float as Python's `repr` writes it where it differs from Rust's `{:?}` (`inf`).
+fn py_float(v: f64) -> String {
+    if v.is_infinite() {
+        (if v > 0.0 { "inf" } else { "-inf" }).into()
+    } else {
+        format!("{v:?}")
     }
 }
 

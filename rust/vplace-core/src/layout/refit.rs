@@ -38,6 +38,15 @@
 //! one up and its neighbour off, and made hot spots where a camera came closer.) The
 //! cross-validation chooses the ridge with this penalty in place.
 //!
+//! **A bound on the scales** ([`RefitParams::max_scale`], none by default). `s <= U` beside
+//! `s >= 0`, `U` the bound times the larger of 1 and the pull `g`, solved in the refit (in the
+//! cross-validation's refits too), not clipped after it: the light a bounded VPL cannot give
+//! goes to the others where the captures ask for it. The add-on's job bounds the refit where it
+//! fits coverage views rendered by Cycles (`vplace.job.REGION_MAX_SCALE`): those renders show
+//! a room's corners brighter than VPLs can light them, and without the hold of traced coverage
+//! views the refit scaled the VPLs beside them up to 3.9 times, each a hot spot on a wall a
+//! camera saw from elsewhere.
+//!
 //! **Views of different brightness** ([`RefitParams::balance_views`]). Summed over the pixels
 //! of every view, the squared error is that of the brightest view: Sponza's balcony view, lit
 //! by bounce light alone at a third of the other captures' mean, was refitted to 0.87 of its
@@ -85,9 +94,13 @@
 //!
 //! **Solver.** Block principal pivoting (Kim and Park 2011) on the KKT conditions of the
 //! regularized problem, a linear complementarity problem with the positive definite matrix
-//! `A^T A + lambda I`: guess the free set, solve it exactly (Cholesky of the free block), swap
-//! every variable that breaks a sign condition; Murty's single-swap rule after three exchanges
-//! that do not shrink the infeasible set guarantees termination. It reaches the exact optimum,
+//! `A^T A + lambda I`: guess the free set, solve it exactly (Cholesky of the free block, the
+//! variables at the upper bound moved to the right-hand side), swap every variable that breaks
+//! a sign condition (a free one outside its bounds to that bound, a held one whose gradient
+//! points inside to the free set); Murty's single-swap rule after three exchanges
+//! that do not shrink the infeasible set guarantees termination without an upper bound (with
+//! one, the fallback below stands behind it; the tests find the bounded optimum by pivoting
+//! alone). It reaches the exact optimum,
 //! usually in a handful of exchanges from the start "every VPL free" (refitted scales are mostly
 //! positive), each `O(n^3 / 3)`. Lawson-Hanson (one variable per step, `n` steps) and projected
 //! or coordinate descent (slow on the strongly correlated columns of nearby VPLs) were the
@@ -146,6 +159,11 @@ pub struct RefitParams {
     /// "Views of different brightness"), so that a dim view's relative error counts as a
     /// bright one's; without, every pixel's absolute error counts the same.
     pub balance_views: bool,
+    /// The largest scale, times the larger of 1 and what the scales are pulled toward (the
+    /// captures' gain where it is taken): a bound solved in the refit, as `s >= 0` is
+    /// (`>= 1`, so `s = 1` stays feasible; infinite: no bound). See the module docs' "A bound
+    /// on the scales".
+    pub max_scale: f64,
 }
 
 impl RefitParams {
@@ -162,6 +180,7 @@ impl RefitParams {
         group: REFIT_GROUP,
         unseen_weight: UNSEEN_WEIGHT,
         balance_views: true,
+        max_scale: f64::INFINITY,
     };
 }
 
@@ -720,13 +739,22 @@ struct Solved {
     exchanges: usize,
 }
 
-/// Minimizes `1/2 s^T Q s - c^T s` over `s >= 0` for positive definite `Q` (column-major) by
-/// block principal pivoting, with a coordinate-descent fallback (see the module docs).
-/// `full`: the Cholesky factor of all of `Q`, when the caller has it (the first step, every
-/// variable free, then factors nothing).
+/// Where a variable of [`nnls_bpp`] stands: free, or held at its lower (0) or upper bound.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Side {
+    Free,
+    Lower,
+    Upper,
+}
+
+/// Minimizes `1/2 s^T Q s - c^T s` over `0 <= s <= upper` for positive definite `Q`
+/// (column-major) by block principal pivoting, with a coordinate-descent fallback (see the
+/// module docs); `upper` may be infinite (no upper bound). `full`: the Cholesky factor of all
+/// of `Q`, when the caller has it (the first step, every variable free, then factors nothing).
 fn nnls_bpp(
     q: &[f64],
     c: &[f64],
+    upper: f64,
     full: Option<&Cholesky<f64, nalgebra::Dyn>>,
     max_exchanges: usize,
     cancelled: &dyn Fn() -> bool,
@@ -736,7 +764,7 @@ fn nnls_bpp(
     // Sign tests with a little slack, so rounding cannot make the pivoting cycle.
     let tol_x = 1e-12;
     let tol_y: Vec<f64> = (0..n).map(|i| 1e-12 * (c[i].abs() + diag[i])).collect();
-    let mut free = vec![true; n];
+    let mut side = vec![Side::Free; n];
     let mut x = vec![0.0f64; n];
     let (mut best_infeasible, mut tries) = (n + 1, 3usize);
     let mut exchanges = 0;
@@ -744,10 +772,18 @@ fn nnls_bpp(
         if cancelled() {
             return Err(VplaceError::Cancelled);
         }
-        let f: Vec<usize> = (0..n).filter(|&i| free[i]).collect();
-        x.iter_mut().for_each(|v| *v = 0.0);
+        let f: Vec<usize> = (0..n).filter(|&i| side[i] == Side::Free).collect();
+        let at_upper: Vec<usize> = (0..n).filter(|&i| side[i] == Side::Upper).collect();
+        for i in 0..n {
+            x[i] = if side[i] == Side::Upper { upper } else { 0.0 };
+        }
         if !f.is_empty() {
-            let rhs = DVector::from_iterator(f.len(), f.iter().map(|&i| c[i]));
+            // Q_ff x_f = c_f - Q_fu upper.
+            let rhs = DVector::from_iterator(
+                f.len(),
+                f.iter()
+                    .map(|&i| c[i] - at_upper.iter().map(|&k| q[k * n + i] * upper).sum::<f64>()),
+            );
             let xf = match full {
                 Some(chol) if f.len() == n => chol.solve(&rhs),
                 _ => {
@@ -762,19 +798,27 @@ fn nnls_bpp(
                 x[i] = xf[k];
             }
         }
-        // y = Q x - c on the bound set; the infeasible variables.
-        let infeasible: Vec<usize> = (0..n)
-            .filter(|&i| {
-                if free[i] {
-                    x[i] < -tol_x
-                } else {
-                    let y: f64 = f.iter().map(|&k| q[k * n + i] * x[k]).sum::<f64>() - c[i];
-                    y < -tol_y[i]
+        // y = Q x - c on the bound set; the infeasible variables: a free one outside its
+        // bounds, a held one whose gradient pulls it inside.
+        let infeasible: Vec<(usize, Side)> = (0..n)
+            .filter_map(|i| {
+                let y = || {
+                    (f.iter().chain(&at_upper))
+                        .map(|&k| q[k * n + i] * x[k])
+                        .sum::<f64>()
+                        - c[i]
+                };
+                match side[i] {
+                    Side::Free if x[i] < -tol_x => Some((i, Side::Lower)),
+                    Side::Free if x[i] > upper * (1.0 + tol_x) => Some((i, Side::Upper)),
+                    Side::Lower if y() < -tol_y[i] => Some((i, Side::Free)),
+                    Side::Upper if y() > tol_y[i] => Some((i, Side::Free)),
+                    _ => None,
                 }
             })
             .collect();
         if infeasible.is_empty() {
-            x.iter_mut().for_each(|v| *v = v.max(0.0));
+            x.iter_mut().for_each(|v| *v = v.clamp(0.0, upper));
             return Ok(Solved { s: x, exchanges });
         }
         if exchanges == max_exchanges {
@@ -784,17 +828,17 @@ fn nnls_bpp(
         if infeasible.len() < best_infeasible {
             best_infeasible = infeasible.len();
             tries = 3;
-            infeasible.iter().for_each(|&i| free[i] = !free[i]);
+            infeasible.iter().for_each(|&(i, to)| side[i] = to);
         } else if tries > 0 {
             tries -= 1;
-            infeasible.iter().for_each(|&i| free[i] = !free[i]);
+            infeasible.iter().for_each(|&(i, to)| side[i] = to);
         } else {
-            let i = *infeasible.last().expect("not empty");
-            free[i] = !free[i];
+            let (i, to) = *infeasible.last().expect("not empty");
+            side[i] = to;
         }
     }
     // Fallback: coordinate descent from the clamped iterate; every step lowers the objective.
-    x.iter_mut().for_each(|v| *v = v.max(0.0));
+    x.iter_mut().for_each(|v| *v = v.clamp(0.0, upper));
     let mut grad: Vec<f64> = (0..n)
         .map(|i| (0..n).map(|k| q[k * n + i] * x[k]).sum::<f64>() - c[i])
         .collect();
@@ -807,7 +851,7 @@ fn nnls_bpp(
             if diag[i] <= 0.0 {
                 continue;
             }
-            let new = (x[i] - grad[i] / diag[i]).max(0.0);
+            let new = (x[i] - grad[i] / diag[i]).clamp(0.0, upper);
             let d = new - x[i];
             if d != 0.0 {
                 x[i] = new;
@@ -965,13 +1009,15 @@ fn project(ne: &Normal, member: &[usize], k: usize) -> Normal {
 /// (`lambda = ridge * trace / n` of the VPLs' own Gram matrix, each scale's pull weighted by
 /// the VPLs it multiplies: the per-VPL penalty `lambda ||M t - g||^2` of the module docs, plus
 /// the unseen surfaces' weights `u`: `sum_i u_i (s_i - g)^2`), one solution per pull of `pulls`
-/// (what the scales are pulled toward); all 1 where the trace is 0 (no pixel sees a VPL). The
-/// pulls share `Q` and its factor: a second pull costs no factorization where its solution
-/// keeps every VPL free.
+/// (what the scales are pulled toward), each bounded above by `max_scale` times the larger of
+/// its pull and 1 ([`RefitParams::max_scale`]); all 1 where the trace is 0 (no pixel sees a
+/// VPL). The pulls share `Q` and its factor: a second pull costs no factorization where its
+/// solution keeps every VPL free.
 fn solve(
     ne: &Normal,
     ridge: f64,
     pulls: &[f64],
+    max_scale: f64,
     cancelled: &dyn Fn() -> bool,
 ) -> Result<Vec<Solved>> {
     let n = ne.atb.len();
@@ -1003,7 +1049,8 @@ fn solve(
             let c: Vec<f64> = (ne.atb.iter().zip(&weight))
                 .map(|(&v, &w)| v + w * pull)
                 .collect();
-            nnls_bpp(&q, &c, full.as_ref(), MAX_EXCHANGES, cancelled)
+            let upper = max_scale * pull.max(1.0);
+            nnls_bpp(&q, &c, upper, full.as_ref(), MAX_EXCHANGES, cancelled)
         })
         .collect()
 }
@@ -1272,6 +1319,14 @@ pub fn refit_frames(
             expected: ">= 0 and finite".into(),
         });
     }
+    // NaN fails the comparison too.
+    if params.max_scale.is_nan() || params.max_scale < 1.0 {
+        return Err(VplaceError::OutOfRange {
+            what: "max_scale".into(),
+            value: params.max_scale.to_string(),
+            expected: ">= 1 (or infinite: no bound)".into(),
+        });
+    }
     let gbuffers: Vec<GBuffer<'_>> = views.iter().map(|v| v.gbuffer()).collect();
     let pixels = strided_pixels(views, params.stride);
     let n = vpls.len();
@@ -1365,7 +1420,10 @@ pub fn refit_frames(
                     &[1.0]
                 };
                 for (e, &r) in errs.iter_mut().zip(&RIDGE_GRID) {
-                    for (m, solved) in solve(train, r, pulls, &cancelled)?.iter().enumerate() {
+                    for (m, solved) in solve(train, r, pulls, params.max_scale, &cancelled)?
+                        .iter()
+                        .enumerate()
+                    {
                         e[m] += parts[k].cell_error(&solved.s);
                     }
                 }
@@ -1393,7 +1451,7 @@ pub fn refit_frames(
         }
         let gain = if free { ne.gain() } else { 1.0 };
         let ones = vec![1.0f64; n];
-        let solved = solve(&ne, ridge, &[gain], &cancelled)?.remove(0);
+        let solved = solve(&ne, ridge, &[gain], params.max_scale, &cancelled)?.remove(0);
         let (mut scales, exchanges) = (solved.s, solved.exchanges);
         let rows = 3.0 * pixels.len().max(1) as f64;
         let before = ne.sq_error(&ones);
@@ -1531,6 +1589,35 @@ mod tests {
                 assert!((v.flux - b.flux * s as f32).abs().max_element() < 1e-6);
             }
         }
+    }
+
+    /// The bound on the scales ([`RefitParams::max_scale`]): the known scales of
+    /// [`recovers_known_scales`] refitted with a bound of 1.6, which one seen VPL's scale (2)
+    /// is above. It ends at the bound, every scale stays within it, and the error lies between
+    /// the unbounded refit's and the error before.
+    #[test]
+    fn max_scale_bounds_the_scales() {
+        let scene = closed_box(vec![]);
+        let fv = FloorView::new(32, Vec3::new(0.0, 0.0, 1.0), 10.0);
+        let base = vpls();
+        let truth = [0.5, 2.0, 1.0, 0.0, 1.5, 0.8, 3.0];
+        let target = render(&scene, &fv, &scaled(&base, &truth));
+        let v = fv.view_with(Some(&target));
+        let free = refit(&scene, &[&v], &base, &params(1, 0.0), None).unwrap();
+        let bound = RefitParams {
+            max_scale: 1.6,
+            ..params(1, 0.0)
+        };
+        let r = refit(&scene, &[&v], &base, &bound, None).unwrap();
+        let upper = 1.6 * r.gain.max(1.0);
+        assert!(
+            r.scales.iter().all(|&s| (0.0..=upper).contains(&s)),
+            "{:?}",
+            r.scales
+        );
+        // VPL 1 (truth 2) cannot reach its scale: it ends at the bound.
+        assert!((r.scales[1] - upper).abs() < 1e-9, "{:?}", r.scales);
+        assert!(r.error_after > free.error_after && r.error_after < r.error_before);
     }
 
     /// Two far clusters of VPLs on two walls: groups of their size keep each cluster whole,
@@ -1933,6 +2020,7 @@ mod tests {
                     group: 1,
                     unseen_weight: 0.0,
                     balance_views: true,
+                    max_scale: f64::INFINITY,
                 };
                 let pixels: Vec<usize> = (0..144).filter(|&p| g.covered[p]).collect();
                 let radii = near_field_radii(&vpls, radius);
@@ -2027,33 +2115,62 @@ mod tests {
             let a: Vec<f64> = (0..m * n).map(|_| f64::from(rng.next_f32())).collect();
             let b: Vec<f64> = (0..m).map(|_| f64::from(rng.next_f32()) - 0.6).collect();
             let mut q = vec![0.0; n * n];
-            let mut c = vec![0.0; n];
+            let (mut c, mut c_up) = (vec![0.0; n], vec![0.0; n]);
             for i in 0..n {
                 for j in 0..n {
                     q[j * n + i] = (0..m).map(|r| a[r * n + i] * a[r * n + j]).sum();
                 }
                 q[i * n + i] += 1e-6;
                 c[i] = (0..m).map(|r| a[r * n + i] * b[r]).sum();
+                // Targets all positive, for the bounded case: scales above the bound.
+                c_up[i] = (0..m).map(|r| a[r * n + i] * (b[r] + 1.0)).sum();
             }
             // Pivoting, and the coordinate-descent fallback alone (no exchange allowed); the
-            // full factor computed here or given (as `solve` shares it between pulls).
+            // full factor computed here or given (as `solve` shares it between pulls); without
+            // an upper bound and with one that holds some variables.
             let chol = Cholesky::new(DMatrix::from_column_slice(n, n, &q)).unwrap();
-            for (cap, tol, full) in [
-                (MAX_EXCHANGES, 1e-8, None),
-                (MAX_EXCHANGES, 1e-8, Some(&chol)),
-                (0, 1e-4, None),
-            ] {
-                let r = nnls_bpp(&q, &c, full, cap, &|| false).unwrap();
-                let s = r.s;
-                let scale = c.iter().map(|v| v.abs()).fold(1.0, f64::max);
-                for i in 0..n {
-                    let y: f64 = (0..n).map(|k| q[k * n + i] * s[k]).sum::<f64>() - c[i];
-                    assert!(s[i] >= 0.0);
-                    assert!(y >= -tol * scale, "n {n} cap {cap}: y[{i}] = {y}");
-                    assert!((s[i] * y).abs() <= tol * scale, "n {n}: s y = {}", s[i] * y);
+            let mut held = 0;
+            // The bound at half the largest unbounded scale.
+            let free_max = nnls_bpp(&q, &c_up, f64::INFINITY, None, MAX_EXCHANGES, &|| false)
+                .unwrap()
+                .s
+                .into_iter()
+                .fold(0.0, f64::max);
+            assert!(free_max > 0.0);
+            for (upper, c) in [(f64::INFINITY, &c), (0.5 * free_max, &c_up)] {
+                for (cap, tol, full) in [
+                    (MAX_EXCHANGES, 1e-8, None),
+                    (MAX_EXCHANGES, 1e-8, Some(&chol)),
+                    (0, 1e-4, None),
+                ] {
+                    // The fallback's 200 sweeps do not reach the bounded optimum of these
+                    // ill-conditioned problems (ridge 1e-6): the pivoting alone is held to it.
+                    if cap == 0 && upper.is_finite() {
+                        continue;
+                    }
+                    let r = nnls_bpp(&q, c, upper, full, cap, &|| false).unwrap();
+                    let s = r.s;
+                    let scale = c.iter().map(|v| v.abs()).fold(1.0, f64::max);
+                    for i in 0..n {
+                        let y: f64 = (0..n).map(|k| q[k * n + i] * s[k]).sum::<f64>() - c[i];
+                        assert!((0.0..=upper).contains(&s[i]), "n {n}: s[{i}] = {}", s[i]);
+                        // KKT: y >= 0 off the upper bound, y <= 0 off the lower bound.
+                        let at_upper = s[i] >= upper - tol;
+                        held += usize::from(at_upper && cap > 0);
+                        if !at_upper {
+                            assert!(y >= -tol * scale, "n {n} cap {cap}: y[{i}] = {y}");
+                        }
+                        assert!(
+                            (s[i] * y).abs() <= tol * scale || (at_upper && y <= tol * scale),
+                            "n {n} cap {cap} upper {upper}: s {} y {y}",
+                            s[i]
+                        );
+                    }
+                    assert!(r.exchanges <= cap);
                 }
-                assert!(r.exchanges <= cap);
             }
+            // The bound did hold variables: this tested the upper side.
+            assert!(held > 0, "n {n}: no variable at the upper bound");
         }
     }
 
@@ -2091,6 +2208,14 @@ mod tests {
                 ..ok
             },
             RefitParams { radius: -1.0, ..ok },
+            RefitParams {
+                max_scale: 0.5,
+                ..ok
+            },
+            RefitParams {
+                max_scale: f64::NAN,
+                ..ok
+            },
         ] {
             assert!(matches!(
                 refit(&scene, &[&v], &base, &p, None),

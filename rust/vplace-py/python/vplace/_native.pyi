@@ -621,6 +621,7 @@ class RefitParams:
         group: int | None = None,
         unseen_weight: float | None = None,
         balance_views: bool | None = None,
+        max_scale: float | None = None,
     ) -> RefitParams: ...
     DEFAULT: RefitParams
     @property
@@ -639,6 +640,8 @@ class RefitParams:
     def unseen_weight(self) -> float: ...
     @property
     def balance_views(self) -> bool: ...
+    @property
+    def max_scale(self) -> float: ...
 
 def refit(
     scene: Scene,

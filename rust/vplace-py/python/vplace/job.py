@@ -22,7 +22,7 @@ import numpy as np
 
 import vplace
 from vplace import images, markdown
-from vplace.coverage import captures_of, is_coverage
+from vplace.coverage import captures_of, is_coverage, is_rendered_coverage
 
 #: The layout methods, in the report's order: Keller's light paths, reflective shadow maps, the
 #: regression-guided layout, and the same with its VPL powers refitted to the captured light.
@@ -238,7 +238,11 @@ def refit_powers(
     other frames' VPLs at their own frames' powers (over F), no estimate of this frame's light:
     held there, on a room whose lamp moves 3 m, the keyed lights' RMSE rose 9 % where without
     the hold it fell 6 % (README, "Each frame's refit is the still layout's"), so the frames
-    refit without it (``hold_unseen=False``)."""
+    refit without it (``hold_unseen=False``).
+
+    Where the captures include coverage views rendered by Cycles (the add-on's default), no
+    traced view holds what the user's cameras did not see, and the scales are bounded at
+    :data:`REGION_MAX_SCALE` instead."""
     captured = captures_of(views) if refit_views is None else list(refit_views)
     return vplace.refit(
         scene,
@@ -250,9 +254,29 @@ def refit_powers(
     )
 
 
+#: The refit's bound on the scales (``RefitParams.max_scale``: times the larger of 1 and what
+#: they are pulled toward) where it fits coverage views rendered by Cycles. Fitted as captures,
+#: those renders show room corners brighter than the evaluator's VPLs can light them, and the
+#: refit reached for them with the VPLs beside them (the sky room: ceiling VPLs 3.5-3.9 times,
+#: 0.20 / 0.31 % hot pixels on the held-out views); the traced views' hold kept them before.
+#: Bounded at 2: at most 0.07 % on every built-in view (seeds 0-7), no view more than .0024
+#: SSIM below the traced views' default, Sponza's held-out Alcove +.020 (3 left 0.15 / 0.16 %;
+#: capping at 3 after the solve 0.07 / 0.10 % with .97-.99 of the light). Not with traced
+#: views or none: the pull is then mostly toward 1, and Sponza's captures ask for more than
+#: twice the light-path powers (bounded, its views fell .004 to .019 with traced views, up to
+#: .006 with none). ARCHITECTURE.md, "Coverage views rendered by Cycles".
+REGION_MAX_SCALE = 2.0
+
+
 def _refit_params(captured: Sequence[vplace.View], group: int | None) -> vplace.RefitParams:
-    """The refit's settings for ``captured`` (:func:`refit_powers`): its own stride."""
-    return vplace.RefitParams(stride=vplace.refit_stride_for(captured), group=group)
+    """The refit's settings for ``captured`` (:func:`refit_powers`): its own stride, and the
+    bound :data:`REGION_MAX_SCALE` where it fits rendered coverage views."""
+    rendered = any(is_rendered_coverage(v) for v in captured)
+    return vplace.RefitParams(
+        stride=vplace.refit_stride_for(captured),
+        group=group,
+        max_scale=REGION_MAX_SCALE if rendered else None,
+    )
 
 
 def same_gbuffers(a: Sequence[vplace.View], b: Sequence[vplace.View]) -> bool:
@@ -868,6 +892,9 @@ class JobSummary:
     bounds_diagonal: float = 0.0
     #: Metres per scene unit (Blender's Unit Scale): the report writes lengths in metres.
     unit_scale: float = 1.0
+    #: The coverage views rendered by Cycles (``coverage.RENDERED_PREFIX``), fitted as captures
+    #: beside :attr:`views`, the user's.
+    region_views: list[str] = field(default_factory=list)
     fit: FitSummary | None = None
     #: "Match EEVEE's direct light": per captured view the refit made up for, the mean of
     #: :func:`eevee_deficit` over the mean of Cycles' direct light (luminance; negative where
