@@ -440,13 +440,13 @@ def summary(
             evaluator.refit_view_weights = dict(zip(names, weights, strict=True))
     if laid.near_field is not None:
         evaluator.near_field = dataclasses.asdict(laid.near_field)
-    region_prefix = vplace.coverage.RENDERED_PREFIX
+    rendered = [vplace.coverage.is_rendered_coverage(v) for v in prepared.captured_views]
     return vplace.job.JobSummary(
         scene=scene_label(bl_scene),
         triangles=prepared.scene.triangle_count,
         lights=prepared.scene.light_count,
-        views=[c.view for c in prepared.captures if not c.view.startswith(region_prefix)],
-        region_views=[c.view for c in prepared.captures if c.view.startswith(region_prefix)],
+        views=[c.view for c, r in zip(prepared.captures, rendered, strict=True) if not r],
+        region_views=[c.view for c, r in zip(prepared.captures, rendered, strict=True) if r],
         skipped_views=prepared.skipped,
         resolution=[prepared.views[0].width, prepared.views[0].height],
         samples=job.samples,

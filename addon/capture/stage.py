@@ -23,11 +23,6 @@ from .native_view import gloss_mask, spared_materials, view_of, vpl_specular
 from .passes import Capture, capture
 from .views import ViewSpec, pose_camera
 
-#: The names of the coverage views rendered by Cycles start with this (not
-#: ``vplace.coverage.PREFIX``: rendered, they are captures, fitted as the user's are; the
-#: refit bounds the scales where it fits them, ``vplace.job.REGION_MAX_SCALE``).
-RENDERED_COVERAGE_PREFIX = vplace.coverage.RENDERED_PREFIX
-
 
 @dataclass
 class Captured:
@@ -189,10 +184,12 @@ def rendered_coverage(
     """The coverage views of ``region`` around the captured ``views`` rendered by Cycles: the
     poses ``vplace.coverage.pick`` chooses (traced probes), each captured from a temporary
     camera (:func:`views.pose_camera`, removed after) at ``region.size`` pixels square with the
-    captures' ``samples`` and ``seed`` at ``frame``, named :data:`RENDERED_COVERAGE_PREFIX` ``k``.
-    Their indirect light is then Cycles', not light-path VPLs' estimate, and they are fitted as
-    captures. A pose that sees no geometry is left out. The ``Coverage`` holds the poses (its
-    ``views`` empty) and the seconds of the pick; the renders' own are the captures'."""
+    captures' ``samples`` and ``seed`` at ``frame``, named ``vplace.coverage.RENDERED_PREFIX``
+    ``k`` (not ``vplace.coverage.PREFIX``). Their indirect light is then Cycles', not light-path
+    VPLs' estimate, and they are fitted as captures (the refit bounding the scales where it fits
+    them, ``vplace.job.REGION_MAX_SCALE``). A pose that sees no geometry is left out. The
+    ``Coverage`` holds the poses (its ``views`` empty) and the seconds of the pick; the renders'
+    own are the captures'."""
     start = time.perf_counter()
     poses, before, after, radii = vplace.coverage.pick(
         scene, exported.vertices[exported.triangles], views, region
@@ -200,7 +197,7 @@ def rendered_coverage(
     picked = time.perf_counter() - start
     rendered = []
     for k, pose in enumerate(poses, start=1):
-        name = f"{RENDERED_COVERAGE_PREFIX}{k}"
+        name = f"{vplace.coverage.RENDERED_PREFIX}{k}"
         with stage(f"capture {name} (Cycles)"), pose_camera(bl_scene, pose, name) as camera:
             cap = capture(
                 bl_scene,

@@ -1526,6 +1526,9 @@ mod tests {
         ]
     }
 
+    /// Scales of [`vpls`] that the refit recovers: six seen VPLs' and the unseen seventh's.
+    const KNOWN_SCALES: [f32; 7] = [0.5, 2.0, 1.0, 0.0, 1.5, 0.8, 3.0];
+
     fn scaled(vpls: &[Vpl], s: &[f32]) -> Vec<Vpl> {
         vpls.iter()
             .zip(s)
@@ -1561,8 +1564,7 @@ mod tests {
     fn recovers_known_scales() {
         let scene = closed_box(vec![]);
         let fv = FloorView::new(32, Vec3::new(0.0, 0.0, 1.0), 10.0);
-        let base = vpls();
-        let truth = [0.5, 2.0, 1.0, 0.0, 1.5, 0.8, 3.0];
+        let (base, truth) = (vpls(), KNOWN_SCALES);
         let target = render(&scene, &fv, &scaled(&base, &truth));
         for (stride, ridge, tol) in [
             (1, 0.0, 1e-4),
@@ -1599,8 +1601,7 @@ mod tests {
     fn max_scale_bounds_the_scales() {
         let scene = closed_box(vec![]);
         let fv = FloorView::new(32, Vec3::new(0.0, 0.0, 1.0), 10.0);
-        let base = vpls();
-        let truth = [0.5, 2.0, 1.0, 0.0, 1.5, 0.8, 3.0];
+        let (base, truth) = (vpls(), KNOWN_SCALES);
         let target = render(&scene, &fv, &scaled(&base, &truth));
         let v = fv.view_with(Some(&target));
         let free = refit(&scene, &[&v], &base, &params(1, 0.0), None).unwrap();
@@ -1865,8 +1866,7 @@ mod tests {
     fn cross_validation_picks_the_ridge() {
         let scene = closed_box(vec![]);
         let fv = FloorView::new(128, Vec3::new(0.0, 0.0, 1.0), 10.0);
-        let base = vpls();
-        let truth = [0.5, 2.0, 1.0, 0.0, 1.5, 0.8, 3.0];
+        let (base, truth) = (vpls(), KNOWN_SCALES);
         let target = render(&scene, &fv, &scaled(&base, &truth));
         let v = fv.view_with(Some(&target));
         let chosen = RefitParams {
