@@ -70,6 +70,9 @@ class ScenePreset:
     fit_views: tuple[str, ...]
     held_out_views: tuple[str, ...]
     resolution: tuple[int, int]
+    #: The fit views' capture: every built-in scene at the main job's (``Job.samples``), so
+    #: that the report scores the lights a user gets and the one-time cost a user pays
+    #: (``--capture-samples`` and ``--capture-curve`` for more).
     capture_samples: int
     truth_samples: int
     #: A .blend path, or None for the built-in scene of this name.
@@ -82,7 +85,7 @@ PRESETS = {
         ("Cornell camera", "Cornell camera left", "Cornell camera high"),
         (default_scene.CORNELL_HELD_OUT_CAMERA, "Cornell camera (held out, low)"),
         (160, 160),
-        256,
+        pipeline.Job.samples,
         2048,
     ),
     "sponza": ScenePreset(
@@ -90,7 +93,7 @@ PRESETS = {
         (default_scene.SPONZA_CAMERA, "CameraBalcony", default_scene.SPONZA_WEST_CAMERA),
         (default_scene.SPONZA_HELD_OUT_CAMERA, "CameraAlcove"),
         (320, 180),
-        128,
+        pipeline.Job.samples,
         1024,
     ),
     "skyroom": ScenePreset(
@@ -98,7 +101,7 @@ PRESETS = {
         tuple(builtin_rooms.SKYROOM_FIT),
         tuple(builtin_rooms.SKYROOM_HELD_OUT),
         (256, 144),
-        16,
+        pipeline.Job.samples,
         1024,
     ),
     "lroom": ScenePreset(
@@ -106,7 +109,7 @@ PRESETS = {
         tuple(lroom.LROOM_FIT),
         tuple(lroom.LROOM_HELD_OUT),
         (192, 108),
-        16,
+        pipeline.Job.samples,
         1024,
     ),
     "panelroom": ScenePreset(
@@ -114,7 +117,7 @@ PRESETS = {
         tuple(builtin_rooms.PANELROOM_FIT),
         tuple(builtin_rooms.PANELROOM_HELD_OUT),
         (256, 144),
-        16,
+        pipeline.Job.samples,
         1024,
     ),
 }

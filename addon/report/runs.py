@@ -920,6 +920,18 @@ def _regions(data: SceneData) -> dict[str, dict[str, Any]]:
     return out
 
 
+def _inside(scenes: dict[str, Any]) -> dict[str, dict[str, bool]]:
+    """Per scene, per held-out view: whether it stands inside the region (``_regions``)."""
+    return {
+        name: {
+            view: bool(v["region"]["inside"])
+            for view, v in info.get("views", {}).items()
+            if "region" in v
+        }
+        for name, info in scenes.items()
+    }
+
+
 def run_report(
     config: ReportConfig, out: Path, log: Callable[[str], None] = print
 ) -> dict[str, Any]:
@@ -952,7 +964,7 @@ def run_report(
         "scenes": scenes,
         "rows": [row_dict(r) for r in rows],
         "means": [row_dict(r) for r in means],
-        "targets": targets(means),
+        "targets": targets(means, _inside(scenes)),
         "break_even": break_even(means),
         "par2d": [asdict(r) for r in par_rows],
     }

@@ -257,6 +257,38 @@ def test_targets_are_checked_against_the_noise_free_truth_as_well():
     assert not any("noise-free" in c["check"] for c in bare)
 
 
+def test_held_out_checks_say_whether_the_view_stands_inside_the_region():
+    # Issue 20's bound is for the views a camera in the region can take: the report's checks
+    # name each held-out view's place, so a miss outside the region reads as one.
+    rows = [
+        _row("A", "vplace+refit", 256, 0.95),
+        _row("H", "vplace+refit", 256, 0.93, role="held-out"),
+        _row("O", "vplace+refit", 256, 0.90, role="held-out"),
+    ]
+    checks = {c["check"]: c for c in summary.targets(rows, {"s": {"H": True, "O": False}})}
+    spread = "N=256: within 0.03 SSIM of the fit views' mean"
+    inside = checks[f"s H (held out, inside the region) {spread}"]
+    outside = checks[f"s O (held out, outside the region) {spread}"]
+    assert inside["met"] and not outside["met"]
+    assert not any(c.startswith("s H (held out) ") for c in checks)
+    # Without the regions (rows alone) the names stay as they were.
+    assert f"s O (held out) {spread}" in {c["check"] for c in summary.targets(rows)}
+
+
+def test_the_report_passes_each_held_out_views_place_to_its_checks():
+    info = {
+        "s": {
+            "views": {
+                "A": {"role": "fit"},
+                "H": {"role": "held-out", "region": {"inside": True}},
+                "O": {"role": "held-out", "region": {"inside": False}},
+            }
+        },
+        "t": {"views": {}},
+    }
+    assert report._inside(info) == {"s": {"H": True, "O": False}, "t": {}}
+
+
 def test_a_view_with_a_noisy_truth_says_its_noise_free_estimate_reads_low():
     # The noise-free estimate reads low where the two truth renders agree below NOISY_TRUTH
     # (ARCHITECTURE); the view's section says so there, and only there.
@@ -458,6 +490,20 @@ def test_camera_view_restores_the_camera_and_refuses_unknown_names():
     assert scene.camera == before
     with pytest.raises(ReportError, match="no camera object"), report.camera_view(scene, "Nope"):
         pass
+
+
+def test_every_built_in_scene_is_captured_at_the_main_jobs_samples():
+    """The report scores the lights a user gets and the one-time cost a user pays: each
+    built-in scene's fit views are captured at ``Job.samples`` (Sponza was at 128 and the
+    Cornell box at 256, eight and sixteen times a user's capture)."""
+    from addon.job import Job
+    from addon.report.config import PRESETS
+
+    presets = ReportConfig(scenes=tuple(PRESETS)).presets()
+    assert {p.name for p in presets} == set(PRESETS)
+    assert all(p.capture_samples == Job.samples for p in presets), [
+        (p.name, p.capture_samples) for p in presets
+    ]
 
 
 def test_a_blend_is_named_after_its_file_and_captured_at_the_main_jobs_samples(tmp_path):
