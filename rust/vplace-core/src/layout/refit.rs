@@ -1529,6 +1529,16 @@ mod tests {
     /// Scales of [`vpls`] that the refit recovers: six seen VPLs' and the unseen seventh's.
     const KNOWN_SCALES: [f32; 7] = [0.5, 2.0, 1.0, 0.0, 1.5, 0.8, 3.0];
 
+    /// The known-scales tests' setting: the closed box, a floor view `size` pixels wide, the
+    /// base VPLs ([`vpls`]) and the floor they light at [`KNOWN_SCALES`] (the target).
+    fn known_scales_floor(size: usize) -> (Scene, FloorView, Vec<Vpl>, Vec<f32>) {
+        let scene = closed_box(vec![]);
+        let fv = FloorView::new(size, Vec3::new(0.0, 0.0, 1.0), 10.0);
+        let base = vpls();
+        let target = render(&scene, &fv, &scaled(&base, &KNOWN_SCALES));
+        (scene, fv, base, target)
+    }
+
     fn scaled(vpls: &[Vpl], s: &[f32]) -> Vec<Vpl> {
         vpls.iter()
             .zip(s)
@@ -1562,10 +1572,8 @@ mod tests {
 
     #[test]
     fn recovers_known_scales() {
-        let scene = closed_box(vec![]);
-        let fv = FloorView::new(32, Vec3::new(0.0, 0.0, 1.0), 10.0);
-        let (base, truth) = (vpls(), KNOWN_SCALES);
-        let target = render(&scene, &fv, &scaled(&base, &truth));
+        let (scene, fv, base, target) = known_scales_floor(32);
+        let truth = KNOWN_SCALES;
         for (stride, ridge, tol) in [
             (1, 0.0, 1e-4),
             (3, 0.0, 1e-4),
@@ -1599,10 +1607,7 @@ mod tests {
     /// the unbounded refit's and the error before.
     #[test]
     fn max_scale_bounds_the_scales() {
-        let scene = closed_box(vec![]);
-        let fv = FloorView::new(32, Vec3::new(0.0, 0.0, 1.0), 10.0);
-        let (base, truth) = (vpls(), KNOWN_SCALES);
-        let target = render(&scene, &fv, &scaled(&base, &truth));
+        let (scene, fv, base, target) = known_scales_floor(32);
         let v = fv.view_with(Some(&target));
         let free = refit(&scene, &[&v], &base, &params(1, 0.0), None).unwrap();
         let bound = RefitParams {
@@ -1864,10 +1869,7 @@ mod tests {
     /// selection; a view of one block (one usable fold) keeps the given ridge.
     #[test]
     fn cross_validation_picks_the_ridge() {
-        let scene = closed_box(vec![]);
-        let fv = FloorView::new(128, Vec3::new(0.0, 0.0, 1.0), 10.0);
-        let (base, truth) = (vpls(), KNOWN_SCALES);
-        let target = render(&scene, &fv, &scaled(&base, &truth));
+        let (scene, fv, base, target) = known_scales_floor(128);
         let v = fv.view_with(Some(&target));
         let chosen = RefitParams {
             stride: 2,
