@@ -161,10 +161,13 @@ def view_of(
 ) -> vplace.View:
     """The ``vplace.View`` of a capture; ``held_out`` leaves out its global-illumination passes
     (what a view the model has not seen provides). ``gloss`` (:func:`gloss_mask`) adds the
-    rough glossy layers to the receivers' reflectance and to the indirect light to match.
-    ``offset`` ((H, W, 3)) is added to the indirect light the VPLs are fitted to (EEVEE's
-    direct-light deficit: ``writeback.match_eevee``)."""
+    rough glossy layers to the receivers' reflectance and to the indirect light to match, and
+    lets the glossy passes stand for the irradiance where a surface has next to no diffuse
+    layer (:meth:`Capture.reflected_irradiance`). ``offset`` ((H, W, 3)) is added to the
+    indirect light the VPLs are fitted to (EEVEE's direct-light deficit:
+    ``writeback.match_eevee``)."""
     indirect = None
+    diffuse_direct, diffuse_indirect = cap.reflected_irradiance(gloss)
     if not held_out:
         indirect = cap.modelled_indirect(gloss)
         if offset is not None:
@@ -176,8 +179,8 @@ def view_of(
         covered=cap.covered,
         depth=cap.depth,
         direct=cap.direct,
-        diffuse_direct=cap.diffuse_direct,
-        diffuse_indirect=None if held_out else cap.diffuse_indirect,
+        diffuse_direct=diffuse_direct,
+        diffuse_indirect=None if held_out else diffuse_indirect,
         indirect=indirect,
         specular=cap.glossy_color,
         camera_position=cap.camera_position,

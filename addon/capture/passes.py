@@ -27,6 +27,7 @@ from ..compat import PASS_NAMES
 from ..errors import CaptureError, run_operator
 from ..native import vplace
 from ..scene.export import VPL_MARKER
+from ..scene.materials import LUMINANCE
 from ..settings import SettingsGuard, at_frame, override, standard_view
 from . import render_key
 
@@ -66,6 +67,11 @@ __all__ = ["Capture", "CaptureError", "camera_matrices", "capture", "capture_key
 #: light is above this many times the view's mean direct light: a surface a lamp lights is a
 #: few times the mean at most, an emitter's own radiance hundreds of times.
 MIRRORED_LAMP = 20.0
+
+#: Where the diffuse layer holds at least this share of a pixel's modelled reflectance
+#: (luminance), its diffuse passes measure the light the surface receives
+#: (:meth:`Capture.reflected_irradiance`); below it the glossy passes stand in, in proportion.
+DIFFUSE_SHARE = 0.1
 
 
 @dataclass
@@ -158,6 +164,38 @@ class Capture:
         if gloss is None:
             return self.albedo
         return (self.albedo + gloss[..., None] * self.glossy_color).astype(np.float32)
+
+    def reflected_irradiance(
+        self, gloss: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The direct and the indirect irradiance over pi that, times :meth:`reflectance`, give
+        the light a pixel's surface sends on: what the layout's pixel emitters and the
+        near-field gather reflect.
+
+        Irradiance does not depend on the surface's layers, and ``DiffDir`` and ``DiffInd``
+        measure it on any surface with a diffuse layer, the same from every view. But Cycles
+        writes a diffuse pass only where there is a diffuse layer: a rough metal (Sponza's
+        curtains, metallic 1) has a black ``DiffDir`` however brightly the sun lights it, and
+        with it alone the sunniest surface a view saw sent nothing on. Where ``gloss`` adds the
+        glossy layer and the diffuse layer holds less than :data:`DIFFUSE_SHARE` of the
+        reflectance (luminance), the glossy passes stand in, in proportion:
+        ``t * DiffDir + (1 - t) * GlossDir``, ``t = share / DIFFUSE_SHARE`` (and the same of the
+        indirect passes). ``GlossDir`` depends on the view (a highlight reads high), so it is
+        used only where nothing else measures the light."""
+        if gloss is None:
+            return self.diffuse_direct, self.diffuse_indirect
+        diffuse = self.diffuse_color @ LUMINANCE
+        total = diffuse + gloss * (self.glossy_color @ LUMINANCE)
+        share = np.where(total > 0.0, diffuse / np.where(total > 0.0, total, 1.0), 1.0)
+        t = np.clip(share / DIFFUSE_SHARE, 0.0, 1.0)[..., None]
+
+        def mix(diffuse_pass: np.ndarray, glossy_pass: np.ndarray) -> np.ndarray:
+            return (t * diffuse_pass + (1.0 - t) * glossy_pass).astype(np.float32)
+
+        return (
+            mix(self.diffuse_direct, self.glossy_direct),
+            mix(self.diffuse_indirect, self.glossy_indirect),
+        )
 
     def modelled_indirect(self, gloss: np.ndarray | None = None) -> np.ndarray:
         """The indirect light vplace models: :attr:`indirect`, plus the glossy indirect light

@@ -10,13 +10,16 @@ import numpy as np
 import pytest
 from blender_util import empty_file
 
-from addon.capture.native_view import gloss_mask, vpl_specular, vpl_unlit
+from addon.capture import passes
+from addon.capture.native_view import gloss_mask, view_of, vpl_specular, vpl_unlit
 from addon.capture.passes import Capture
 from addon.compat import new_material
 from addon.native import vplace
 from addon.scene import export
 from addon.scene.convert import build_scene
 from addon.writeback import apply
+
+LUMA = np.array([0.2126, 0.7152, 0.0722])
 
 
 @pytest.fixture
@@ -160,6 +163,79 @@ def test_the_modelled_reflectance_and_indirect_light_add_the_glossy_layer_where_
     np.testing.assert_allclose(cap.modelled_indirect(gloss)[0, :, 0], [0.25, 0.2])
     np.testing.assert_allclose(cap.reflectance(None), cap.albedo)
     np.testing.assert_allclose(cap.modelled_indirect(None), cap.indirect)
+
+
+def test_a_surface_without_a_diffuse_layer_sends_on_the_light_its_glossy_passes_show():
+    """The pixel emitters' irradiance: the diffuse passes wherever the diffuse layer holds at
+    least ``DIFFUSE_SHARE`` of the reflectance (they measure it the same from every view); on a
+    rough metal, whose diffuse passes Cycles leaves black however lit it is, the glossy passes,
+    and in proportion between."""
+    covered = np.ones((1, 5), bool)
+    cap = fake_capture(np.zeros((1, 5, 3)), covered, (0.0, 0.0, 1.0))
+
+    def rgb(*values):
+        return np.repeat(np.array(values, np.float32)[None, :, None], 3, axis=-1)
+
+    # A rough metal, a matte surface, both layers, a weak diffuse layer (a share of 1/21), and a
+    # pixel without either colour.
+    cap = dataclasses.replace(
+        cap,
+        diffuse_color=rgb(0.0, 0.4, 0.4, 0.01, 0.0),
+        glossy_color=rgb(0.2, 0.0, 0.2, 0.2, 0.0),
+        diffuse_direct=rgb(0.0, 1.0, 1.0, 1.0, 0.7),
+        glossy_direct=rgb(2.0, 0.0, 4.0, 3.0, 0.0),
+        diffuse_indirect=rgb(0.0, 0.5, 0.5, 0.5, 0.1),
+        glossy_indirect=rgb(0.3, 0.0, 0.8, 0.8, 0.0),
+    )
+    assert passes.DIFFUSE_SHARE == 0.1
+    t = (0.01 / 0.21) / 0.1
+    gloss = np.ones((1, 5), np.float32)
+    direct, indirect = cap.reflected_irradiance(gloss)
+    np.testing.assert_allclose(direct[0, :, 0], [2.0, 1.0, 1.0, t + 3 * (1 - t), 0.7], rtol=1e-5)
+    np.testing.assert_allclose(
+        indirect[0, :, 0], [0.3, 0.5, 0.5, 0.5 * t + 0.8 * (1 - t), 0.1], rtol=1e-5
+    )
+    # The metal sends on what its glossy layer shows the camera.
+    np.testing.assert_allclose((cap.reflectance(gloss) * direct)[0, 0], [0.4] * 3, rtol=1e-6)
+    # Where the glossy layer is left to EEVEE, and without a mask, the diffuse passes alone.
+    direct, _ = cap.reflected_irradiance(np.array([[0.0, 1.0, 0.0, 0.0, 1.0]], np.float32))
+    np.testing.assert_allclose(direct[0, :, 0], [0.0, 1.0, 1.0, 1.0, 0.7], rtol=1e-6)
+    direct, indirect = cap.reflected_irradiance(None)
+    assert direct is cap.diffuse_direct and indirect is cap.diffuse_indirect
+
+
+def test_a_sunlit_rough_metal_floor_gives_the_layout_the_light_it_reflects(scene):
+    """Sponza's curtains are a rough metal (metallic 1): Cycles' diffuse passes are black there,
+    and the layout's pixel emitters read them, so the sunniest surface a view saw sent nothing
+    on. A floor of rough metal under a sun, seen from above: the layout's candidate emitters
+    now carry about the light its glossy layer reflects toward the camera, over the floor."""
+    sun = scene.objects["sun"]
+    sun.data.energy = 3.0
+    metal = principled("metal", Roughness=0.9, Metallic=1.0, **{"Base Color": (0.8, 0.8, 0.8, 1)})
+    mesh = bpy.data.meshes.new("floor")
+    mesh.from_pydata([(-5, -5, 0), (5, -5, 0), (5, 5, 0), (-5, 5, 0)], [], [(0, 1, 2, 3)])
+    mesh.materials.append(metal)
+    scene.collection.objects.link(bpy.data.objects.new("floor", mesh))
+    cam = bpy.data.objects.new("cam", bpy.data.cameras.new("cam"))
+    cam.location = (0.0, 0.0, 2.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    bpy.context.view_layer.update()
+    cap = passes.capture(scene, resolution=(32, 24), samples=8, seed=0)
+    assert cap.covered.all()
+    assert float(cap.diffuse_direct.max()) < 1e-3  # Cycles writes no diffuse light on a metal
+    exported = export.export_scene(scene)
+    native = build_scene(exported)
+    mask = gloss_mask(native, exported, cap)
+    assert mask is not None and mask.all()
+    params = vplace.LayoutParams(budget=8, alpha=0.0, cell_px=8, iterate=False, light_rays=0)
+    laid = vplace.layout(native, [view_of(cap, gloss=mask)], params)
+    flux = float(np.asarray(laid.strata_flux[0], np.float64).reshape(-1, 3).sum(0) @ LUMA)
+    # The floor seen: the camera's 50 mm lens (36 mm sensor) 2 m up sees 1.44 m x 1.08 m.
+    area = (2.0 * 2.0 * 18.0 / 50.0) * (2.0 * 2.0 * 18.0 / 50.0 * 24 / 32)
+    seen = float(np.mean((cap.glossy_color * cap.glossy_direct) @ LUMA))
+    assert seen > 0.0
+    assert flux == pytest.approx(np.pi * seen * area, rel=0.15)
 
 
 def decide(native, exported, captures):
