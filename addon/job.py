@@ -328,6 +328,7 @@ def eevee_refit_views(
         prepared.captured_views,
         prepared.gloss,
         prepared.stand_ins,
+        scene=prepared.scene,
         scene_diagonal=prepared.scene.scale,
         region=prepared.scene.region,
         cell_px=job.cell_px,

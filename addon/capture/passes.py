@@ -165,8 +165,20 @@ class Capture:
             return self.albedo
         return (self.albedo + gloss[..., None] * self.glossy_color).astype(np.float32)
 
+    def glossy_stand_in(self, gloss: np.ndarray | None = None) -> np.ndarray:
+        """(H, W) in [0, 1]: how far the diffuse passes fail to measure the light a pixel's
+        surface receives, ``1 - t``, ``t = share / DIFFUSE_SHARE`` clamped, ``share`` the
+        diffuse layer's part of the reflectance (luminance) where ``gloss`` adds the glossy
+        layer; 0 everywhere without ``gloss`` (see :meth:`reflected_irradiance`)."""
+        if gloss is None:
+            return np.zeros(self.covered.shape, np.float32)
+        diffuse = self.diffuse_color @ LUMINANCE
+        total = diffuse + gloss * (self.glossy_color @ LUMINANCE)
+        share = np.where(total > 0.0, diffuse / np.where(total > 0.0, total, 1.0), 1.0)
+        return (1.0 - np.clip(share / DIFFUSE_SHARE, 0.0, 1.0)).astype(np.float32)
+
     def reflected_irradiance(
-        self, gloss: np.ndarray | None = None
+        self, gloss: np.ndarray | None = None, direct: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
         """The direct and the indirect irradiance over pi that, times :meth:`reflectance`, give
         the light a pixel's surface sends on: what the layout's pixel emitters and the
@@ -176,24 +188,22 @@ class Capture:
         measure it on any surface with a diffuse layer, the same from every view. But Cycles
         writes a diffuse pass only where there is a diffuse layer: a rough metal (Sponza's
         curtains, metallic 1) has a black ``DiffDir`` however brightly the sun lights it, and
-        with it alone the sunniest surface a view saw sent nothing on. Where ``gloss`` adds the
-        glossy layer and the diffuse layer holds less than :data:`DIFFUSE_SHARE` of the
-        reflectance (luminance), the glossy passes stand in, in proportion:
-        ``t * DiffDir + (1 - t) * GlossDir``, ``t = share / DIFFUSE_SHARE`` (and the same of the
-        indirect passes). ``GlossDir`` depends on the view (a highlight reads high), so it is
-        used only where nothing else measures the light."""
+        with it alone the sunniest surface a view saw sent nothing on. Where the diffuse layer
+        holds less than :data:`DIFFUSE_SHARE` of the reflectance, something else stands in, in
+        proportion (:meth:`glossy_stand_in`, ``s``): for the direct light ``direct`` ((H, W, 3),
+        vplace's own estimate, ``native_view.metal_irradiance``), else ``GlossDir``; for the
+        indirect light ``GlossInd``, the only measure of it there. ``GlossDir`` depends on the
+        view (a highlight reads high)."""
         if gloss is None:
             return self.diffuse_direct, self.diffuse_indirect
-        diffuse = self.diffuse_color @ LUMINANCE
-        total = diffuse + gloss * (self.glossy_color @ LUMINANCE)
-        share = np.where(total > 0.0, diffuse / np.where(total > 0.0, total, 1.0), 1.0)
-        t = np.clip(share / DIFFUSE_SHARE, 0.0, 1.0)[..., None]
+        s = self.glossy_stand_in(gloss)[..., None]
+        stand_in = self.glossy_direct if direct is None else direct
 
-        def mix(diffuse_pass: np.ndarray, glossy_pass: np.ndarray) -> np.ndarray:
-            return (t * diffuse_pass + (1.0 - t) * glossy_pass).astype(np.float32)
+        def mix(diffuse_pass: np.ndarray, other: np.ndarray) -> np.ndarray:
+            return ((1.0 - s) * diffuse_pass + s * other).astype(np.float32)
 
         return (
-            mix(self.diffuse_direct, self.glossy_direct),
+            mix(self.diffuse_direct, stand_in),
             mix(self.diffuse_indirect, self.glossy_indirect),
         )
 

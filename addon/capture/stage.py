@@ -131,7 +131,7 @@ def capture_views(
             "tracing's)"
         )
     gloss = masks if specular else [None] * len(captures)
-    views = [view_of(c, gloss=g) for c, g in zip(captures, gloss, strict=True)]
+    views = [view_of(c, gloss=g, scene=scene) for c, g in zip(captures, gloss, strict=True)]
     cover = None
     if region is not None and region.count > 0 and render_coverage:
         cover, rendered = rendered_coverage(
@@ -150,7 +150,9 @@ def capture_views(
         rendered_gloss = [gloss_mask(scene, exported, c) if specular else None for c in rendered]
         captures += rendered
         gloss = gloss + rendered_gloss
-        views += [view_of(c, gloss=g) for c, g in zip(rendered, rendered_gloss, strict=True)]
+        views += [
+            view_of(c, gloss=g, scene=scene) for c, g in zip(rendered, rendered_gloss, strict=True)
+        ]
         log(f"[vplace] {cover.describe(exported.unit_scale)}, rendered by Cycles")
     elif region is not None and region.count > 0:
         with stage("coverage views (ray traced)"):
@@ -276,7 +278,7 @@ def render_reference(
     gloss = gloss_mask(scene, exported, ref) if captured.specular else None
     return reference_of(
         ref,
-        view_of(ref, held_out=True, gloss=gloss),
+        view_of(ref, held_out=True, gloss=gloss, scene=scene),
         gloss,
         f"Cycles at {render.samples} spp of {cam.name} ({kind})",
     )

@@ -257,7 +257,7 @@ def load_scene(
         gloss = (
             gloss_mask(prepared.scene, prepared.exported, truth) if prepared.vpl_specular else None
         )
-        view = view_of(truth, held_out=True, gloss=gloss)
+        view = view_of(truth, held_out=True, gloss=gloss, scene=prepared.scene)
         views.append(ViewData(name, role, cams[name], truth, view, other))
     seconds = sum(c.render_seconds for c in prepared.captures)
     if prepared.coverage is not None:

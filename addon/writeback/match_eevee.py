@@ -50,6 +50,7 @@ def refit_views(
     gloss: Sequence[np.ndarray | None],
     stand_ins: StandIns,
     *,
+    scene: vplace.Scene | None = None,
     scene_diagonal: float,
     region: apply.Region | None = None,
     cell_px: int,
@@ -63,7 +64,8 @@ def refit_views(
     the deficit's mean over Cycles' direct light's (luminance). EEVEE lights the scene with
     ``stand_ins``, written into :data:`COLLECTION` and removed after; any vplace collection
     already in the scene is hidden for the renders, and every setting is restored, even on
-    error."""
+    error. ``scene`` (the job's ``vplace.Scene``) lights a rough metal's pixels as the captured
+    views do (``native_view.metal_irradiance``)."""
     nothing = vplace.VplSet(
         np.zeros((1, 3), np.float32),
         np.array([[0.0, 0.0, 1.0]], np.float32),
@@ -110,7 +112,7 @@ def refit_views(
                         cap.direct, img.image, cap.covered & ~seen, cell_px
                     )
                     mask = gloss[i] if gloss else None
-                    views[i] = view_of(cap, gloss=mask, offset=deficit)
+                    views[i] = view_of(cap, gloss=mask, offset=deficit, scene=scene)
                     direct = float((cap.direct[..., :3] @ lum).mean())
                     matched[cap.view] = (
                         float((deficit @ lum).mean()) / direct if direct > 0 else 0.0

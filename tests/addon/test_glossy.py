@@ -166,11 +166,12 @@ def test_the_modelled_reflectance_and_indirect_light_add_the_glossy_layer_where_
     np.testing.assert_allclose(cap.modelled_indirect(None), cap.indirect)
 
 
-def test_a_surface_without_a_diffuse_layer_sends_on_the_light_its_glossy_passes_show():
+def test_a_surface_without_a_diffuse_layer_sends_on_the_light_something_else_measures():
     """The pixel emitters' irradiance: the diffuse passes wherever the diffuse layer holds at
     least ``DIFFUSE_SHARE`` of the reflectance (they measure it the same from every view); on a
-    rough metal, whose diffuse passes Cycles leaves black however lit it is, the glossy passes,
-    and in proportion between."""
+    rough metal, whose diffuse passes Cycles leaves black however lit it is, vplace's own direct
+    light where given (else the glossy direct pass) and the glossy indirect pass, in proportion
+    between."""
     covered = np.ones((1, 5), bool)
     cap = fake_capture(np.zeros((1, 5, 3)), covered, (0.0, 0.0, 1.0))
 
@@ -196,13 +197,18 @@ def test_a_surface_without_a_diffuse_layer_sends_on_the_light_its_glossy_passes_
     np.testing.assert_allclose(
         indirect[0, :, 0], [0.3, 0.5, 0.5, 0.5 * t + 0.8 * (1 - t), 0.1], rtol=1e-5
     )
-    # The metal sends on what its glossy layer shows the camera.
-    np.testing.assert_allclose((cap.reflectance(gloss) * direct)[0, 0], [0.4] * 3, rtol=1e-6)
+    np.testing.assert_allclose(cap.glossy_stand_in(gloss)[0], [1.0, 0.0, 0.0, 1 - t, 0.0])
+    # vplace's own direct light stands in instead of GlossDir where given.
+    own = rgb(5.0, 6.0, 7.0, 8.0, 9.0)
+    direct, indirect_again = cap.reflected_irradiance(gloss, own)
+    np.testing.assert_allclose(direct[0, :, 0], [5.0, 1.0, 1.0, t + 8 * (1 - t), 0.7], rtol=1e-5)
+    np.testing.assert_allclose(indirect_again, indirect)
     # Where the glossy layer is left to EEVEE, and without a mask, the diffuse passes alone.
     direct, _ = cap.reflected_irradiance(np.array([[0.0, 1.0, 0.0, 0.0, 1.0]], np.float32))
     np.testing.assert_allclose(direct[0, :, 0], [0.0, 1.0, 1.0, 1.0, 0.7], rtol=1e-6)
     direct, indirect = cap.reflected_irradiance(None)
     assert direct is cap.diffuse_direct and indirect is cap.diffuse_indirect
+    assert not cap.glossy_stand_in(None).any()
 
 
 def test_a_sunlit_rough_metal_floor_lights_the_wall_beside_it(scene):
@@ -241,7 +247,7 @@ def test_a_sunlit_rough_metal_floor_lights_the_wall_beside_it(scene):
     native = build_scene(exported)
     mask = gloss_mask(native, exported, cap)
     assert mask is not None
-    view = view_of(cap, gloss=mask)
+    view = view_of(cap, gloss=mask, scene=native)
     params = vplace.LayoutParams(budget=256, alpha=0.0, cell_px=8, iterate=False, seed=0)
     laid = vplace.layout(native, [view], params)
     light, _ = vplace.evaluate(native, view, laid.vpls)
