@@ -5,7 +5,7 @@ VPLs must not light."""
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -170,18 +170,22 @@ def metal_irradiance(
         return None
     zeros = np.zeros_like(cap.diffuse_direct)
     view = vplace.View(
-        position=cap.position,
-        normal=cap.normal,
-        albedo=cap.albedo,
-        covered=covered,
-        depth=cap.depth,
-        direct=zeros,
-        diffuse_direct=zeros,
-        camera_position=cap.camera_position,
-        world_to_clip=cap.world_to_clip,
-        name=cap.camera,
+        albedo=cap.albedo, covered=covered, direct=zeros, diffuse_direct=zeros, **_geometry(cap)
     )
     return vplace.direct_light(scene, view, samples=METAL_SAMPLES, seed=0)
+
+
+def _geometry(cap: Capture) -> dict[str, Any]:
+    """The ``vplace.View`` arguments every view of ``cap`` shares: its G-buffer's position,
+    normal and depth, and its camera."""
+    return {
+        "position": cap.position,
+        "normal": cap.normal,
+        "depth": cap.depth,
+        "camera_position": cap.camera_position,
+        "world_to_clip": cap.world_to_clip,
+        "name": cap.camera,
+    }
 
 
 def view_of(
@@ -208,17 +212,12 @@ def view_of(
         if offset is not None:
             indirect = np.ascontiguousarray(indirect + offset, dtype=np.float32)
     return vplace.View(
-        position=cap.position,
-        normal=cap.normal,
         albedo=cap.reflectance(gloss),
         covered=cap.covered,
-        depth=cap.depth,
         direct=cap.direct,
         diffuse_direct=diffuse_direct,
         diffuse_indirect=None if held_out else diffuse_indirect,
         indirect=indirect,
         specular=cap.glossy_color,
-        camera_position=cap.camera_position,
-        world_to_clip=cap.world_to_clip,
-        name=cap.camera,
+        **_geometry(cap),
     )
