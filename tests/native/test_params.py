@@ -12,7 +12,7 @@ def test_layout_params_take_the_core_defaults_and_keywords():
         256,
         1.0,
         None,
-        4096,
+        16384,
         None,
         0,
     )

@@ -67,6 +67,18 @@ pub const MIN_VIEW_COSINE: f32 = 0.05;
 /// divided by ([`emitter_irradiance`]); darker cells get none.
 pub const MIN_CELL_ALBEDO: f64 = 1e-3;
 
+/// Light-path hits traced for the off-screen strata by default ([`LayoutParams::light_rays`],
+/// [`request::LayoutRequest::light_rays`]). The off-screen strata draw their VPLs from these
+/// hits, so which hits a seed traces moved a view's score more than which VPLs it drew: on
+/// Sponza (256 VPLs, seeds 0-7), fixing the light paths' seed and varying the draws alone cut
+/// the spread of made view 1's SSIM from .045 to .016. 16,384 hits instead of 4,096 (seeds
+/// 0-15) narrowed the spread of every view's (Balcony .030 -> .013, made view 2 .031 -> .022)
+/// and raised its mean on six of Sponza's seven views (Balcony +.015, made view 2 +.014, Main
+/// +.008; the Alcove, outside the region, -.013 with a standard error of .013), the rooms'
+/// within .002; the layout took 0.4 s longer on Sponza (ARCHITECTURE.md, "Light paths per
+/// layout").
+pub const LIGHT_RAYS: usize = 16_384;
+
 /// Settings of the layout. `Copy`, with named presets.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LayoutParams {
@@ -89,13 +101,13 @@ pub struct LayoutParams {
 }
 
 impl LayoutParams {
-    /// 256 VPLs, fully guided, 16-pixel cells, 4096 light rays of every bounce, multi-bounce
-    /// pixel emitters.
+    /// 256 VPLs, fully guided, 16-pixel cells, [`LIGHT_RAYS`] light-path hits of every bounce,
+    /// multi-bounce pixel emitters.
     pub const DEFAULT: Self = Self {
         budget: 256,
         alpha: 1.0,
         cell_px: 16,
-        light_rays: 4096,
+        light_rays: LIGHT_RAYS,
         seed: 0,
         bounces: MAX_BOUNCES,
         multi_bounce: true,

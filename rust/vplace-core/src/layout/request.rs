@@ -7,7 +7,7 @@
 use crate::error::Result;
 use crate::fit::features::CellModel;
 use crate::layout::iterate::{iterate, IterateParams};
-use crate::layout::{layout, Allocation, LayoutParams, Strata};
+use crate::layout::{layout, Allocation, LayoutParams, Strata, LIGHT_RAYS};
 use crate::progress::Progress;
 use crate::scene::Scene;
 use crate::shade::evaluator::EvalParams;
@@ -52,14 +52,14 @@ pub struct LayoutRequest {
 }
 
 impl LayoutRequest {
-    /// 256 VPLs, fully guided, cells of the fit (16 px without one), 4096 light rays of every
-    /// bounce, multi-bounce pixel emitters, three iterations at stride 4, cosine VPLs with the
+    /// 256 VPLs, fully guided, cells of the fit (16 px without one), [`LIGHT_RAYS`] light-path
+    /// hits of every bounce, multi-bounce pixel emitters, three iterations at stride 4, cosine VPLs with the
     /// scene's near-field radius.
     pub const DEFAULT: Self = Self {
         budget: 256,
         alpha: 1.0,
         cell_px: None,
-        light_rays: 4096,
+        light_rays: LIGHT_RAYS,
         bounces: None,
         seed: 0,
         multi_bounce: true,
