@@ -74,9 +74,9 @@ pub const MIN_CELL_ALBEDO: f64 = 1e-3;
 /// the spread of made view 1's SSIM from .045 to .016. 16,384 hits instead of 4,096 (seeds
 /// 0-15) narrowed the spread of every view's (Balcony .030 -> .013, made view 2 .031 -> .022)
 /// and raised its mean on six of Sponza's seven views (Balcony +.015, made view 2 +.014, Main
-/// +.008; the Alcove, outside the region, -.013 with a standard error of .013), the rooms'
-/// within .002; the layout took 0.4 s longer on Sponza (ARCHITECTURE.md, "Light paths per
-/// layout").
+/// +.008; the Alcove, outside the region, -.013 with a standard error of .013), and moved the
+/// rooms' by at most .002; the layout took 0.4 s longer on Sponza (ARCHITECTURE.md, "Light
+/// paths per layout").
 pub const LIGHT_RAYS: usize = 16_384;
 
 /// Settings of the layout. `Copy`, with named presets.

@@ -53,8 +53,8 @@ pub struct LayoutRequest {
 
 impl LayoutRequest {
     /// 256 VPLs, fully guided, cells of the fit (16 px without one), [`LIGHT_RAYS`] light-path
-    /// hits of every bounce, multi-bounce pixel emitters, three iterations at stride 4, cosine VPLs with the
-    /// scene's near-field radius.
+    /// hits of every bounce, multi-bounce pixel emitters, three iterations at stride 4, cosine
+    /// VPLs with the scene's near-field radius.
     pub const DEFAULT: Self = Self {
         budget: 256,
         alpha: 1.0,
