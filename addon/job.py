@@ -329,8 +329,6 @@ def eevee_refit_views(
         prepared.gloss,
         prepared.stand_ins,
         scene=prepared.scene,
-        scene_diagonal=prepared.scene.scale,
-        region=prepared.scene.region,
         cell_px=job.cell_px,
         cache_dir=job.cache_dir,
         stage=timer.stage,

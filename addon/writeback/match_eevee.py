@@ -50,9 +50,7 @@ def refit_views(
     gloss: Sequence[np.ndarray | None],
     stand_ins: StandIns,
     *,
-    scene: vplace.Scene | None = None,
-    scene_diagonal: float,
-    region: apply.Region | None = None,
+    scene: vplace.Scene,
     cell_px: int,
     cache_dir: Path | None,
     stage: Callable[[str], AbstractContextManager[None]],
@@ -64,8 +62,8 @@ def refit_views(
     the deficit's mean over Cycles' direct light's (luminance). EEVEE lights the scene with
     ``stand_ins``, written into :data:`COLLECTION` and removed after; any vplace collection
     already in the scene is hidden for the renders, and every setting is restored, even on
-    error. ``scene`` (the job's ``vplace.Scene``) lights a rough metal's pixels as the captured
-    views do (``native_view.metal_irradiance``)."""
+    error. ``scene`` (the job's ``vplace.Scene``) gives the stand-ins' size and region, and
+    lights a rough metal's pixels as the captured views do (``native_view.metal_irradiance``)."""
     nothing = vplace.VplSet(
         np.zeros((1, 3), np.float32),
         np.array([[0.0, 0.0, 1.0]], np.float32),
@@ -74,6 +72,7 @@ def refit_views(
     )
     lum = np.asarray(vplace.LUMINANCE, dtype=np.float64)
     views = list(views)
+    region = scene.region
     matched: dict[str, float] = {}
     with override() as g:
         old = apply.find_collection()
@@ -83,7 +82,7 @@ def refit_views(
         apply.write_vpls(
             bl_scene,
             nothing,
-            scene_diagonal=scene_diagonal,
+            scene_diagonal=scene.scale,
             region=region,
             emitters=stand_ins.emitters,
             sun=stand_ins.sun,
