@@ -113,6 +113,36 @@ def test_budget_energy_and_determinism(setup):
     assert lay_out(scene, d, profile="omni", radius=0.3, **kw).vpls.radius == pytest.approx(0.3)
 
 
+def test_pixel_emitters_carry_the_light_the_light_paths_measure(setup):
+    """The first hits of light paths that a view sees measure the direct light its pixels
+    receive. Where the pixels' footprints are off (the floor's normals bent by 60 degrees:
+    ``r^2 omega / cos`` grows), the VPLs drawn from the pixels carry their emitters' flux
+    scaled back (``Layout.pixel_flux_scale``); the straight view keeps its own."""
+    scene, d = setup
+    kw = {"budget": 64, "cell_px": 8, "light_rays": 4000, "iterate": False, "alpha": 0.0}
+    straight = lay_out(scene, d, **kw)
+    assert straight.pixel_flux_scale == 1.0
+    t = math.radians(60.0)
+    bent = dict(
+        d,
+        normal=np.ascontiguousarray(
+            np.broadcast_to(np.float32([math.sin(t), 0.0, math.cos(t)]), d["position"].shape)
+        ),
+    )
+    out = lay_out(scene, bent, **kw)
+    assert 0.1 < out.pixel_flux_scale < 0.6
+    # The strata keep the pixels' own flux (so does the allocation): the bent view's is larger.
+    raw = sum(float((f.astype(np.float64) @ LUM).sum()) for f in out.strata_flux)
+    own = sum(float((f.astype(np.float64) @ LUM).sum()) for f in straight.strata_flux)
+    assert raw > 1.8 * own
+
+    # The VPLs carry about the straight view's light.
+    def lum(o: vplace.Layout) -> float:
+        return float((o.vpls.flux.astype(np.float64) @ LUM).sum())
+
+    assert lum(out) == pytest.approx(lum(straight), rel=0.15)
+
+
 def test_guided_allocation_follows_the_prediction(setup):
     scene, d = setup
     # A view whose indirect light sits in its top-left corner: the fit predicts it there.

@@ -130,6 +130,15 @@ impl PyLayout {
         self.reused_rays.clone()
     }
 
+    /// The factor the VPLs drawn from the pixels carry their emitters' flux by: the direct light
+    /// the light paths' first hits say the seen surfaces receive over what the pixels'
+    /// footprints give (1 where the two agree within the hits' noise;
+    /// `vplace_core::layout::pixel_flux_scale`).
+    #[getter]
+    fn pixel_flux_scale(&self) -> f32 {
+        self.strata.pixel_flux_scale
+    }
+
     /// Total RGB flux of the off-screen strata.
     #[getter]
     fn offscreen_flux(&self) -> [f32; 3] {

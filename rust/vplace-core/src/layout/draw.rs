@@ -4,7 +4,8 @@
 use super::*;
 
 /// Draws `n` emitters of `group` (stratum ranges) by luminance flux with systematic sampling
-/// (one random offset); each VPL carries the luminance `lum(group) / n` with its emitter's colour.
+/// (one random offset); each VPL carries the luminance `lum(group) / n` with its emitter's colour,
+/// times [`Strata::pixel_flux_scale`] where the emitter is a pixel's (a cell's).
 pub(super) fn draw_group(
     strata: &Strata,
     group: &[usize],
@@ -15,12 +16,20 @@ pub(super) fn draw_group(
     if n == 0 {
         return;
     }
+    let cells = strata.offscreen();
     let items = || {
-        group
-            .iter()
-            .flat_map(|&k| &strata.emitters[strata.start[k]..strata.start[k + 1]])
+        group.iter().flat_map(move |&k| {
+            let scale = if k < cells {
+                strata.pixel_flux_scale
+            } else {
+                1.0
+            };
+            strata.emitters[strata.start[k]..strata.start[k + 1]]
+                .iter()
+                .map(move |e| (e, scale))
+        })
     };
-    let total: f64 = items().map(|e| f64::from(luminance(e.flux))).sum();
+    let total: f64 = items().map(|(e, _)| f64::from(luminance(e.flux))).sum();
     if total.is_nan() || total <= 0.0 {
         return;
     }
@@ -29,27 +38,27 @@ pub(super) fn draw_group(
     let mut acc = 0.0f64;
     let mut i = 0usize;
     let mut last = None;
-    for e in items() {
+    for (e, scale) in items() {
         let l = f64::from(luminance(e.flux));
         acc += l;
-        last = Some(e);
+        last = Some((e, scale));
         while i < n && (i as f64 + r) * per < acc {
             out.push(Vpl {
                 position: e.position,
                 normal: e.normal,
-                flux: e.flux * (per / l) as f32,
+                flux: e.flux * (per / l) as f32 * scale,
             });
             i += 1;
         }
     }
     // Rounding can leave the last target just past the end of the sum.
-    if let Some(e) = last {
+    if let Some((e, scale)) = last {
         let l = f64::from(luminance(e.flux));
         while i < n {
             out.push(Vpl {
                 position: e.position,
                 normal: e.normal,
-                flux: e.flux * (per / l) as f32,
+                flux: e.flux * (per / l) as f32 * scale,
             });
             i += 1;
         }

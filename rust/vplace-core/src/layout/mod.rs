@@ -11,8 +11,10 @@
 //!   prediction with `multi_bounce`). A surface seen by several views is counted once: a
 //!   pixel emitter of view `v` that an earlier view sees ([`View::sees`]) is dropped
 //!   ([`Strata::shared_pixels`]);
-//! - hits of light paths (Keller's [`light_path_vpls`], every bounce by default) that no view
-//!   sees: they stand for the light reflected off screen.
+//! - hits of light paths (Keller's [`light_path_vpls`](crate::vpl::light_path_vpls), every
+//!   bounce by default) that no view sees: they stand for the light reflected off screen. The
+//!   VPLs drawn from the pixels carry their flux times [`pixel_flux_scale`], the light paths'
+//!   measure of the direct light the seen surfaces receive over the pixels'.
 //!
 //! Strata are the image cells of every view (`cell_px` square, row-major, row 0 at the top; the
 //! views' grids one after the other, [`Strata::grids`]) plus the off-screen strata (from index
@@ -52,7 +54,7 @@ use crate::rng::Rng;
 use crate::scene::Scene;
 use crate::shade::shading::{Batch, VplSoa};
 use crate::view::View;
-use crate::vpl::{light_path_vpls, Profile, Vpl, MAX_BOUNCES};
+use crate::vpl::{light_path_hits, Profile, Vpl, MAX_BOUNCES};
 
 /// Off-screen strata with a non-zero view efficiency (plus the dark one).
 pub const OFFSCREEN_BINS: usize = 8;
@@ -93,7 +95,7 @@ pub struct LayoutParams {
     /// Seed of the light rays and the draws.
     pub seed: u64,
     /// Surface hits per light path for the off-screen stratum (1: first bounce only; see
-    /// [`light_path_vpls`]).
+    /// [`light_path_vpls`](crate::vpl::light_path_vpls)).
     pub bounces: usize,
     /// Pixel emitters reflect all the light their surface receives (`DiffDir` plus the captured
     /// `DiffInd` or the predicted indirect irradiance), not only the direct light.
@@ -382,6 +384,86 @@ mod tests {
         .unwrap();
         let lum = |s: &Strata| luminance(s.flux[s.offscreen()]);
         assert!(lum(&all) > 1.2 * lum(&s), "{} {}", lum(&all), lum(&s));
+    }
+
+    #[test]
+    fn pixel_flux_scale_needs_a_difference_beyond_the_hits_noise() {
+        // 100 hits of flux 1: the sum's standard error is 10.
+        let seen = SeenHits {
+            count: 100,
+            flux: 100.0,
+            flux_sq: 100.0,
+        };
+        assert_eq!(pixel_flux_scale(&seen, 95.0), 1.0); // within two standard errors
+        assert_eq!(pixel_flux_scale(&seen, 50.0), 2.0);
+        assert_eq!(pixel_flux_scale(&seen, 125.0), 0.8);
+        assert_eq!(pixel_flux_scale(&seen, 0.0), 1.0);
+        assert_eq!(pixel_flux_scale(&seen, f64::NAN), 1.0);
+        assert_eq!(pixel_flux_scale(&SeenHits::default(), 50.0), 1.0);
+    }
+
+    #[test]
+    fn pixel_emitters_carry_what_the_hits_they_replace_carry() {
+        // The floor seen from above with its normals bent by 60 degrees: each pixel's
+        // footprint `r^2 omega / cos` grows (cos clamped at `MIN_VIEW_COSINE` where the bent
+        // normal turns edge on to the view ray), and so would its flux. (The view's albedo,
+        // red and grey, is not the box's 0.5: the light received is compared, not reflected.)
+        let (scene, fv) = setup();
+        let params = LayoutParams {
+            cell_px: 8,
+            light_rays: 4000,
+            bounces: 1,
+            ..LayoutParams::DEFAULT
+        };
+        let pixels = |s: &Strata| -> f64 {
+            s.flux[..s.offscreen()]
+                .iter()
+                .map(|&f| f64::from(luminance(f)))
+                .sum()
+        };
+        let right = build_strata(&scene, &[&fv.view()], None, &params).unwrap();
+        // Straight: the pixels agree with the hits, and keep their flux.
+        assert_eq!(right.pixel_flux_scale, 1.0);
+        let mut bent = fv.clone();
+        let t = 60f32.to_radians();
+        bent.gbuffer.normal = [t.sin(), 0.0, t.cos()].repeat(32 * 32);
+        let raw = build_strata(
+            &scene,
+            &[&bent.view()],
+            None,
+            &LayoutParams {
+                light_rays: 0,
+                ..params
+            },
+        )
+        .unwrap();
+        assert!(pixels(&raw) > 1.8 * pixels(&right), "{}", pixels(&raw));
+        let s = build_strata(&scene, &[&bent.view()], None, &params).unwrap();
+        assert!(s.light_hits_on_screen > 500, "{}", s.light_hits_on_screen);
+        let expect = pixels(&right) / pixels(&raw);
+        assert!(
+            (f64::from(s.pixel_flux_scale) / expect - 1.0).abs() < 0.1,
+            "{} {expect}",
+            s.pixel_flux_scale
+        );
+        // The strata, and the allocation, keep the pixels' own flux; the VPLs drawn from the
+        // cells carry it scaled: about the straight view's.
+        assert_eq!(pixels(&s), pixels(&raw));
+        let cells_only = |s: &Strata| {
+            let mut counts = vec![0; s.strata()];
+            counts[..s.offscreen()].fill(4);
+            let a = Allocation {
+                counts,
+                pool: Vec::new(),
+                pool_count: 0,
+            };
+            lum_total(&draw(s, &a, 3))
+        };
+        let ratio = cells_only(&s) / cells_only(&right);
+        assert!((ratio - 1.0).abs() < 0.1, "{ratio}");
+        // The off-screen strata are the same light paths' hits either way.
+        let off = |s: &Strata| s.offscreen_flux();
+        assert!((off(&s) - off(&right)).length() < 1e-4 * off(&right).length());
     }
 
     #[test]

@@ -68,6 +68,11 @@ pub struct Strata {
     pub flux: Vec<Vec3>,
     /// Light-ray hits dropped because a view sees them (its pixels stand for them).
     pub light_hits_on_screen: usize,
+    /// The factor the VPLs drawn from the cells carry their emitters' flux by, so that the
+    /// pixels' light matches what the light paths say their surfaces receive
+    /// ([`pixel_flux_scale`]; 1 where the two agree). The strata's flux, and with it the
+    /// allocation, is the pixels' own ([`draw`]).
+    pub pixel_flux_scale: f32,
     /// Pixel emitters dropped because an earlier view sees their surface (counted once).
     pub shared_pixels: usize,
     /// `v_k`: how efficiently stratum `k` lights the view relative to the on-screen emitters
@@ -193,16 +198,22 @@ pub fn emitter_irradiance<'a>(
     Ok((Cow::Owned(out), IndirectSource::Predicted))
 }
 
+/// One band of rows of [`pixel_emitters`]: its emitters with their cells, the emitters an
+/// earlier view holds, and the direct light its pixels receive.
+type BandEmitters = (Vec<(usize, Emitter)>, usize, f64);
+
 /// The pixel emitters of `view` reflecting `irradiance` (irradiance / pi, `H x W x 3`), each with
 /// its cell, in pixel order; `owned(x)` says whether the emitter at `x` belongs to this view (not
-/// already held by an earlier one).
+/// already held by an earlier one). Also the emitters an earlier view holds, and the direct
+/// light the view's own pixels with a diffuse layer receive (`pi * DiffDir * footprint`,
+/// luminance, summed, see [`pixel_flux_scale`]).
 pub(super) fn pixel_emitters(
     view: &View,
     irradiance: &[f32],
     cell_px: usize,
     offset: f32,
     owned: impl Fn(Vec3) -> bool + Sync,
-) -> (Vec<(usize, Emitter)>, usize) {
+) -> (Vec<(usize, Emitter)>, usize, f64) {
     let (w, h, c) = (view.width, view.height, cell_px);
     let cells_x = w.div_ceil(c);
     let cam = view.camera.position;
@@ -210,7 +221,7 @@ pub(super) fn pixel_emitters(
     // Rows in parallel, in bands that share the view directions of their pixel corners; the
     // emitters are then appended in pixel order, as a plain row-major loop would.
     let band = 8;
-    let found: Vec<(Vec<(usize, Emitter)>, usize)> = (0..h.div_ceil(band))
+    let found: Vec<BandEmitters> = (0..h.div_ceil(band))
         .into_par_iter()
         .map(|b| {
             let (y0, y1) = (b * band, ((b + 1) * band).min(h));
@@ -223,6 +234,7 @@ pub(super) fn pixel_emitters(
                 .collect();
             let mut out = Vec::new();
             let mut shared = 0;
+            let mut received_sum = 0.0f64;
             for y in y0..y1 {
                 let (top, below) = (&corners[y - y0], &corners[y - y0 + 1]);
                 for x in 0..w {
@@ -246,27 +258,53 @@ pub(super) fn pixel_emitters(
                     let omega = solid_angle(top[x], top[x + 1], below[x]);
                     let area = r * r * omega / cos.max(MIN_VIEW_COSINE);
                     let flux = vec3(&view.albedo, p) * (PI * dd.max(Vec3::ZERO)) * area;
+                    let received = (PI * vec3(&view.diffuse_direct, p).max(Vec3::ZERO)) * area;
+                    let position = pos + n * offset;
                     let lum = luminance(flux);
-                    if lum.is_nan() || lum <= 0.0 || !flux.is_finite() {
+                    let emits = !(lum.is_nan() || lum <= 0.0 || !flux.is_finite());
+                    // The direct light a diffuse surface receives counts whatever it reflects
+                    // (a black pixel too), as the light paths' first hits count it.
+                    let lum_received = f64::from(luminance(received));
+                    let reflectance = vec3(&view.albedo, p);
+                    let glossy = view.specular.as_deref().map_or(Vec3::ZERO, |g| vec3(g, p));
+                    let diffuse = (reflectance - glossy).max(Vec3::ZERO);
+                    let receives = lum_received.is_finite()
+                        && lum_received > 0.0
+                        && diffuse_share(diffuse, reflectance) >= DIFFUSE_SHARE;
+                    if !emits && !receives {
                         continue;
                     }
-                    let emitter = Emitter {
-                        position: pos + n * offset,
-                        normal: n,
-                        flux,
-                    };
-                    if !owned(emitter.position) {
+                    let mine = owned(position);
+                    if receives && mine {
+                        received_sum += lum_received;
+                    }
+                    if !emits {
+                        continue;
+                    }
+                    if !mine {
                         shared += 1;
                         continue;
                     }
-                    out.push(((y / c) * cells_x + x / c, emitter));
+                    out.push((
+                        (y / c) * cells_x + x / c,
+                        Emitter {
+                            position,
+                            normal: n,
+                            flux,
+                        },
+                    ));
                 }
             }
-            (out, shared)
+            (out, shared, received_sum)
         })
         .collect();
-    let shared = found.iter().map(|(_, s)| s).sum();
-    (found.into_iter().flat_map(|(e, _)| e).collect(), shared)
+    let shared = found.iter().map(|(_, s, _)| s).sum();
+    let received = found.iter().map(|(_, _, r)| r).sum();
+    (
+        found.into_iter().flat_map(|(e, _, _)| e).collect(),
+        shared,
+        received,
+    )
 }
 
 /// Gathers the candidate emitters of `views` into strata (see the module docs). `predicted`,
@@ -274,8 +312,8 @@ pub(super) fn pixel_emitters(
 /// view without a `diffuse_indirect` pass then reflects it ([`emitter_irradiance`]).
 ///
 /// Errors: no views, `cell_px == 0`, a prediction of the wrong size, or failing light rays
-/// (see [`light_path_vpls`]). A scene without emitters gets empty off-screen strata (its pixels
-/// still emit).
+/// (see [`light_path_vpls`](crate::vpl::light_path_vpls)). A scene without emitters gets empty
+/// off-screen strata (its pixels still emit).
 pub fn build_strata(
     scene: &Scene,
     views: &[&View],
@@ -289,13 +327,15 @@ pub fn build_strata(
     let mut grids = Vec::with_capacity(views.len());
     let mut per: Vec<Vec<Emitter>> = Vec::new();
     let mut shared_pixels = 0;
+    let mut pixels_received = 0.0f64;
     for (i, view) in views.iter().enumerate() {
         let pred = predicted.map(|p| p[i].as_slice());
         let (irradiance, source) = emitter_irradiance(view, pred, c, params.multi_bounce)?;
         let earlier = &views[..i];
         let owned = |x: Vec3| !earlier.iter().any(|u| u.sees(x, occluded));
-        let (found, shared) = pixel_emitters(view, &irradiance, c, offset, owned);
+        let (found, shared, received) = pixel_emitters(view, &irradiance, c, offset, owned);
         shared_pixels += shared;
+        pixels_received += received;
         let grid = Grid {
             cells_x: view.width.div_ceil(c),
             cells_y: view.height.div_ceil(c),
@@ -309,7 +349,8 @@ pub fn build_strata(
         grids.push(grid);
     }
     let cells = per.len();
-    let (off, light_hits_on_screen) = offscreen_emitters(scene, views, params)?;
+    let (off, seen) = offscreen_emitters(scene, views, params)?;
+    let pixel_flux_scale = pixel_flux_scale(&seen, pixels_received);
     let samples: Vec<(Vec3, Vec3, f32)> = views.iter().flat_map(|v| view_samples(v)).collect();
     let radius = scene.near_field_radius();
     let on_screen: Vec<&Emitter> = per.iter().flatten().collect();
@@ -360,7 +401,8 @@ pub fn build_strata(
         emitters,
         start,
         flux,
-        light_hits_on_screen,
+        light_hits_on_screen: seen.count,
+        pixel_flux_scale,
         shared_pixels,
         view_weight,
     })
@@ -397,20 +439,97 @@ pub(super) fn check_strata_input(
     Ok(())
 }
 
-/// The light-path hits no view sees, as emitters of the off-screen strata, and how many hits a
-/// view sees (dropped: its pixels stand for them).
+/// The light-path hits that some view sees (dropped from the off-screen strata: its pixels
+/// stand for them): how many, and over the first hits on surfaces with a diffuse layer
+/// ([`DIFFUSE_SHARE`]), the sums of the luminance flux that arrived and of its square.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SeenHits {
+    /// Hits a view sees.
+    pub count: usize,
+    /// The luminance flux that arrived straight from the emitters at the first hits a view
+    /// sees on a surface with a diffuse layer, summed (watts).
+    pub flux: f64,
+    /// The squares of those fluxes, summed: `sqrt(flux_sq)` is the standard error of `flux` as
+    /// an estimate of the direct light those surfaces receive, the hits taken as independent.
+    pub flux_sq: f64,
+}
+
+/// The factor that gives the views' pixel emitters the light the light paths say their surfaces
+/// receive: `seen.flux / received`, `received` the direct light the owned pixels with a diffuse
+/// layer receive (`pi * DiffDir * footprint`, luminance, summed); 1 where the two agree within
+/// [`PIXEL_FLUX_SIGMAS`] standard errors of the hits' sum (`sqrt(flux_sq)`), where either is
+/// not positive or the ratio is not finite.
+///
+/// Both measure the direct light arriving on the surfaces the views see: a pixel as Cycles'
+/// `DiffDir` times its footprint `r^2 omega / |cos|`, a light path's first hit as the flux its
+/// ray brings. The irradiance is measured; the footprint is not: where the camera sees a
+/// surface at grazing angles through bent shading normals, `cos` is wrong and clamped (on
+/// Sponza's main view, 0.41 m above a normal-mapped floor, the footprints summed to 450 m^2 of
+/// the floor's 641). Direct light and diffuse surfaces only: there Cycles' passes measure what
+/// arrives (glass, metal and lamps have no diffuse pass), and no model of the light paths'
+/// later bounces enters. The error is one of area, so the factor holds for the indirect light
+/// the pixels reflect too. The refit pulls every VPL toward one gain of the captures: fitted
+/// to pixel emitters short by a factor, it multiplied the light paths' VPLs, which light what
+/// no capture sees, by it too. One factor for all pixels, not one per pixel (footprints that
+/// follow the geometry pixel by pixel stretch a leaf seen edge on into a hot spot: README,
+/// "Why the pixel emitters carry less") nor per view (the hits a dim view sees are too few).
+#[must_use]
+pub fn pixel_flux_scale(seen: &SeenHits, pixels: f64) -> f32 {
+    let k = seen.flux / pixels;
+    if !(seen.flux > 0.0 && pixels > 0.0 && k.is_finite()) {
+        return 1.0;
+    }
+    let se = seen.flux_sq.sqrt() / pixels;
+    if (k - 1.0).abs() <= PIXEL_FLUX_SIGMAS * se {
+        return 1.0;
+    }
+    k as f32
+}
+
+/// The diffuse part's share of a surface's reflectance (luminance), 0 where it reflects nothing.
+fn diffuse_share(diffuse: Vec3, reflectance: Vec3) -> f32 {
+    let total = luminance(reflectance);
+    if total > 0.0 {
+        luminance(diffuse) / total
+    } else {
+        0.0
+    }
+}
+
+/// The least share of a surface's reflectance its diffuse layer must hold for its light to
+/// count in [`pixel_flux_scale`] (the add-on's `capture.passes.DIFFUSE_SHARE`): Cycles' diffuse
+/// passes measure the light a surface receives only where it has a diffuse layer, and glass,
+/// metal and lamps have none; the light paths' hits there are left out with the pixels. A
+/// pixel's share reads its reflectance less its Glossy Color (the layer the reflectance adds
+/// where it models it).
+pub const DIFFUSE_SHARE: f32 = 0.1;
+
+/// How many standard errors of the light-path hits' sum the pixel emitters' flux must differ
+/// from it by before [`pixel_flux_scale`] rescales them: within that the two agree, and the
+/// layout keeps the pixels' own flux.
+pub const PIXEL_FLUX_SIGMAS: f64 = 2.0;
+
+/// The light-path hits no view sees, as emitters of the off-screen strata, and the hits a view
+/// sees (dropped: its pixels stand for them).
 pub(super) fn offscreen_emitters(
     scene: &Scene,
     views: &[&View],
     params: &LayoutParams,
-) -> Result<(Vec<Emitter>, usize)> {
+) -> Result<(Vec<Emitter>, SeenHits)> {
     let occluded = |a: Vec3, b: Vec3| scene.occluded(a, b);
     let mut off: Vec<Emitter> = Vec::new();
-    let mut light_hits_on_screen = 0;
+    let mut seen = SeenHits::default();
     if params.light_rays > 0 && scene.has_emitters() {
-        for v in light_path_vpls(scene, params.light_rays, params.seed, params.bounces)? {
+        for hit in light_path_hits(scene, params.light_rays, params.seed, params.bounces)? {
+            let v = hit.vpl;
             if views.iter().any(|view| view.sees(v.position, occluded)) {
-                light_hits_on_screen += 1;
+                seen.count += 1;
+                let lum = f64::from(luminance(hit.arriving));
+                let diffuse = diffuse_share(hit.albedo, hit.albedo + hit.gloss) >= DIFFUSE_SHARE;
+                if hit.bounce == 0 && diffuse && lum.is_finite() && lum > 0.0 {
+                    seen.flux += lum;
+                    seen.flux_sq += lum * lum;
+                }
             } else if luminance(v.flux) > 0.0 {
                 off.push(Emitter {
                     position: v.position,
@@ -420,7 +539,7 @@ pub(super) fn offscreen_emitters(
             }
         }
     }
-    Ok((off, light_hits_on_screen))
+    Ok((off, seen))
 }
 
 /// About [`VIEW_SAMPLES`] covered pixels of the view on a regular grid: (position, unit

@@ -90,6 +90,37 @@ pub use crate::scene::MAX_BOUNCES;
 /// Errors: `n == 0` or `bounces == 0`, no lights or no power, or rays that miss the geometry
 /// (see [`MAX_RAYS_PER_VPL`]).
 pub fn light_path_vpls(scene: &Scene, n: usize, seed: u64, bounces: usize) -> Result<Vec<Vpl>> {
+    Ok(light_path_hits(scene, n, seed, bounces)?
+        .into_iter()
+        .map(|h| h.vpl)
+        .collect())
+}
+
+/// A hit of [`light_path_hits`]: its VPL and the flux that arrived there.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LightHit {
+    /// The VPL the hit leaves ([`light_path_vpls`]; zero flux on a surface without a diffuse
+    /// part).
+    pub vpl: Vpl,
+    /// The flux the path brought to the hit, RGB watts (over the paths, as the VPL's): the
+    /// light the surface receives there, whatever it reflects.
+    pub arriving: Vec3,
+    /// The surface's diffuse albedo there (what the VPL reflects of `arriving`).
+    pub albedo: Vec3,
+    /// The reflectance of its glossy layer there (zero without one).
+    pub gloss: Vec3,
+    /// The path's surface hits before this one (0: the light came straight from an emitter).
+    pub bounce: usize,
+}
+
+/// The hits of [`light_path_vpls`] (the same, in the same order, for the same arguments), each
+/// with the flux that arrived there.
+pub fn light_path_hits(
+    scene: &Scene,
+    n: usize,
+    seed: u64,
+    bounces: usize,
+) -> Result<Vec<LightHit>> {
     let (powers, weights) = light_powers(scene, n)?;
     if bounces == 0 {
         return Err(VplaceError::OutOfRange {
@@ -111,8 +142,9 @@ pub fn light_path_vpls(scene: &Scene, n: usize, seed: u64, bounces: usize) -> Re
     let offset = Vpl::SURFACE_OFFSET * scene.scale();
     let emitters = scene.emitters();
     let mut rng = Rng::new(seed, 0x5eed);
-    // (position, normal, reflected flux of one path before dividing by the path count)
-    let mut hits: Vec<(Vec3, Vec3, Vec3)> = Vec::with_capacity(n);
+    // (position, normal, arriving flux of one path before dividing by the path count, albedo,
+    // gloss, bounce)
+    let mut hits: Vec<(Vec3, Vec3, Vec3, Vec3, Vec3, usize)> = Vec::with_capacity(n);
     let mut rays = 0usize;
     while hits.len() < n {
         if rays >= n * MAX_RAYS_PER_VPL {
@@ -148,15 +180,15 @@ pub fn light_path_vpls(scene: &Scene, n: usize, seed: u64, bounces: usize) -> Re
             }
             let p = origin + dir * h.t + normal * offset;
             let albedo = scene.albedo_at(h.triangle, h.barycentrics);
-            hits.push((p, normal, carried * albedo));
+            let (gloss, roughness) = scene
+                .gloss_at(h.triangle, h.barycentrics)
+                .unwrap_or((Vec3::ZERO, 1.0));
+            hits.push((p, normal, carried, albedo, gloss, bounce));
             if hits.len() == n || bounce + 1 == bounces {
                 break;
             }
             // The path goes on off the diffuse part or, where the material has one, off its
             // glossy layer, each chosen by its share of the reflected luminance.
-            let (gloss, roughness) = scene
-                .gloss_at(h.triangle, h.barycentrics)
-                .unwrap_or((Vec3::ZERO, 1.0));
             let (diffuse, glossy) = (luminance(carried * albedo), luminance(carried * gloss));
             // A path whose next hit is outside the limits either way ends here.
             let on = usize::from(bounce > 0);
@@ -197,10 +229,16 @@ pub fn light_path_vpls(scene: &Scene, n: usize, seed: u64, bounces: usize) -> Re
     let inv_rays = 1.0 / rays as f32;
     Ok(hits
         .into_iter()
-        .map(|(position, normal, f)| Vpl {
-            position,
-            normal,
-            flux: f * inv_rays,
+        .map(|(position, normal, f, albedo, gloss, bounce)| LightHit {
+            vpl: Vpl {
+                position,
+                normal,
+                flux: f * albedo * inv_rays,
+            },
+            arriving: f * inv_rays,
+            albedo,
+            gloss,
+            bounce,
         })
         .collect())
 }

@@ -9,7 +9,8 @@ use std::f32::consts::PI;
 mod light_paths;
 pub(crate) use light_paths::light_powers;
 pub use light_paths::{
-    emitted_power, light_path_vpls, uniform_vpls, MAX_BOUNCES, MAX_RAYS_PER_VPL,
+    emitted_power, light_path_hits, light_path_vpls, uniform_vpls, LightHit, MAX_BOUNCES,
+    MAX_RAYS_PER_VPL,
 };
 
 /// How a VPL radiates its flux `Phi`.
