@@ -257,7 +257,8 @@ pub(super) fn pixel_emitters(
                     }
                     let omega = solid_angle(top[x], top[x + 1], below[x]);
                     let area = r * r * omega / cos.max(MIN_VIEW_COSINE);
-                    let flux = vec3(&view.albedo, p) * (PI * dd.max(Vec3::ZERO)) * area;
+                    let reflectance = vec3(&view.albedo, p);
+                    let flux = reflectance * (PI * dd.max(Vec3::ZERO)) * area;
                     let received = (PI * vec3(&view.diffuse_direct, p).max(Vec3::ZERO)) * area;
                     let position = pos + n * offset;
                     let lum = luminance(flux);
@@ -265,7 +266,6 @@ pub(super) fn pixel_emitters(
                     // The direct light a diffuse surface receives counts whatever it reflects
                     // (a black pixel too), as the light paths' first hits count it.
                     let lum_received = f64::from(luminance(received));
-                    let reflectance = vec3(&view.albedo, p);
                     let glossy = view.specular.as_deref().map_or(Vec3::ZERO, |g| vec3(g, p));
                     let diffuse = (reflectance - glossy).max(Vec3::ZERO);
                     let receives = lum_received.is_finite()
