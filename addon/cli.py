@@ -250,13 +250,19 @@ def _report_options(sub: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     rep.add_argument(
         "--eevee-methods", nargs="+", default=["uniform", "rsm", "vplace+refit"],
-        help="methods whose lights EEVEE renders on every view",
+        help="methods whose lights EEVEE renders on every view (of --eevee-views)",
     )  # fmt: skip
     rep.add_argument(
         "--alternatives", nargs="*", default=["plain", "rt", "rt+volume", "vpl+rt", "cycles+oidn"],
-        help="what a Blender user would pick instead, rendered on every view (none: only vplace)",
+        help="what a Blender user would pick instead, rendered on every view (of --eevee-views; "
+        "none: only vplace)",
     )  # fmt: skip
     rep.add_argument("--eevee-samples", type=int, default=None, help="EEVEE's render samples")
+    rep.add_argument(
+        "--eevee-views", nargs="+", default=[], metavar="NAME",
+        help="render EEVEE (the lights and the alternatives) only on these views, named as the "
+        "report names them (default: every view)",
+    )  # fmt: skip
     rep.add_argument("--feature-mode", choices=FEATURE_MODES, default="auto")
     rep.add_argument(
         "--no-near-field", action="store_true",
@@ -317,6 +323,13 @@ def run(args: argparse.Namespace) -> None:
         run_par2d_demo(args.out, args.size, args.method)
         return
     if args.command == "report" and args.animate:
+        if args.eevee_views:
+            from .errors import ReportError
+
+            raise ReportError(
+                "--eevee-views names views of the still report; with --animate EEVEE renders "
+                "the scene camera's frames"
+            )
         run_animated_report(args)
         return
     if args.command == "report" and args.volume_per_frame:
@@ -344,6 +357,7 @@ def run(args: argparse.Namespace) -> None:
             with_eevee=not args.no_eevee,
             eevee_methods=args.eevee_methods,
             alternatives=args.alternatives,
+            eevee_views=args.eevee_views,
             feature_mode=args.feature_mode,
             near_field=not args.no_near_field,
             capture_curve=args.capture_curve,

@@ -157,6 +157,11 @@ class ReportConfig:
     #: ``cycles_samples``).
     alternatives: Sequence[str] = ("plain", "rt", "rt+volume", "vpl+rt", "cycles+oidn")
     eevee_samples: int = eevee.EEVEE_SAMPLES
+    #: The views EEVEE renders, by name as the report names them (a fit or held-out camera's
+    #: name, ``vplace held-out 1``); empty: every view. EEVEE without a GPU takes 12-25 minutes
+    #: a Sponza frame with 256 VPLs (docs/EEVEE_NOTES.md): this keeps a check to the views it
+    #: is about.
+    eevee_views: Sequence[str] = ()
     #: Capture sample counts to lay out vplace+refit from (at the grid budget), every view
     #: scored: layout quality against capture cost. Empty: no curve.
     capture_curve: Sequence[int] = ()

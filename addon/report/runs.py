@@ -510,6 +510,20 @@ def reference_rows(view: ViewData, scene_name: str) -> list[Row]:
     ]
 
 
+def eevee_views(data: SceneData, config: ReportConfig) -> list[ViewData]:
+    """The views of ``data`` that EEVEE renders: those ``config.eevee_views`` names (every view
+    where it names none). Raises :class:`ReportError` where it names views and none of them is
+    one of this scene's, before anything is rendered."""
+    wanted = config.eevee_views
+    chosen = [v for v in data.views if not wanted or v.name in wanted]
+    if not chosen:
+        names = ", ".join(repr(v.name) for v in data.views)
+        raise ReportError(
+            f"none of the EEVEE views {list(wanted)} is a view of this scene: its views are {names}"
+        )
+    return chosen
+
+
 @dataclass
 class _EeveeRun:
     """The EEVEE (and Cycles + OIDN) renders of one scene's report: every view of each setup,
@@ -590,8 +604,8 @@ class _EeveeRun:
     def each_view(
         self, setup: eevee.Setup, samples: int
     ) -> Iterator[tuple[ViewData, eevee.EeveeImage]]:
-        """Every view rendered with ``setup`` at ``samples`` (cached)."""
-        for view in self.data.views:
+        """Every view EEVEE renders (:func:`eevee_views`) with ``setup`` at ``samples`` (cached)."""
+        for view in eevee_views(self.data, self.config):
             yield (
                 view,
                 eevee.render(
@@ -616,7 +630,7 @@ class _EeveeRun:
             emissive = self.data.prepared.exported.emissive_materials
             if not eevee_setup.cycles_as_eevee_lights(g, self.bl_scene, emissive):
                 return
-            for view in self.data.views:
+            for view in eevee_views(self.data, self.config):
                 t0 = time.perf_counter()
                 c = capture.capture(
                     self.bl_scene,
@@ -767,8 +781,8 @@ def eevee_rows(
     log: Callable[[str], None],
 ) -> _EeveeRun:
     """The grid budget's lights of each of ``config.eevee_methods`` rendered by EEVEE on every
-    view, and the alternatives; returns the run: its rows, the images per view and the
-    attribution's VPL differences."""
+    view it renders (:func:`eevee_views`), and the alternatives; returns the run: its rows, the
+    images per view and the attribution's VPL differences."""
     if apply.find_collection() is not None:
         raise ReportError(
             f"the scene already has a {apply.COLLECTION_NAME!r} collection; the report does "
@@ -820,6 +834,8 @@ def _run_scene(
     from . import plots as report_plots
 
     data = load_scene(bl_scene, preset, config, cache_dir, log)
+    if config.with_eevee:
+        eevee_views(data, config)  # a name that matches no view fails before any work
     fit_seconds, fitted = _timed(lambda: pipeline.fit(data.prepared, data.job))
     log(
         f"[vplace] {preset.name}: fitted on {len(preset.fit_views)} views in {fit_seconds:.2f} s\n"

@@ -567,11 +567,20 @@ def _intro(result: dict[str, Any]) -> list[str]:
         "every view and frame; frame seconds: one image. Stochastic layouts run with seeds "
         f"{list(result['config']['seeds'])}; rows show their mean (SSIM standard deviation in "
         "brackets); `results.csv` has every run. EEVEE here is software OpenGL on 2 CPU cores: "
-        "its frame times are no measure of a GPU's.",
+        "its frame times are no measure of a GPU's." + _eevee_views_note(result),
         "",
         f"Total report time: {result['seconds']:.0f} s.",
         "",
     ]
+
+
+def _eevee_views_note(result: dict[str, Any]) -> str:
+    """The intro's sentence on the views EEVEE rendered, where ``--eevee-views`` chose them."""
+    chosen = result["config"].get("eevee_views") or []
+    if not chosen:
+        return ""
+    names = ", ".join(repr(n) for n in chosen)
+    return f" EEVEE rendered only the views named {names} (`--eevee-views`)."
 
 
 def _evaluator_table(mine: Sequence[Row], budgets: Sequence[int]) -> list[str]:

@@ -152,6 +152,10 @@ CASES = [
     ),
     Case(["report", "--scenes", "atrium"], "unknown scenes ['atrium']"),
     Case(["report", "--volume-per-frame"], "--volume-per-frame goes with --animate"),
+    Case(
+        ["report", "--blend", "{blend}", "--animate", "1", "2", "1", "--eevee-views", "A"],
+        "--eevee-views names views of the still report",
+    ),
     Case(["report", "--animate", "1", "5", "1"], "report --animate needs --blend"),
     Case(["report", "--blend", "{blend}", "--animate", "5", "1", "1"], "frame range 5..1 is empty"),
     Case(["report", "--blend", "{blend}", "--animate", "1", "5", "0"], "step must be at least 1"),

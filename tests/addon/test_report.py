@@ -477,6 +477,27 @@ def test_bad_configuration_is_a_clear_error(change, message, tmp_path):
     assert not (tmp_path / "results.csv").exists()
 
 
+def test_eevee_views_keeps_the_named_views_and_refuses_names_of_no_view(tmp_path):
+    from types import SimpleNamespace
+
+    data = SimpleNamespace(views=[SimpleNamespace(name=n) for n in ("Main", "West", "made 1")])
+    every = report.eevee_views(data, tiny())
+    assert [v.name for v in every] == ["Main", "West", "made 1"]
+    # In the scene's order; a name of another scene's view is no error while one matches.
+    chosen = report.eevee_views(data, tiny(eevee_views=["made 1", "Main", "Balcony"]))
+    assert [v.name for v in chosen] == ["Main", "made 1"]
+    with pytest.raises(ReportError, match=r"none of the EEVEE views .* 'Main', 'West', 'made 1'"):
+        report.eevee_views(data, tiny(eevee_views=["Balcony"]))
+    # A report fails on such a name once the scene's views are known, before any layout.
+    lines: list[str] = []
+    with pytest.raises(ReportError, match="none of the EEVEE views"):
+        report.run_report(tiny(eevee_views=["No such view"]), tmp_path, log=lines.append)
+    assert not any("fitted on" in line for line in lines)
+    assert not (tmp_path / "results.csv").exists()
+    assert summary._eevee_views_note({"config": {"eevee_views": []}}) == ""
+    assert "'Main'" in summary._eevee_views_note({"config": {"eevee_views": ["Main"]}})
+
+
 def test_camera_view_restores_the_camera_and_refuses_unknown_names():
     from blender_util import cornell
 
