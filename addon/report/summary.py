@@ -11,6 +11,7 @@ import numpy as np
 
 from .. import job as pipeline
 from ..native import vplace
+from ..writeback import eevee_setup
 from .config import (
     BRIGHTNESS_TOLERANCE,
     CAPTURE_CURVE,
@@ -555,8 +556,10 @@ def _intro(result: dict[str, Any]) -> list[str]:
         "held out, is scored with those same lights. Evaluator rows: the ground truth's direct "
         "light plus the evaluator's VPL indirect light over the view's G-buffer. EEVEE rows: what "
         "a user sees, EEVEE rendering the written lights (float, Standard view, "
-        f"{result['config']['eevee_samples']} samples), or the alternatives a Blender user would "
-        "pick instead (EEVEE's own GI with the world's sun as a lamp where the world has one: "
+        f"{result['config']['eevee_samples']} samples, soft shadows traced with "
+        f"{eevee_setup.SHADOW_RAYS} rays as vplace's set-up has them), or the alternatives a "
+        "Blender user would pick instead, with the same shadows (EEVEE's own GI with the world's "
+        "sun as a lamp where the world has one: "
         "EEVEE extracts next to nothing from a sky); Cycles + OIDN rows: Cycles at that many "
         "samples, denoised. Every image is scored against a high-sample Cycles render of the "
         "view, and, where the truth was rendered twice (two seeds), against the noise-free "

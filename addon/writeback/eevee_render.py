@@ -70,7 +70,7 @@ EEVEE_SAMPLES = 16
 #: with it (what vplace writes) it rose 0.963 -> 0.965 and RMSE fell 0.045 -> 0.027.
 FILM_FILTER_SIZE = 1.0
 #: Bump when a cached render's meaning changes.
-RENDER_VERSION = 5
+RENDER_VERSION = 6
 
 
 @dataclass(frozen=True)
@@ -106,6 +106,11 @@ class Setup:
         threshold = eevee_setup.threshold_for(scene)
         if threshold != e.light_threshold:
             g.set(e, "light_threshold", threshold)
+        # Every EEVEE set-up traces the soft shadows with the rays vplace's set-up gives them
+        # (eevee_setup.shadow_rays_for): the scene's lamps' noise is EEVEE's, not the lights'.
+        rays = eevee_setup.shadow_rays_for(scene)
+        if rays is not None:
+            g.set(e, "shadow_ray_count", rays)
         # Lights written with the near-field gather leave it to the fast GI, which EEVEE
         # applies only with ray tracing on.
         method, near = eevee_setup.fast_gi_for(scene) if self.vpls else ("", 0.0)

@@ -1,5 +1,6 @@
 """The scored renders filter their pixels as the truth does (a one-pixel box in Cycles, EEVEE's
-Gaussian of the same spread) and give the user's own filter back."""
+Gaussian of the same spread), trace soft shadows as "Set up EEVEE for vplace" has EEVEE trace
+them, and give the user's own settings back."""
 
 from functools import partial
 
@@ -10,6 +11,7 @@ from blender_util import cornell
 
 from addon.settings import override
 from addon.writeback import eevee_render as eevee
+from addon.writeback import eevee_setup
 
 
 def test_every_setup_filters_as_the_truth_and_restores_the_users_filter():
@@ -28,6 +30,20 @@ def test_every_setup_filters_as_the_truth_and_restores_the_users_filter():
                 assert scene.render.filter_size == eevee.FILM_FILTER_SIZE, name
         assert scene.render.filter_size == pytest.approx(2.5)
         assert (scene.cycles.pixel_filter_type, scene.cycles.filter_width) == ("GAUSSIAN", 2.0)
+
+
+def test_every_eevee_setup_traces_soft_shadows_with_the_set_ups_rays_and_restores_the_users():
+    scene = cornell()
+    assert scene.eevee.shadow_ray_count == 1  # Blender's default
+    for name, setup in eevee.SETUPS.items():
+        with override() as g:
+            setup.configure(g, scene)
+            if setup.engine != "CYCLES":
+                assert scene.eevee.shadow_ray_count == eevee_setup.SHADOW_RAYS, name
+        assert scene.eevee.shadow_ray_count == 1, name
+    # What "Set up EEVEE for vplace" gives the scene is what the scored renders use.
+    eevee_setup.set_up(scene, bake_volume=False)
+    assert scene.eevee.shadow_ray_count == eevee_setup.SHADOW_RAYS
 
 
 def test_eevees_filter_has_the_spread_of_the_truths_box():

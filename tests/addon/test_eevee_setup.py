@@ -64,6 +64,7 @@ def test_every_problem_is_named_and_set_up_fixes_it(scene):
     before = data_snapshot()
     changed = eevee_setup.set_up(scene, bake_volume=False)
     assert any("shadow_pool_size = '512'" in c for c in changed)
+    assert "scene.eevee.shadow_ray_count = 4" in changed
     assert e.fast_gi_method == "AMBIENT_OCCLUSION_ONLY" and e.use_raytracing
     volume = eevee_setup.vplace_volume(scene)
     assert volume is not None and not volume.data.capture_indirect
