@@ -88,8 +88,12 @@ def test_eevee_with_the_world_sun_lamp_gives_cycles_direct_light_through_windows
 
 def test_the_stand_ins_jittered_soft_shadows_match_cycles_better_than_unjittered():
     """The panels' stand-ins as written (jittered soft shadows) against the same lights with
-    jitter off, at the scored renders' samples: EEVEE's direct light against Cycles'. Stand-ins
-    written without jitter (the main before) score as the second and fail."""
+    jitter off, at the scored renders' samples and shadow rays: EEVEE's direct light against
+    Cycles'. Stand-ins written without jitter (the main before) score as the second and fail.
+    Measured: with one shadow ray SSIM .9645 against .9451, brightness .996 against .972; with
+    the set-up's four rays (``eevee_setup.SHADOW_RAYS``, stop 66) .9689 against .9594, brightness
+    .996 against .972: the rays take the grain out of the unjittered penumbrae, not their
+    darkness."""
     bpy.ops.wm.open_mainfile(filepath=str(default_scene.builtin_scene("panelroom")))
     scene = bpy.context.scene
     exported = export.export_scene(scene)
@@ -109,8 +113,9 @@ def test_the_stand_ins_jittered_soft_shadows_match_cycles_better_than_unjittered
     finally:
         apply.clear_vpls()
     print(_rounded(scores))
-    assert abs(scores[True]["brightness"] - 1) < 0.03, scores
-    assert scores[True]["ssim"] > scores[False]["ssim"] + 0.01, scores
+    assert abs(scores[True]["brightness"] - 1) < 0.01, scores
+    assert abs(scores[False]["brightness"] - 1) > abs(scores[True]["brightness"] - 1) + 0.015
+    assert scores[True]["ssim"] > scores[False]["ssim"] + 0.005, scores
     assert scores[True]["rmse"] < scores[False]["rmse"], scores
 
 
