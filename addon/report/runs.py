@@ -55,7 +55,7 @@ from ..native import vplace
 from ..scene import export
 from ..scenes import registry as default_scene
 from ..settings import override
-from ..writeback import apply, eevee_setup
+from ..writeback import apply, cut_lights, eevee_setup
 from ..writeback import eevee_render as eevee
 from .config import (
     CAPTURE_CURVE,
@@ -599,6 +599,13 @@ class _EeveeRun:
                 "light (Cycles rendering them) "
                 f"{pct(a.stand_in_share, signed=True)}, EEVEE's rendering of them "
                 f"{pct(a.share['direct'] - a.stand_in_share, signed=True)}"
+                + (
+                    f"; (a) in the {a.cut_pixels:.1%} of pixels whose plane cuts a light: "
+                    f"{pct(a.cut_share, signed=True)}, EEVEE's direct light "
+                    f"{a.cut_brightness:.3f}x Cycles' there"
+                    if a.cut_pixels > 0
+                    else "; no pixel's plane cuts a light"
+                )
             )
 
     def each_view(
@@ -663,6 +670,7 @@ class _EeveeRun:
             truth.gi,
             seen,
             self.stand_ins.get(view.name),
+            cut_lights.cut_pixels(self.bl_scene, view.view),
         )
 
     def vpl_rows(self, method: str, s: LaidSet, world_bake: float, portals: bool) -> None:

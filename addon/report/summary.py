@@ -154,6 +154,12 @@ def _attribution_detail(a: dict[str, Any] | None) -> dict[str, str]:
             "sees an emitter, the world or a lamp in a mirror: their edges and patterns, "
             "anti-aliased EEVEE's way)"
         )
+    cut = a.get("cut_share", math.nan)
+    if math.isfinite(cut) and a.get("cut_pixels", 0.0) > 0:
+        seen += (
+            f" ({pct(cut)} in the {a['cut_pixels']:.1%} of pixels whose surface's plane passes "
+            f"through a light, which EEVEE darkens: {a['cut_brightness']:.2f}x Cycles' there)"
+        )
     model = a.get("stand_in_share", math.nan)
     if math.isfinite(model):
         seen += (
@@ -720,6 +726,7 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
                 f"{a['ssim_cycles_direct']:.3f} / {a['ssim_evaluator_vpl']:.3f}",
                 _seen_cell(a),
                 _stand_in_cell(a),
+                _cut_cell(a),
             ]
         )
     if not body:
@@ -729,7 +736,7 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
     header += ["hot pixels: EEVEE / evaluator", "worst 1 %: EEVEE / evaluator", "(b) hot"]
     header += ["hot pixels without (a) / without (b)"]
     header += ["SSIM without (a) / without (b)", "(a) where emitters are seen"]
-    header += ["(a): the stand-ins / EEVEE's rendering"]
+    header += ["(a): the stand-ins / EEVEE's rendering", "(a) where a light's plane is cut"]
     return [
         "",
         "Where EEVEE's error comes from, RMSE of each part (its share of EEVEE's squared error):"
@@ -750,7 +757,11 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
         "the same lights (the stand-ins, the emissive meshes lighting nothing, the world "
         "lighting nothing where sky portals stand in for it): the stand-ins' own light against "
         "Cycles' direct light (what vplace writes), and EEVEE's rendering of those lights "
-        "against Cycles' (its shadow maps, film and texture filtering).",
+        "against Cycles' (its shadow maps, film and texture filtering). (a) where a light's "
+        "plane is cut: the share of EEVEE's squared error that (a) holds in the pixels whose "
+        "surface's plane passes through one of the scene's shadowed lights or stand-ins "
+        "(EEVEE's soft shadows count the part of the light behind that plane as shadowed), how "
+        "many pixels those are, and EEVEE's direct light over Cycles' in them.",
         "",
         *vplace.markdown.table(header, body),
     ]
@@ -762,6 +773,17 @@ def _stand_in_cell(a: dict[str, Any]) -> str:
     if not math.isfinite(model):
         return "-"
     return f"{pct(model, signed=True)} / {pct(a['share']['direct'] - model, signed=True)}"
+
+
+def _cut_cell(a: dict[str, Any]) -> str:
+    """The attribution table's "(a) where a light's plane is cut" cell: the share of EEVEE's
+    squared error, the pixels, EEVEE's direct light over Cycles' there ("-" without a mask)."""
+    share, pixels = a.get("cut_share", math.nan), a.get("cut_pixels", math.nan)
+    if not math.isfinite(share):
+        return "-"
+    if not pixels > 0:
+        return "none"
+    return f"{pct(share, signed=True)} in {pixels:.1%}, {a['cut_brightness']:.3f}x"
 
 
 def _seen_cell(a: dict[str, Any]) -> str:

@@ -460,6 +460,28 @@ def evaluated_mesh(obj: bpy.types.Object) -> Iterator[bpy.types.Mesh | None]:
         obj.to_mesh_clear()
 
 
+def world_triangles(obj: bpy.types.Object, matrix: Any) -> tuple[np.ndarray, np.ndarray] | None:
+    """The evaluated mesh of ``obj`` as triangles in world space, (T, 3, 3) float64 (``matrix``
+    its world matrix, 4x4), with each triangle's material slot index (T,) int64; None where it
+    has none."""
+    m = np.asarray(matrix, dtype=np.float64)
+    with evaluated_mesh(obj) as mesh:
+        if mesh is None or len(mesh.vertices) == 0:
+            return None
+        mesh.calc_loop_triangles()
+        nt = len(mesh.loop_triangles)
+        if nt == 0:
+            return None
+        co = np.empty(len(mesh.vertices) * 3, dtype=np.float64)
+        mesh.vertices.foreach_get("co", co)
+        idx = np.empty(nt * 3, dtype=np.int64)
+        mesh.loop_triangles.foreach_get("vertices", idx)
+        slot = np.empty(nt, dtype=np.int64)
+        mesh.loop_triangles.foreach_get("material_index", slot)
+    co = co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
+    return co[idx.reshape(-1, 3)], slot
+
+
 def _is_vpl(obj: bpy.types.Object) -> bool:
     original = obj.original if obj.original is not None else obj
     return bool(original.get(VPL_MARKER, False))

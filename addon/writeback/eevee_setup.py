@@ -55,11 +55,13 @@ settings that fix it:
 - at most :data:`MAX_LIGHTS` lights (EEVEE drops the rest).
 
 What is not vplace's and is the user's to change, :func:`lamp_notes` names: **an area light's
-Spread**, which EEVEE ignores (:func:`spread_lamps`), and **the user's lamps'
-soft shadows without jitter**. EEVEE then blurs one shadow map per lamp with a noisy filter: on the
-Cornell box at 16 samples its direct light scored SSIM 0.978 and 0.941 against Cycles' (two
-cameras), 0.989 and 0.976 with the lamp's jitter on (``docs/EEVEE_NOTES.md``, Q7). vplace turns
-jitter on for its own stand-ins (``apply.STAND_IN_SHADOW_SETTINGS``), never on the user's lamps.
+Spread**, which EEVEE ignores (:func:`spread_lamps`), **a lamp that the plane of a surface in
+front of it cuts**, whose light EEVEE darkens on that surface (:mod:`.cut_lights`), and **the
+user's lamps' soft shadows without jitter**. EEVEE then blurs one shadow map per lamp with a
+noisy filter: on the Cornell box at 16 samples its direct light scored SSIM 0.978 and 0.941
+against Cycles' (two cameras), 0.989 and 0.976 with the lamp's jitter on
+(``docs/EEVEE_NOTES.md``, Q7). vplace turns jitter on for its own stand-ins
+(``apply.STAND_IN_SHADOW_SETTINGS``), never on the user's lamps.
 """
 
 from __future__ import annotations
@@ -77,7 +79,7 @@ from ..compat import eevee_engine, uses_nodes
 from ..errors import AddonError
 from ..scene.export import VPL_MARKER, unit_scale
 from ..settings import SettingsGuard, override
-from . import apply, keyed
+from . import apply, cut_lights, keyed
 from .stand_ins import SunLight
 
 #: The shadow rays EEVEE traces per light and pixel for soft shadows (``shadow_ray_count``, 1 to
@@ -566,6 +568,14 @@ def lamp_notes(scene: bpy.types.Scene) -> list[str]:
             f"EEVEE ignores the Spread of {len(spread)} of your area lights (e.g. {name!r}, "
             f"{degrees:.0f} degrees): they light wider in EEVEE than in Cycles, whose light "
             "vplace's VPLs carry on"
+        )
+    cut = cut_lights.cut_lamps(scene)
+    if cut:
+        notes.append(
+            f"EEVEE darkens the surfaces whose plane passes through {len(cut)} of your lamps "
+            f"(e.g. {cut[0]!r}): its soft shadows count the part of the lamp behind such a "
+            "surface as shadowed (the Cornell box's tall block gets 0.80x Cycles' direct light); "
+            "no EEVEE setting changes it but the lamp's shadow"
         )
     return notes
 

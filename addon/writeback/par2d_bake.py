@@ -18,7 +18,7 @@ import numpy as np
 
 from ..compat import new_material
 from ..native import vplace
-from ..scene.export import evaluated_mesh, material_info
+from ..scene.export import material_info, world_triangles
 
 __all__ = [
     "Flat2DScene",
@@ -63,22 +63,11 @@ def collect_polygons(
             continue
         ev = obj.evaluated_get(depsgraph)
         mats = [material_info(s.material).emission for s in ev.material_slots]
-        matrix = np.array(ev.matrix_world, dtype=np.float64)
-        with evaluated_mesh(ev) as mesh:
-            if mesh is None or len(mesh.vertices) == 0:
-                continue
-            mesh.calc_loop_triangles()
-            co = np.empty(len(mesh.vertices) * 3, dtype=np.float64)
-            mesh.vertices.foreach_get("co", co)
-            co = co.reshape(-1, 3) @ matrix[:3, :3].T + matrix[:3, 3]
-            nt = len(mesh.loop_triangles)
-            if nt == 0:
-                continue
-            idx = np.empty(nt * 3, dtype=np.int64)
-            mesh.loop_triangles.foreach_get("vertices", idx)
-            mat_idx = np.empty(nt, dtype=np.int64)
-            mesh.loop_triangles.foreach_get("material_index", mat_idx)
-        tris.append(co[idx.reshape(-1, 3)][:, :, :2])
+        found = world_triangles(ev, ev.matrix_world)
+        if found is None:
+            continue
+        world, mat_idx = found
+        tris.append(world[:, :, :2])
         table = np.array(mats if mats else [(0.0, 0.0, 0.0)], dtype=np.float64).reshape(-1, 3)
         emits.append(table[np.clip(mat_idx, 0, len(table) - 1)])
     if not tris:

@@ -17,7 +17,7 @@ from ..capture.native_view import vpl_unlit
 from ..errors import WriteBackError, run_operator
 from ..native import vplace
 from ..settings import override
-from . import apply, eevee_setup
+from . import apply, cut_lights, eevee_setup
 from .stand_ins import StandIns
 
 if TYPE_CHECKING:
@@ -152,6 +152,7 @@ def score_eevee(
         reference.gi,
         reference.seen,
         stand_ins,
+        cut_lights.cut_pixels(bl_scene, reference.view),
     )
     out = {
         **vplace.job.score(img.image, reference.gi),
@@ -170,4 +171,7 @@ def score_eevee(
         out["attribution_seen_share"] = a.seen_share
     if stand_ins is not None:
         out["attribution_stand_in_share"] = a.stand_in_share
+    out["attribution_cut_pixels"] = a.cut_pixels
+    out["attribution_cut_share"] = a.cut_share
+    out["attribution_cut_brightness"] = a.cut_brightness
     return out

@@ -8,9 +8,10 @@ import bpy
 import numpy as np
 import pytest
 from blender_util import addon_cornell, data_snapshot, diff
+from mathutils import Vector
 
 from addon.native import vplace
-from addon.writeback import apply, eevee_setup
+from addon.writeback import apply, cut_lights, eevee_setup
 
 
 @pytest.fixture
@@ -146,19 +147,24 @@ def test_the_operator_is_undoable_and_reports_what_it_changed(scene):
     assert "UNDO" in bpy.types.VPLACE_OT_setup_eevee.bl_options
 
 
+def _notes(scene, word):
+    """The lamp notes that name ``word``."""
+    return [n for n in eevee_setup.lamp_notes(scene) if word in n]
+
+
 def test_the_users_soft_lamps_without_jitter_are_noted_and_never_changed(scene):
     lamp = scene.objects["light"]  # the box's area light, jitter off as Blender makes it
     write(scene, 4)  # vplace's VPL lights (unjittered, by design) are not the user's lamps
     assert eevee_setup.unjittered_lamps(scene) == ["light"]
-    (note,) = eevee_setup.lamp_notes(scene)
-    assert "1 of your lamps (e.g. 'light')" in note and "Jitter" in note
+    (note,) = _notes(scene, "Jitter")
+    assert "1 of your lamps (e.g. 'light')" in note
     # vplace's own stand-ins are jittered and never noted; a set-up does not touch the lamp.
     eevee_setup.set_up(scene, bake_volume=False)
     assert not lamp.data.use_shadow_jitter and eevee_setup.unjittered_lamps(scene) == ["light"]
     lamp.data.use_shadow_jitter = True
-    assert eevee_setup.lamp_notes(scene) == []
+    assert _notes(scene, "Jitter") == []
     lamp.data.use_shadow_jitter, lamp.data.use_shadow = False, False
-    assert eevee_setup.lamp_notes(scene) == []  # no shadow, no noise
+    assert eevee_setup.lamp_notes(scene) == []  # no shadow, no noise (nor darkened planes)
     lamp.data.use_shadow = True
     lamp.hide_render = True
     assert eevee_setup.lamp_notes(scene) == []
@@ -167,6 +173,38 @@ def test_the_users_soft_lamps_without_jitter_are_noted_and_never_changed(scene):
     sun.data.angle = 0.1
     scene.collection.objects.link(sun)
     assert eevee_setup.unjittered_lamps(scene) == []
+
+
+def test_a_lamp_that_a_surfaces_plane_passes_through_is_noted(scene):
+    """The Cornell box's blocks stand beside its ceiling lamp: the planes of their faces pass
+    through it, and EEVEE darkens those faces (``tests/render/test_eevee_cut_lights.py``)."""
+    lamp = scene.objects["light"]
+    write(scene, 4)  # vplace's own lights are not the user's lamps, and are not tested
+    assert cut_lights.cut_lamps(scene) == ["light"]
+    (note,) = _notes(scene, "plane")
+    assert "1 of your lamps (e.g. 'light')" in note and "darkens" in note
+    # Without the blocks only the room's walls stand around the lamp: none passes through it.
+    for name in ("tallBox", "shortBox"):
+        scene.objects[name].hide_render = True
+    assert cut_lights.cut_lamps(scene) == [] and _notes(scene, "plane") == []
+    scene.objects["tallBox"].hide_render = False
+    assert cut_lights.cut_lamps(scene) == ["light"]
+    # A lamp that casts no shadow is not darkened; nor is one that lights nothing.
+    lamp.data.use_shadow = False
+    assert cut_lights.cut_lamps(scene) == []
+    lamp.data.use_shadow = True
+    lamp.hide_render = True
+    assert cut_lights.cut_lamps(scene) == []
+    # A sphere lamp the tall block's face plane passes through is found as well.
+    bulb = bpy.data.objects.new("bulb", bpy.data.lights.new("bulb", "POINT"))
+    block = scene.objects["tallBox"]
+    face = max(block.data.polygons, key=lambda p: abs(p.normal.x))
+    bulb.location = block.matrix_world @ face.center + Vector((0.0, 0.0, 0.6))
+    bulb.data.shadow_soft_size = 0.05
+    scene.collection.objects.link(bulb)
+    assert cut_lights.cut_lamps(scene) == ["bulb"]
+    bulb.data.shadow_soft_size = 0.0  # a point: nothing to cut
+    assert cut_lights.cut_lamps(scene) == []
 
 
 def test_a_ground_no_camera_sees_neither_stretches_the_volume_nor_the_lamps_reach(scene):
@@ -200,10 +238,10 @@ def test_a_ground_no_camera_sees_neither_stretches_the_volume_nor_the_lamps_reac
 def test_an_area_lights_spread_is_noted_as_what_eevee_ignores(scene):
     lamp = scene.objects["light"]  # the box's area light, spread 180 degrees as Blender makes it
     lamp.data.use_shadow_jitter = True
-    assert eevee_setup.spread_lamps(scene) == [] and eevee_setup.lamp_notes(scene) == []
+    assert eevee_setup.spread_lamps(scene) == [] and _notes(scene, "Spread") == []
     lamp.data.spread = math.radians(60.0)
     assert eevee_setup.spread_lamps(scene) == [("light", pytest.approx(60.0))]
-    (note,) = eevee_setup.lamp_notes(scene)
+    (note,) = _notes(scene, "Spread")
     assert "Spread of 1 of your area lights (e.g. 'light', 60 degrees)" in note
     lamp.hide_render = True
     assert eevee_setup.lamp_notes(scene) == []

@@ -273,6 +273,71 @@ def test_attribution_says_how_much_of_eevees_direct_error_is_where_emitters_are_
     assert not vjob.seen_directly(np.zeros((2, 2, 3)), np.zeros((2, 2, 3))).any()
 
 
+def _ceiling_lamp(half: float = 0.25) -> vjob.LightShape:
+    """A square lamp of half-size ``half`` at height 2, facing down, as an outline of corners
+    and edge midpoints."""
+    pts = [(x, y, 2.0) for x in (-half, 0.0, half) for y in (-half, 0.0, half) if (x, y) != (0, 0)]
+    return vjob.LightShape(np.array(pts), np.array([0.0, 0.0, 2.0]), np.array([0.0, 0.0, -1.0]))
+
+
+def test_the_planes_that_pass_through_a_light_are_found():
+    lamp = _ceiling_lamp()
+    # Points on the faces of a box below the lamp: a face whose plane x = 0.1 passes through the
+    # lamp, a face whose plane x = 0.6 passes beside it, the floor, and a face above the lamp.
+    pos = np.array([[0.1, 0.0, 1.0], [0.6, 0.0, 1.0], [0.0, 0.0, 0.0], [0.1, 0.0, 2.5]])
+    nrm = np.array([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
+    cut = vjob.cut_by_lights(pos, nrm, [lamp], 0.02)
+    assert cut.tolist() == [True, False, False, False]
+    # The normal's sign does not matter (the plane is the same); a zero normal cuts nothing.
+    assert vjob.cut_by_lights(pos, -nrm, [lamp], 0.02).tolist() == [True, False, False, False]
+    assert not vjob.cut_by_lights(pos, np.zeros_like(nrm), [lamp], 0.02).any()
+    # A plane through the lamp's edge touches it and does not cut it (within the tolerance).
+    edge = vjob.cut_by_lights(np.array([[0.25, 0.0, 1.0]]), np.array([[1.0, 0, 0]]), [lamp], 0.02)
+    assert not edge.any()
+    # A sphere light faces every way: the face above it counts.
+    sphere = vjob.LightShape(
+        np.array([[0.1, 0, 2], [-0.1, 0, 2], [0, 0.1, 2], [0, -0.1, 2], [0, 0, 2.1], [0, 0, 1.9]]),
+        np.array([0.0, 0.0, 2.0]),
+    )
+    assert vjob.cut_by_lights(pos, nrm, [sphere], 0.02).tolist() == [False, False, False, False]
+    near = np.array([[0.05, 0.0, 2.5]])
+    assert vjob.cut_by_lights(near, np.array([[1.0, 0, 0]]), [sphere], 0.02).all()
+    # (H, W, 3) images work as well; no light cuts nothing; bad input is a clear error.
+    img = np.broadcast_to(pos[:, None], (4, 5, 3))
+    assert vjob.cut_by_lights(img, np.broadcast_to(nrm[:, None], (4, 5, 3)), [lamp], 0.02)[0].all()
+    assert not vjob.cut_by_lights(pos, nrm, [], 0.02).any()
+    with pytest.raises(ValueError, match="one shape"):
+        vjob.cut_by_lights(pos, nrm[:2], [lamp], 0.02)
+    with pytest.raises(ValueError, match="NaN"):
+        vjob.cut_by_lights(np.full((1, 3), np.nan), nrm[:1], [lamp], 0.02)
+    with pytest.raises(ValueError, match="tolerance"):
+        vjob.cut_by_lights(pos, nrm, [lamp], -1.0)
+
+
+def test_attribution_says_how_much_of_eevees_direct_error_is_where_a_lights_plane_is_cut():
+    # A room lit by one lamp, whose plane-cut pixels (two columns) EEVEE darkens to 0.8x, and a
+    # noisy patch elsewhere.
+    h, w = 12, 16
+    cycles_direct = np.full((h, w, 3), 0.3)
+    cut = np.zeros((h, w), bool)
+    cut[:, :2] = True
+    eevee_direct = cycles_direct.copy()
+    eevee_direct[cut] *= 0.8
+    eevee_direct[5:7, 8:10] += 0.06
+    vpl = np.full((h, w, 3), 0.1)
+    truth = cycles_direct + vpl
+    a = vjob.attribute(eevee_direct + vpl, eevee_direct, cycles_direct, vpl, truth, None, None, cut)
+    strip, patch = 2 * h * 0.06**2, 4 * 0.06**2
+    assert a.cut_pixels == pytest.approx(2 / w)
+    assert a.cut_share == pytest.approx(strip / (strip + patch))
+    assert a.cut_brightness == pytest.approx(0.8)
+    none = vjob.attribute(truth, cycles_direct, cycles_direct, vpl, truth, None, None, ~cut & cut)
+    assert none.cut_pixels == 0.0 and none.cut_share == 0.0 and np.isnan(none.cut_brightness)
+    assert np.isnan(vjob.attribute(truth, cycles_direct, cycles_direct, vpl, truth).cut_share)
+    with pytest.raises(ValueError, match="cut must be"):
+        vjob.attribute(truth, cycles_direct, cycles_direct, vpl, truth, None, None, cut[:3])
+
+
 def test_baselines_share_the_fit_and_leave_the_method_out(room):
     scene, v, ref = room
     computed, compared = vjob.compute_with_baselines(

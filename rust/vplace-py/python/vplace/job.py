@@ -493,6 +493,13 @@ class Attribution:
     #: that stay are EEVEE's direct light's or the evaluator's own).
     hot_cycles_direct: float = float("nan")
     hot_evaluator_vpl: float = float("nan")
+    #: With a ``cut`` mask (:func:`cut_by_lights`): the share of pixels whose surface's plane
+    #: cuts one of the scene's lights (EEVEE's soft shadows darken them), the share of EEVEE's
+    #: squared error that part ``direct`` holds in them, and EEVEE's direct light over Cycles'
+    #: there (mean luminance); NaN without a mask (the brightness also where no pixel is cut).
+    cut_pixels: float = float("nan")
+    cut_share: float = float("nan")
+    cut_brightness: float = float("nan")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready."""
@@ -519,6 +526,65 @@ def seen_directly(seen_light: np.ndarray, direct: np.ndarray) -> np.ndarray:
     lum = np.asarray(vplace.LUMINANCE, dtype=np.float64)
     la, lb = a[..., :3] @ lum, b[..., :3] @ lum
     return (la > 0.0) & (la >= SEEN_SHARE * lb)
+
+
+@dataclass(frozen=True)
+class LightShape:
+    """A light's emitting shape, as :func:`cut_by_lights` tests it: points on its outline
+    ((K, 3): an area light's edges, a sphere light's surface), its centre (3,) and the unit
+    direction it emits towards (an area light's front), None where it lights every side."""
+
+    outline: np.ndarray
+    centre: np.ndarray
+    facing: np.ndarray | None = None
+
+
+def cut_by_lights(
+    position: np.ndarray, normal: np.ndarray, shapes: Sequence[LightShape], tolerance: float
+) -> np.ndarray:
+    """(...) bool, for points ``position`` with unit normals ``normal`` (both (..., 3)): the
+    points whose tangent plane cuts one of ``shapes``, with part of it in front of the plane
+    and part behind, each by more than ``tolerance`` times the shape's radius (the farthest
+    outline point from its centre), and the point in front of the light by as much (for a
+    light that faces one way).
+
+    EEVEE darkens such a point: its soft shadow traces rays to points all over the light, and
+    the rays to the part behind the surface's own plane start into the surface and count as
+    shadowed, on top of the part its shading already leaves out. Measured (Blender 5.0, four
+    shadow rays): the Cornell box's tall block, whose faces' planes pass through the ceiling
+    lamp, gets 0.80x Cycles' direct light in EEVEE, and 1.025x with the lamp's shadow off;
+    every other surface 1.00x (``docs/EEVEE_NOTES.md``, Q11). A zero normal cuts nothing."""
+    x = np.asarray(position, dtype=np.float64)
+    n = np.asarray(normal, dtype=np.float64)
+    if x.shape != n.shape or x.ndim < 1 or x.shape[-1] != 3:
+        raise ValueError(
+            f"cut_by_lights needs positions and normals of one shape (..., 3), got {x.shape}, "
+            f"{n.shape}"
+        )
+    if not (np.isfinite(tolerance) and tolerance >= 0.0):
+        raise ValueError(f"cut_by_lights: the tolerance must be finite and >= 0, got {tolerance}")
+    if not (np.isfinite(x).all() and np.isfinite(n).all()):
+        raise ValueError("cut_by_lights: the positions or normals hold NaN or infinity")
+    out = np.zeros(x.shape[:-1], dtype=bool)
+    has_normal = (n * n).sum(-1) > 0.25
+    height = (x * n).sum(-1)
+    for shape in shapes:
+        outline = np.asarray(shape.outline, dtype=np.float64).reshape(-1, 3)
+        if len(outline) == 0:
+            continue
+        centre = np.asarray(shape.centre, dtype=np.float64)
+        margin = tolerance * float(np.sqrt(((outline - centre) ** 2).sum(-1).max()))
+        lowest = np.full(out.shape, np.inf)
+        highest = np.full(out.shape, -np.inf)
+        for p in outline:
+            d = n @ p - height
+            np.minimum(lowest, d, out=lowest)
+            np.maximum(highest, d, out=highest)
+        cut = has_normal & (lowest < -margin) & (highest > margin)
+        if shape.facing is not None:
+            cut &= (x - centre) @ np.asarray(shape.facing, dtype=np.float64) > margin
+        out |= cut
+    return out
 
 
 def _box_sums(a: np.ndarray, size: int) -> np.ndarray:
@@ -563,6 +629,18 @@ def eevee_deficit(
     return (mean * weight[..., None]).astype(np.float32)
 
 
+def _pixel_mask(name: str, mask: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray | None:
+    """``mask`` checked as :func:`attribute`'s (H, W) bool mask ``name`` (None stays None)."""
+    if mask is None:
+        return None
+    m = np.asarray(mask)
+    if m.dtype != np.bool_ or m.shape != shape:
+        raise ValueError(
+            f"attribute: {name} must be an (H, W) = {shape} bool mask, got {m.dtype} {m.shape}"
+        )
+    return m
+
+
 def attribute(
     eevee: np.ndarray,
     eevee_direct: np.ndarray,
@@ -571,6 +649,7 @@ def attribute(
     truth: np.ndarray,
     seen: np.ndarray | None = None,
     stand_ins: np.ndarray | None = None,
+    cut: np.ndarray | None = None,
 ) -> Attribution:
     """Splits ``eevee - truth`` (RGB images of one view, the same shape) into the three parts of
     :class:`Attribution`: ``eevee_direct - cycles_direct``, ``(eevee - eevee_direct) -
@@ -581,7 +660,10 @@ def attribute(
     ``seen_share``.
     ``stand_ins`` (RGB, the same shape: Cycles rendering the lights EEVEE's direct light comes
     from) splits part ``direct`` into the stand-ins' own error and EEVEE's rendering of them
-    (``stand_in_share``)."""
+    (``stand_in_share``).
+    ``cut`` ((H, W) bool, :func:`cut_by_lights`) marks the pixels whose surface's plane cuts a
+    light: how much of part ``direct`` lies there, and how bright EEVEE's direct light is
+    there, are ``cut_share`` and ``cut_brightness``."""
     arrays = [eevee, eevee_direct, cycles_direct, evaluator_vpl, truth]
     e, ed, cd, vx, t = (np.asarray(a, dtype=np.float64)[..., :3] for a in arrays)
     if not e.shape == ed.shape == cd.shape == vx.shape == t.shape or e.ndim != 3:
@@ -589,13 +671,8 @@ def attribute(
         raise ValueError(f"attribute needs five (H, W, 3) images of one shape, got {shapes}")
     if not all(np.isfinite(a).all() for a in (e, ed, cd, vx, t)):
         raise ValueError("attribute: an image holds NaN or infinity")
-    if seen is not None:
-        seen = np.asarray(seen)
-        if seen.dtype != np.bool_ or seen.shape != e.shape[:2]:
-            raise ValueError(
-                f"attribute: seen must be an (H, W) = {e.shape[:2]} bool mask, got "
-                f"{seen.dtype} {seen.shape}"
-            )
+    seen = _pixel_mask("seen", seen, e.shape[:2])
+    cut = _pixel_mask("cut", cut, e.shape[:2])
     si = None
     if stand_ins is not None:
         si = np.asarray(stand_ins, dtype=np.float64)
@@ -642,6 +719,9 @@ def attribute(
         ssim_evaluator_vpl=ssim(ed + vx),
         seen_pixels=float(seen.mean()) if seen is not None else float("nan"),
         seen_share=share_of(parts["direct"] * seen[..., None]) if seen is not None else math.nan,
+        cut_pixels=float(cut.mean()) if cut is not None else math.nan,
+        cut_share=share_of(parts["direct"] * cut[..., None]) if cut is not None else math.nan,
+        cut_brightness=ratio(ed[cut], cd[cut]) if cut is not None and cut.any() else math.nan,
         stand_in_share=share_of(model) if model is not None else math.nan,
         stand_in_rmse=float(np.sqrt((model * model).mean())) if model is not None else float("nan"),
         hot_cycles_direct=outliers(cd + ve, t)["hot_pixels"],
@@ -975,6 +1055,12 @@ class PanelReport:
                     f"  {markdown.percent(model)} vplace's stand-ins, "
                     f"{markdown.percent(direct - model)} EEVEE's rendering (not vplace's)"
                 )
+            cut = e.get("attribution_cut_share")
+            if cut is not None and math.isfinite(cut) and e.get("attribution_cut_pixels", 0) > 0:
+                lines.append(
+                    f"  {markdown.percent(cut)} where a surface's plane cuts a light "
+                    f"({e['attribution_cut_brightness']:.2f}x Cycles' there)"
+                )
             lines.append(
                 f"{markdown.percent(e['attribution_share_vpl'])} its VPL light, "
                 f"{markdown.percent(e['attribution_share_rest'])} the evaluator's own"
@@ -1112,8 +1198,21 @@ def eevee_notes(e: dict[str, float], stand_ins: int = 0) -> list[str]:
                 f"direct light (Cycles rendering them), {markdown.percent(rendering)} EEVEE's "
                 "rendering of the lights"
             )
+        line += _cut_clause(e)
         lines.append(line + ".")
     return lines
+
+
+def _cut_clause(e: dict[str, Any]) -> str:
+    """The attribution's pixels whose plane cuts a light, as a clause ('' where none is)."""
+    cut, pixels = e.get("attribution_cut_share"), e.get("attribution_cut_pixels", 0.0)
+    if cut is None or not math.isfinite(cut) or not pixels > 0:
+        return ""
+    return (
+        f"; {markdown.percent(cut)} is its direct light in the {pixels:.1%} of pixels whose "
+        "surface's plane passes through a light, which EEVEE darkens "
+        f"({e['attribution_cut_brightness']:.2f}x Cycles' there)"
+    )
 
 
 def stand_ins_written(report: JobSummary) -> int:

@@ -1,0 +1,143 @@
+"""The surfaces whose plane cuts a light, which EEVEE darkens (``docs/EEVEE_NOTES.md``, Q11).
+
+EEVEE traces a soft shadow with rays to points all over the light's shape. Where a surface's own
+plane passes through the light (a box beside a ceiling lamp, a wall beside a lamp that pokes
+past it), the rays to the part behind the plane start into the surface and count as shadowed,
+on top of the part its shading already leaves out: the Cornell box's tall block gets 0.80x
+Cycles' direct light in EEVEE, 1.025x with the lamp's shadow off, and every other surface 1.00x
+(Blender 5.0, four shadow rays). Jitter, the shadow filter and the shadow map's resolution do
+not change it. It is EEVEE's rendering of the light, not vplace's: this module finds those
+surfaces, for the report's attribution (:func:`cut_pixels`) and for the lamp notes
+(:func:`cut_lamps`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+
+import bpy
+import numpy as np
+from mathutils import Matrix, Vector
+
+from ..native import vplace
+from ..scene.export import GEOMETRY_TYPES, VPL_MARKER, world_triangles
+
+#: A plane "cuts" a light where more than this share of the light's radius lies on each side of
+#: it (a wall flush with a lamp's edge, or a lamp flush with the ceiling, does not cut it).
+TOLERANCE = 0.02
+#: Points on an outline: an area light's edges, a sphere light's surface.
+OUTLINE_POINTS = 32
+
+
+def _sphere_points(n: int) -> np.ndarray:
+    """``n`` points spread over the unit sphere (a Fibonacci lattice), (n, 3)."""
+    i = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * i / n
+    r = np.sqrt(1.0 - z * z)
+    phi = math.pi * (3.0 - math.sqrt(5.0)) * i
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
+
+
+def light_shape(obj: bpy.types.Object) -> vplace.job.LightShape | None:
+    """The emitting shape of the light ``obj`` in world space: an AREA light's outline facing
+    its local -Z, a POINT or SPOT light of non-zero radius as a sphere; None for a sun or a
+    point light of radius 0 (nothing to cut)."""
+    light = obj.data
+    m = obj.matrix_world
+    centre = np.asarray(m.translation, dtype=np.float64)
+    if light.type == "AREA":
+        sx = light.size / 2.0
+        sy = (light.size_y if light.shape in ("RECTANGLE", "ELLIPSE") else light.size) / 2.0
+        t = np.linspace(0.0, 2.0 * math.pi, OUTLINE_POINTS, endpoint=False)
+        if light.shape in ("DISK", "ELLIPSE"):
+            local = np.stack([sx * np.cos(t), sy * np.sin(t), np.zeros_like(t)], axis=-1)
+        else:  # the square's edges, walked at even steps of the angle
+            c, s = np.cos(t), np.sin(t)
+            k = 1.0 / np.maximum(np.abs(c), np.abs(s))
+            local = np.stack([sx * c * k, sy * s * k, np.zeros_like(t)], axis=-1)
+        facing = np.asarray(m.to_3x3() @ Vector((0.0, 0.0, -1.0)), dtype=np.float64)
+        norm = np.linalg.norm(facing)
+        if norm <= 0.0 or max(sx, sy) <= 0.0:
+            return None
+        return vplace.job.LightShape(_world(m, local), centre, facing / norm)
+    if light.type in ("POINT", "SPOT") and light.shadow_soft_size > 0.0:
+        local = light.shadow_soft_size * _sphere_points(OUTLINE_POINTS)
+        return vplace.job.LightShape(centre + local @ _scale(m).T, centre, None)
+    return None
+
+
+def _scale(m: Matrix) -> np.ndarray:
+    """``m``'s uniform scale as a 3x3 matrix (a sphere light's radius ignores rotation)."""
+    return np.eye(3) * float(np.cbrt(abs(np.linalg.det(np.asarray(m.to_3x3())))))
+
+
+def _world(m: Matrix, local: np.ndarray) -> np.ndarray:
+    a = np.asarray(m, dtype=np.float64)
+    return local @ a[:3, :3].T + a[:3, 3]
+
+
+def scene_lights(scene: bpy.types.Scene, *, users_only: bool) -> list[bpy.types.Object]:
+    """The render-visible lights of ``scene`` that cast shadows in EEVEE (none where the scene's
+    shadows are off): the user's, and with ``users_only`` False also vplace's stand-ins (the
+    VPLs themselves are left out: their light is attribution part (b))."""
+    if not scene.eevee.use_shadows:
+        return []
+    out = []
+    for obj in scene.objects:
+        if obj.type != "LIGHT" or obj.hide_render or not obj.data.use_shadow:
+            continue
+        if obj.get("vplace_index") is not None:
+            continue
+        if users_only and obj.get(VPL_MARKER, False):
+            continue
+        out.append(obj)
+    return out
+
+
+def cut_pixels(scene: bpy.types.Scene, view: vplace.View) -> np.ndarray:
+    """(H, W) bool: the pixels of ``view`` (its G-buffer) whose surface's plane cuts one of the
+    shadowed lights of ``scene`` other than the VPLs (:func:`scene_lights`)."""
+    shapes = [s for o in scene_lights(scene, users_only=False) if (s := light_shape(o))]
+    return vplace.job.cut_by_lights(
+        np.asarray(view.position), np.asarray(view.normal), shapes, TOLERANCE
+    )
+
+
+def _triangles(scene: bpy.types.Scene) -> Iterable[tuple[np.ndarray, np.ndarray]]:
+    """Each render-visible mesh's triangles in world space: (centroids (T, 3), unit normals)."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        original = obj.original if obj.original is not None else obj
+        if obj.type not in GEOMETRY_TYPES or original.hide_render:
+            continue
+        if original.get(VPL_MARKER, False):
+            continue
+        found = world_triangles(obj, inst.matrix_world)
+        if found is None:
+            continue
+        tri = found[0]
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        length = np.linalg.norm(n, axis=1)
+        keep = length > 0.0
+        yield tri[keep].mean(axis=1), n[keep] / length[keep, None]
+
+
+def cut_lamps(scene: bpy.types.Scene) -> list[str]:
+    """The user's shadowed lamps (not vplace's) that the plane of a render-visible surface in
+    front of them cuts: EEVEE darkens that surface (the module docs). Sorted by name."""
+    lamps = {o.name: s for o in scene_lights(scene, users_only=True) if (s := light_shape(o))}
+    if not lamps:
+        return []
+    found: set[str] = set()
+    for centroids, normals in _triangles(scene):
+        for name, shape in lamps.items():
+            if (
+                name not in found
+                and vplace.job.cut_by_lights(centroids, normals, [shape], TOLERANCE).any()
+            ):
+                found.add(name)
+        if len(found) == len(lamps):
+            break
+    return sorted(found)
