@@ -282,7 +282,7 @@ def _configure(
     g.set(ims, "exr_codec", "NONE")
 
 
-def _read_exr(path: Path, layer: str) -> dict[str, np.ndarray]:
+def read_exr(path: Path, layer: str) -> dict[str, np.ndarray]:
     """Passes of a multilayer EXR as arrays, keyed by pass name."""
     out: dict[str, np.ndarray] = {}
     xyz: dict[str, dict[str, np.ndarray]] = {}
@@ -460,7 +460,7 @@ def _capture_now(
                 bpy.data.images["Render Result"].save_render(filepath=str(exr), scene=scene)
         finally:
             bpy.app.handlers.render_stats.remove(handler)
-        passes = _read_exr(exr, view_layer.name)
+        passes = read_exr(exr, view_layer.name)
     missing = [p for p in PASS_FLAGS if p not in passes]
     if missing:
         raise CaptureError(f"the render is missing the passes {missing}")

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -510,6 +511,15 @@ def reference_rows(view: ViewData, scene_name: str) -> list[Row]:
     ]
 
 
+def colour_of(truth: capture.Capture, eevee_colour: np.ndarray | None) -> np.ndarray | None:
+    """Attribution part ``direct``'s share in the surfaces' colour (``vplace.job.colour_part``):
+    the truth's diffuse light times EEVEE's Diffuse Color minus the truth's; None without
+    EEVEE's pass."""
+    if eevee_colour is None:
+        return None
+    return vplace.job.colour_part(truth.diffuse_direct, eevee_colour, truth.diffuse_color)
+
+
 def eevee_views(data: SceneData, config: ReportConfig) -> list[ViewData]:
     """The views of ``data`` that EEVEE renders: those ``config.eevee_views`` names (every view
     where it names none). Raises :class:`ReportError` where it names views and none of them is
@@ -545,6 +555,9 @@ class _EeveeRun:
     #: what splits attribution part ``direct`` into the stand-ins' own error and EEVEE's
     #: rendering of them. Empty where the world lights EEVEE.
     stand_ins: dict[str, np.ndarray] = field(default_factory=dict)
+    #: Per view, the Diffuse Color pass of :attr:`direct`'s render (attribution part ``direct``'s
+    #: share in the surfaces' colour as EEVEE filters it; None where the render had none).
+    direct_colour: dict[str, np.ndarray | None] = field(default_factory=dict)
     #: Per view and method, EEVEE's VPL light minus the evaluator's (attribution part ``vpl``).
     vpl_differences: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
 
@@ -606,12 +619,20 @@ class _EeveeRun:
                     if a.cut_pixels > 0
                     else "; no pixel's plane cuts a light"
                 )
+                + (
+                    "; (a) in the surfaces' colour as EEVEE filters it (Cycles' diffuse light "
+                    "times EEVEE's Diffuse Color minus Cycles'): "
+                    f"{pct(a.colour_share, signed=True)}"
+                    if math.isfinite(a.colour_share)
+                    else ""
+                )
             )
 
     def each_view(
-        self, setup: eevee.Setup, samples: int
+        self, setup: eevee.Setup, samples: int, diffuse_color: bool = False
     ) -> Iterator[tuple[ViewData, eevee.EeveeImage]]:
-        """Every view EEVEE renders (:func:`eevee_views`) with ``setup`` at ``samples`` (cached)."""
+        """Every view EEVEE renders (:func:`eevee_views`) with ``setup`` at ``samples`` (cached;
+        with its Diffuse Color pass where ``diffuse_color``)."""
         for view in eevee_views(self.data, self.config):
             yield (
                 view,
@@ -623,6 +644,7 @@ class _EeveeRun:
                     setup=setup,
                     seed=CURVE_SEED,
                     cache_dir=self.cache_dir,
+                    diffuse_color=diffuse_color,
                 ),
             )
 
@@ -631,8 +653,11 @@ class _EeveeRun:
         their VPLs hidden for the render, vplace's stand-ins kept."""
         with override() as g:
             apply.hide_vpl_lights(g, self.bl_scene)
-            for view, img in self.each_view(eevee.SETUPS["vpl"], self.config.eevee_samples):
+            for view, img in self.each_view(
+                eevee.SETUPS["vpl"], self.config.eevee_samples, diffuse_color=True
+            ):
                 self.direct[view.name] = img.image
+                self.direct_colour[view.name] = img.diffuse_color
                 self.log(f"[vplace]   eevee {view.name} direct light only {img.seconds:6.1f} s")
             emissive = self.data.prepared.exported.emissive_materials
             if not eevee_setup.cycles_as_eevee_lights(g, self.bl_scene, emissive):
@@ -671,6 +696,7 @@ class _EeveeRun:
             seen,
             self.stand_ins.get(view.name),
             cut_lights.cut_pixels(self.bl_scene, view.view),
+            colour_of(truth, self.direct_colour.get(view.name)),
         )
 
     def vpl_rows(self, method: str, s: LaidSet, world_bake: float, portals: bool) -> None:

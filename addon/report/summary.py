@@ -154,6 +154,12 @@ def _attribution_detail(a: dict[str, Any] | None) -> dict[str, str]:
             "sees an emitter, the world or a lamp in a mirror: their edges and patterns, "
             "anti-aliased EEVEE's way)"
         )
+    colour = a.get("colour_share", math.nan)
+    if math.isfinite(colour):
+        seen += (
+            f" ({pct(colour)} in the surfaces' colour as EEVEE filters it: its Diffuse Color "
+            "pass against Cycles' under Cycles' diffuse light)"
+        )
     cut = a.get("cut_share", math.nan)
     if math.isfinite(cut) and a.get("cut_pixels", 0.0) > 0:
         seen += (
@@ -727,6 +733,7 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
                 _seen_cell(a),
                 _stand_in_cell(a),
                 _cut_cell(a),
+                _share_cell(a, "colour_share"),
             ]
         )
     if not body:
@@ -737,6 +744,7 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
     header += ["hot pixels without (a) / without (b)"]
     header += ["SSIM without (a) / without (b)", "(a) where emitters are seen"]
     header += ["(a): the stand-ins / EEVEE's rendering", "(a) where a light's plane is cut"]
+    header += ["(a) in the surfaces' colour"]
     return [
         "",
         "Where EEVEE's error comes from, RMSE of each part (its share of EEVEE's squared error):"
@@ -761,7 +769,10 @@ def _attribution_table(mine: Sequence[Row], name: str, view: str) -> list[str]:
         "plane is cut: the share of EEVEE's squared error that (a) holds in the pixels whose "
         "surface's plane passes through one of the scene's shadowed lights or stand-ins "
         "(EEVEE's soft shadows count the part of the light behind that plane as shadowed), how "
-        "many pixels those are, and EEVEE's direct light over Cycles' in them.",
+        "many pixels those are, and EEVEE's direct light over Cycles' in them. (a) in the "
+        "surfaces' colour: the share of EEVEE's squared error in Cycles' diffuse light times "
+        "EEVEE's Diffuse Color pass minus Cycles' (EEVEE's texture mipmaps and its film filter "
+        "at every edge), not light.",
         "",
         *vplace.markdown.table(header, body),
     ]
@@ -773,6 +784,12 @@ def _stand_in_cell(a: dict[str, Any]) -> str:
     if not math.isfinite(model):
         return "-"
     return f"{pct(model, signed=True)} / {pct(a['share']['direct'] - model, signed=True)}"
+
+
+def _share_cell(a: dict[str, Any], key: str) -> str:
+    """A signed share of EEVEE's squared error from the attribution ("-" where it is NaN)."""
+    share = a.get(key, math.nan)
+    return pct(share, signed=True) if math.isfinite(share) else "-"
 
 
 def _cut_cell(a: dict[str, Any]) -> str:

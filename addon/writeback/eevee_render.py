@@ -48,9 +48,10 @@ import numpy as np
 import OpenEXR
 
 from ..capture import render_key
-from ..capture.passes import IMAGE_SETTINGS, PIXEL_FILTER, hide_vpls, vpl_objects
+from ..capture.passes import IMAGE_SETTINGS, PIXEL_FILTER, hide_vpls, read_exr, vpl_objects
 from ..compat import eevee_engine
 from ..errors import AddonError, run_operator
+from ..scene.export import render_view_layer
 from ..settings import SettingsGuard, override, standard_view
 from . import apply, eevee_setup
 
@@ -157,6 +158,10 @@ class EeveeImage:
 
     image: np.ndarray
     seconds: float
+    #: EEVEE's Diffuse Color pass (H, W, 3), where the render was asked for it: the surfaces'
+    #: colour as EEVEE filters it (its textures' mipmaps and its film filter), which the
+    #: attribution holds against Cycles' (``vplace.job.attribute``'s ``colour``).
+    diffuse_color: np.ndarray | None = None
 
 
 def read_exr_rgb(path: Path) -> np.ndarray:
@@ -169,6 +174,16 @@ def read_exr_rgb(path: Path) -> np.ndarray:
         return np.stack(
             [np.asarray(channels[c].pixels, dtype=np.float32) for c in ("R", "G", "B")], axis=-1
         )
+
+
+def _diffuse_color_output(g: SettingsGuard, scene: bpy.types.Scene) -> str:
+    """Turns the output into a multilayer EXR with the Diffuse Color pass of the view layer that
+    renders (``export.render_view_layer``); returns that layer's name."""
+    layer = render_view_layer(scene)
+    g.set(layer, "use_pass_combined", True)
+    g.set(layer, "use_pass_diffuse_color", True)
+    g.image_format(scene.render.image_settings, "OPEN_EXR", multilayer=True)
+    return layer.name
 
 
 def _configure_output(g: SettingsGuard, scene: bpy.types.Scene, path: Path) -> None:
@@ -243,6 +258,7 @@ def _key(
     setup: Setup | None,
     seed: int,
     renderer: str | None,
+    diffuse_color: bool = False,
 ) -> str:
     """What a render depends on: what the engine reads to render the scene (:mod:`render_key`),
     vplace's lights included unless the set-up hides them, the camera, the size, the samples,
@@ -257,6 +273,8 @@ def _key(
     h.update(repr(render_key.plain_values(camera.data)).encode())
     name = setup.name if setup is not None else "scene"
     h.update(repr((resolution, samples, engine, name, seed, RENDER_VERSION, renderer)).encode())
+    if diffuse_color:
+        h.update(b"diffuse color")
     if setup is not None and setup.vpls and engine != "CYCLES":
         method, near = eevee_setup.fast_gi_for(scene)
         if near > 0.0:  # the fast GI the set-up applies follows the written lights
@@ -273,11 +291,13 @@ def render(
     setup: Setup | None = None,
     seed: int = 0,
     cache_dir: Path | None = None,
+    diffuse_color: bool = False,
 ) -> EeveeImage:
     """Renders ``scene`` from ``camera`` (default: the scene camera) with ``setup`` (default: the
     scene's own EEVEE settings) to a float image. ``samples``: EEVEE's render samples or Cycles'
     (default: the scene's). With ``cache_dir``, an identical earlier render on the same GPU is
-    loaded instead."""
+    loaded instead. With ``diffuse_color`` the image comes with the render's Diffuse Color
+    pass (:attr:`EeveeImage.diffuse_color`)."""
     camera = camera if camera is not None else scene.camera
     if camera is None or camera.type != "CAMERA":
         raise AddonError("the render needs a camera object")
@@ -286,14 +306,15 @@ def render(
     renderer = gpu_renderer() if on_gpu else None
     cached = None
     if cache_dir is not None:
-        key = _key(scene, camera, resolution, samples, engine, setup, seed, renderer)
+        key = _key(scene, camera, resolution, samples, engine, setup, seed, renderer, diffuse_color)
         cached = Path(cache_dir) / f"render-{key}.npz"
         if on_gpu and renderer is None:
             # No GPU context to ask: render, then file the image under the GPU that rendered it.
             cached = None
         elif cached.exists():
             with np.load(cached) as data:
-                found = EeveeImage(data["image"], float(data["seconds"]))
+                colour = data["diffuse_color"] if "diffuse_color" in data else None
+                found = EeveeImage(data["image"], float(data["seconds"]), colour)
             render_key.touch(cached)
             return found
     with tempfile.TemporaryDirectory(prefix="vplace-render-") as tmp:
@@ -312,6 +333,7 @@ def render(
             elif samples is not None:
                 g.set(scene.eevee, "taa_render_samples", samples)
             _configure_output(g, scene, path)
+            layer = _diffuse_color_output(g, scene) if diffuse_color else None
             if setup is not None:
                 setup.configure(g, scene)
                 if not setup.vpls:
@@ -322,14 +344,25 @@ def render(
             seconds = time.perf_counter() - start
         if not path.exists():
             raise AddonError(f"{what}: Blender wrote no image")
-        out = EeveeImage(read_exr_rgb(path), seconds)
+        if layer is None:
+            out = EeveeImage(read_exr_rgb(path), seconds)
+        else:
+            passes = read_exr(path, layer)
+            if "Combined" not in passes or "Diffuse Color" not in passes:
+                raise AddonError(f"{what}: the image has no Combined and Diffuse Color passes")
+            out = EeveeImage(
+                np.ascontiguousarray(passes["Combined"][..., :3]),
+                seconds,
+                np.ascontiguousarray(passes["Diffuse Color"][..., :3]),
+            )
     if cache_dir is not None and cached is None and (renderer := gpu_renderer()) is not None:
-        key = _key(scene, camera, resolution, samples, engine, setup, seed, renderer)
+        key = _key(scene, camera, resolution, samples, engine, setup, seed, renderer, diffuse_color)
         cached = Path(cache_dir) / f"render-{key}.npz"
     if cached is not None:
         cached.parent.mkdir(parents=True, exist_ok=True)
         tmp_path = cached.with_suffix(".tmp.npz")
-        np.savez(tmp_path, image=out.image, seconds=out.seconds)
+        extra = {} if out.diffuse_color is None else {"diffuse_color": out.diffuse_color}
+        np.savez(tmp_path, image=out.image, seconds=out.seconds, **extra)
         os.replace(tmp_path, cached)
         render_key.prune(cached.parent, keep=cached)
     return out

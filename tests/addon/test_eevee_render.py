@@ -103,3 +103,27 @@ def test_a_process_without_a_gpu_starts_blenders_gpu_context_once(monkeypatch):
     assert (info.misses, info.hits) == (1, 1)
     assert not [s for s in bpy.data.scenes if s.name.startswith("vplace GPU probe")]
     eevee._start_gpu.cache_clear()
+
+
+@pytest.mark.slow
+def test_a_render_asked_for_its_diffuse_color_pass_returns_it_and_caches_it(tmp_path):
+    """The attribution holds EEVEE's Diffuse Color pass against Cycles' (``vplace.job.
+    colour_part``): the same render, the same image, the pass beside it, cached with it."""
+    scene = cornell()
+    go = partial(eevee.render, scene, resolution=(32, 18), samples=1, setup=eevee.SETUPS["plain"])
+    plain = go(cache_dir=tmp_path)
+    with_colour = go(cache_dir=tmp_path, diffuse_color=True)
+    assert plain.diffuse_color is None
+    colour = with_colour.diffuse_color
+    assert colour is not None and colour.shape == (18, 32, 3)
+    # The box's walls are grey, red and green diffuse surfaces: colours in (0, 1), red and green
+    # somewhere; the combined image is the same render's.
+    assert 0.0 <= colour.min() and colour.max() < 1.0 and colour[..., 0].max() > 0.3
+    assert (colour[..., 0] > 2 * colour[..., 1]).any() and (
+        colour[..., 1] > 2 * colour[..., 0]
+    ).any()
+    assert np.allclose(with_colour.image, plain.image, atol=1e-3)
+    assert len(list(tmp_path.glob("render-*.npz"))) == 2  # a render with the pass is its own
+    again = go(cache_dir=tmp_path, diffuse_color=True)
+    assert again.seconds == with_colour.seconds and np.array_equal(again.diffuse_color, colour)
+    assert scene.view_layers[0].use_pass_diffuse_color is False  # given back

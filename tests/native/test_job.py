@@ -338,6 +338,37 @@ def test_attribution_says_how_much_of_eevees_direct_error_is_where_a_lights_plan
         vjob.attribute(truth, cycles_direct, cycles_direct, vpl, truth, None, None, cut[:3])
 
 
+def test_attribution_says_how_much_of_eevees_direct_error_is_the_surfaces_colour():
+    # A rug of light and dark squares in a sun patch: EEVEE's colour of the rug is blurred (its
+    # mipmaps), its light is right; and a shadow edge elsewhere that EEVEE draws a column off.
+    h, w = 12, 16
+    light = np.full((h, w, 3), 2.0)
+    colour = np.full((h, w, 3), 0.5)
+    colour[2:6, 2:10:2] = 0.9
+    blurred = colour.copy()
+    blurred[2:6, 2:10] = 0.7  # the squares' mean
+    cycles_direct = light * colour
+    cycles_direct[:, 12:] = 0.0  # a shadow over the right columns
+    eevee_direct = light * blurred
+    eevee_direct[:, 12:] = 0.0
+    eevee_direct[:, 12] = 1.0  # its edge drawn a column further
+    vpl = np.full((h, w, 3), 0.1)
+    truth = cycles_direct + vpl
+    part = vjob.colour_part(light, blurred, colour)
+    assert part == pytest.approx(light * (blurred - colour))
+    a = vjob.attribute(eevee_direct + vpl, eevee_direct, cycles_direct, vpl, truth, colour=part)
+    rug, edge = 4 * 8 * 0.4**2, h * 1.0**2  # squared errors per channel
+    assert a.colour_share == pytest.approx(rug / (rug + edge))
+    assert a.colour_rmse == pytest.approx(np.sqrt(rug / (h * w)))
+    assert np.isnan(vjob.attribute(truth, cycles_direct, cycles_direct, vpl, truth).colour_share)
+    with pytest.raises(ValueError, match="colour must be"):
+        vjob.attribute(truth, cycles_direct, cycles_direct, vpl, truth, colour=part[:3])
+    with pytest.raises(ValueError, match="one shape"):
+        vjob.colour_part(light[:3], blurred, colour)
+    with pytest.raises(ValueError, match="NaN"):
+        vjob.colour_part(np.full_like(light, np.inf), blurred, colour)
+
+
 def test_baselines_share_the_fit_and_leave_the_method_out(room):
     scene, v, ref = room
     computed, compared = vjob.compute_with_baselines(

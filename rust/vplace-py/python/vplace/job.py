@@ -500,6 +500,12 @@ class Attribution:
     cut_pixels: float = float("nan")
     cut_share: float = float("nan")
     cut_brightness: float = float("nan")
+    #: With a ``colour`` part (:func:`colour_part`): the share of EEVEE's squared error that the
+    #: surfaces' colour as EEVEE filters it holds (Cycles' diffuse light times EEVEE's Diffuse
+    #: Color minus Cycles': its textures' mipmaps and its film filter at the edges), and that
+    #: part's RMSE; NaN without.
+    colour_share: float = float("nan")
+    colour_rmse: float = float("nan")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready."""
@@ -629,6 +635,29 @@ def eevee_deficit(
     return (mean * weight[..., None]).astype(np.float32)
 
 
+def colour_part(
+    diffuse_light: np.ndarray, eevee_colour: np.ndarray, cycles_colour: np.ndarray
+) -> np.ndarray:
+    """(H, W, 3) float64: the part of EEVEE's direct-light error that is the surfaces' colour as
+    EEVEE filters it, ``diffuse_light * (eevee_colour - cycles_colour)``: Cycles' Diffuse
+    Direct pass (the light, without the colour) times the difference of the two renders'
+    Diffuse Color passes (all (H, W, 3) of one shape). EEVEE samples textures through their
+    mipmaps and filters its film with a Gaussian where the truth has a one-pixel box, so the
+    edges of everything, and a rug's pattern in a sun patch, differ under the same light
+    (``docs/EEVEE_NOTES.md``, Q11)."""
+    arrays = [np.asarray(a, dtype=np.float64) for a in (diffuse_light, eevee_colour, cycles_colour)]
+    if (
+        any(a.ndim != 3 or a.shape[-1] < 3 for a in arrays)
+        or len({a[..., :3].shape for a in arrays}) != 1
+    ):
+        shapes = ", ".join(str(a.shape) for a in arrays)
+        raise ValueError(f"colour_part needs three (H, W, 3) images of one shape, got {shapes}")
+    light, ee, cy = (a[..., :3] for a in arrays)
+    if not all(np.isfinite(a).all() for a in (light, ee, cy)):
+        raise ValueError("colour_part: the images hold NaN or infinity")
+    return light * (ee - cy)
+
+
 def _pixel_mask(name: str, mask: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray | None:
     """``mask`` checked as :func:`attribute`'s (H, W) bool mask ``name`` (None stays None)."""
     if mask is None:
@@ -650,6 +679,7 @@ def attribute(
     seen: np.ndarray | None = None,
     stand_ins: np.ndarray | None = None,
     cut: np.ndarray | None = None,
+    colour: np.ndarray | None = None,
 ) -> Attribution:
     """Splits ``eevee - truth`` (RGB images of one view, the same shape) into the three parts of
     :class:`Attribution`: ``eevee_direct - cycles_direct``, ``(eevee - eevee_direct) -
@@ -663,7 +693,9 @@ def attribute(
     (``stand_in_share``).
     ``cut`` ((H, W) bool, :func:`cut_by_lights`) marks the pixels whose surface's plane cuts a
     light: how much of part ``direct`` lies there, and how bright EEVEE's direct light is
-    there, are ``cut_share`` and ``cut_brightness``."""
+    there, are ``cut_share`` and ``cut_brightness``.
+    ``colour`` (RGB, the same shape: :func:`colour_part`) is the part of ``eevee_direct -
+    cycles_direct`` that EEVEE's filtering of the surfaces' colour makes (``colour_share``)."""
     arrays = [eevee, eevee_direct, cycles_direct, evaluator_vpl, truth]
     e, ed, cd, vx, t = (np.asarray(a, dtype=np.float64)[..., :3] for a in arrays)
     if not e.shape == ed.shape == cd.shape == vx.shape == t.shape or e.ndim != 3:
@@ -673,6 +705,16 @@ def attribute(
         raise ValueError("attribute: an image holds NaN or infinity")
     seen = _pixel_mask("seen", seen, e.shape[:2])
     cut = _pixel_mask("cut", cut, e.shape[:2])
+    col = None
+    if colour is not None:
+        col = np.asarray(colour, dtype=np.float64)
+        if col.ndim != 3 or col.shape[-1] < 3 or col[..., :3].shape != e.shape:
+            raise ValueError(
+                f"attribute: colour must be an (H, W, 3) image of shape {e.shape}, got {col.shape}"
+            )
+        col = col[..., :3]
+        if not np.isfinite(col).all():
+            raise ValueError("attribute: colour holds NaN or infinity")
     si = None
     if stand_ins is not None:
         si = np.asarray(stand_ins, dtype=np.float64)
@@ -722,6 +764,8 @@ def attribute(
         cut_pixels=float(cut.mean()) if cut is not None else math.nan,
         cut_share=share_of(parts["direct"] * cut[..., None]) if cut is not None else math.nan,
         cut_brightness=ratio(ed[cut], cd[cut]) if cut is not None and cut.any() else math.nan,
+        colour_share=share_of(col) if col is not None else math.nan,
+        colour_rmse=float(np.sqrt((col * col).mean())) if col is not None else math.nan,
         stand_in_share=share_of(model) if model is not None else math.nan,
         stand_in_rmse=float(np.sqrt((model * model).mean())) if model is not None else float("nan"),
         hot_cycles_direct=outliers(cd + ve, t)["hot_pixels"],
