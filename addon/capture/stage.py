@@ -230,6 +230,8 @@ def reference_of(
         camera=cap.view,
         samples=cap.samples,
         seen=vplace.job.seen_directly(cap.seen_light, cap.direct),
+        diffuse_direct=cap.diffuse_direct,
+        diffuse_color=cap.diffuse_color,
     )
 
 

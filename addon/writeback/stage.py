@@ -121,13 +121,14 @@ def score_eevee(
 
     height, width = reference.gi.shape[:2]
 
-    def render() -> eevee.EeveeImage:
+    def render(diffuse_color: bool = False) -> eevee.EeveeImage:
         return eevee.render(
             bl_scene,
             resolution=(width, height),
             samples=eevee.EEVEE_SAMPLES,
             setup=eevee.SETUPS["vpl"],
             cache_dir=cache_dir,
+            diffuse_color=diffuse_color,
         )
 
     stand_ins = None
@@ -135,7 +136,10 @@ def score_eevee(
         img = render()
         with override() as g:
             apply.hide_vpl_lights(g, bl_scene)
-            direct = render()
+            with_colour = (
+                reference.diffuse_direct is not None and reference.diffuse_color is not None
+            )
+            direct = render(diffuse_color=with_colour)
             if eevee_setup.cycles_as_eevee_lights(g, bl_scene, emissive):
                 stand_ins = capture.capture(
                     bl_scene,
@@ -144,6 +148,11 @@ def score_eevee(
                     include_vpls=True,
                 ).direct
     vplace.images.save_png(path, img.image)
+    colour = None
+    if direct.diffuse_color is not None:
+        colour = vplace.job.colour_part(
+            reference.diffuse_direct, direct.diffuse_color, reference.diffuse_color
+        )
     a = vplace.job.attribute(
         img.image,
         direct.image,
@@ -153,6 +162,7 @@ def score_eevee(
         reference.seen,
         stand_ins,
         cut_lights.cut_pixels(bl_scene, reference.view),
+        colour,
     )
     out = {
         **vplace.job.score(img.image, reference.gi),
@@ -174,4 +184,6 @@ def score_eevee(
     out["attribution_cut_pixels"] = a.cut_pixels
     out["attribution_cut_share"] = a.cut_share
     out["attribution_cut_brightness"] = a.cut_brightness
+    if colour is not None:
+        out["attribution_colour_share"] = a.colour_share
     return out

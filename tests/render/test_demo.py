@@ -73,6 +73,11 @@ def test_main_job_writes_everything_and_eevee_shows_what_the_evaluator_computed(
     # The box's lamp is the user's own light, no stand-in: Cycles rendering the lights EEVEE
     # renders gives Cycles' direct light, so all of EEVEE's direct-light error is its rendering.
     assert abs(e["attribution_stand_in_share"]) < 0.02, e
+    # Its walls are plain colours: little of that error is the surfaces' colour as EEVEE
+    # filters it (EEVEE's Diffuse Color pass against the truth's), some is the blocks' faces,
+    # whose plane passes through the lamp.
+    assert abs(e["attribution_colour_share"]) < 0.1, e
+    assert e["attribution_cut_pixels"] > 0.0 and e["attribution_cut_brightness"] < 1.0, e
     truth = capture.capture(
         scene, resolution=(48, 48), samples=256, seed=pipeline.REFERENCE_SEED,
         cache_dir=tmp_path / "cache",

@@ -845,6 +845,10 @@ class Reference:
     #: (H, W) bool, the pixels where the camera sees an emitter, the world or a lamp in a mirror
     #: (:func:`seen_directly`); None where the render's passes do not say.
     seen: np.ndarray | None = None
+    #: (H, W, 3) the render's Diffuse Direct (the light, without the colour) and Diffuse Color
+    #: passes, for :func:`colour_part`; None where the render's passes do not say.
+    diffuse_direct: np.ndarray | None = None
+    diffuse_color: np.ndarray | None = None
 
 
 @dataclass
@@ -1099,6 +1103,11 @@ class PanelReport:
                     f"  {markdown.percent(model)} vplace's stand-ins, "
                     f"{markdown.percent(direct - model)} EEVEE's rendering (not vplace's)"
                 )
+            colour = e.get("attribution_colour_share")
+            if colour is not None and math.isfinite(colour):
+                lines.append(
+                    f"  {markdown.percent(colour)} the surfaces' colour as EEVEE filters it"
+                )
             cut = e.get("attribution_cut_share")
             if cut is not None and math.isfinite(cut) and e.get("attribution_cut_pixels", 0) > 0:
                 lines.append(
@@ -1243,6 +1252,13 @@ def eevee_notes(e: dict[str, float], stand_ins: int = 0) -> list[str]:
                 "rendering of the lights"
             )
         line += _cut_clause(e)
+        colour = e.get("attribution_colour_share")
+        if colour is not None and math.isfinite(colour):
+            line += (
+                f"; {markdown.percent(colour)} is the surfaces' colour as EEVEE filters it "
+                "(its Diffuse Color pass against Cycles' under Cycles' diffuse light: texture "
+                "mipmaps and its film filter at the edges)"
+            )
         lines.append(line + ".")
     return lines
 
