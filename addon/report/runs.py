@@ -695,7 +695,7 @@ class _EeveeRun:
             truth.gi,
             seen,
             self.stand_ins.get(view.name),
-            cut_lights.cut_pixels(self.bl_scene, view.view),
+            cut_lights.cut_pixels(self.bl_scene, view.view, seen),
             colour_of(truth, self.direct_colour.get(view.name)),
         )
 

@@ -95,13 +95,18 @@ def scene_lights(scene: bpy.types.Scene, *, users_only: bool) -> list[bpy.types.
     return out
 
 
-def cut_pixels(scene: bpy.types.Scene, view: vplace.View) -> np.ndarray:
+def cut_pixels(
+    scene: bpy.types.Scene, view: vplace.View, seen: np.ndarray | None = None
+) -> np.ndarray:
     """(H, W) bool: the pixels of ``view`` (its G-buffer) whose surface's plane cuts one of the
-    shadowed lights of ``scene`` other than the VPLs (:func:`scene_lights`)."""
+    shadowed lights of ``scene`` other than the VPLs (:func:`scene_lights`), less those of
+    ``seen`` ((H, W) bool, ``vplace.job.seen_directly``: the pixels that see an emitter, whose
+    error is its edges, not light on a surface)."""
     shapes = [s for o in scene_lights(scene, users_only=False) if (s := light_shape(o))]
-    return vplace.job.cut_by_lights(
+    cut = vplace.job.cut_by_lights(
         np.asarray(view.position), np.asarray(view.normal), shapes, TOLERANCE
     )
+    return cut if seen is None else cut & ~np.asarray(seen, dtype=bool)
 
 
 def _triangles(scene: bpy.types.Scene) -> Iterable[tuple[np.ndarray, np.ndarray]]:

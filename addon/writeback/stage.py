@@ -161,7 +161,7 @@ def score_eevee(
         reference.gi,
         reference.seen,
         stand_ins,
-        cut_lights.cut_pixels(bl_scene, reference.view),
+        cut_lights.cut_pixels(bl_scene, reference.view, reference.seen),
         colour,
     )
     out = {
