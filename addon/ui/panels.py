@@ -85,14 +85,21 @@ class VPLACE_PT_main(_Panel, bpy.types.Panel):
                 box.label(text=problem.setting)
                 box.label(text=f"  {problem.message}")
         written = eevee_setup.vpl_lights(context.scene)
+        notes = []  # eevee_setup.lamp_notes, in lines the panel does not cut
         lamps = eevee_setup.unjittered_lamps(context.scene) if written else []
-        if lamps:  # eevee_setup.lamp_notes, in lines the panel does not cut
+        if lamps:
+            notes.append(f"{len(lamps)} lamp(s) with soft shadows, no jitter (e.g. {lamps[0]!r}):")
+            notes.append("  noisier than Cycles; Light > Shadow > Jitter (slower)")
+        objects = context.scene.objects
+        cut = [n for n in apply.stored_cut_lamps() if n in objects] if written else []
+        if cut:
+            notes.append(f"{len(cut)} lamp(s) a surface's plane passes through (e.g. {cut[0]!r}):")
+            notes.append("  EEVEE's soft shadow darkens that surface (0.8x Cycles)")
+        if notes:
             box = layout.box()
             box.label(text="EEVEE's own light, not vplace's:", icon="INFO")
-            box.label(
-                text=f"{len(lamps)} lamp(s) with soft shadows, no jitter (e.g. {lamps[0]!r}):"
-            )
-            box.label(text="  noisier than Cycles; Light > Shadow > Jitter (slower)")
+            for line in notes:
+                box.label(text=line)
         unlit = apply.unlit_objects() if written else []
         if unlit:  # native_view.vpl_unlit: sharp metal and glass
             box = layout.box()

@@ -69,6 +69,7 @@ from mathutils import Matrix, Quaternion, Vector
 from ..errors import WriteBackError
 from ..native import vplace
 from ..scene.export import VPL_MARKER
+from . import cut_lights
 from .stand_ins import EmitterLight, SunLight
 
 if TYPE_CHECKING:
@@ -87,6 +88,9 @@ CLOSED_KEY = "vplace_closed"
 #: gathers the light between nearby surfaces (``vplace.VplSet.near_field_distance``): what the
 #: evaluator adds with ``near_field=True`` (``eevee_setup.set_up``). Absent for points.
 NEAR_FIELD_KEY = "vplace_near_field_distance"
+#: The VPL collection's custom property naming the user's lamps that a surface's plane passes
+#: through (``cut_lights.cut_lamps``, found at the write-back): what the panel notes.
+CUT_LAMPS_KEY = "vplace_cut_lamps"
 #: EEVEE renders 8,192 lights; beyond 65,536 it drops them (DESIGN). We refuse more than this.
 MAX_VPLS = 8192
 #: The custom cutoff distance of every VPL light, in scene diagonals (see the module docs).
@@ -357,6 +361,14 @@ def stored_region(name: str = COLLECTION_NAME) -> Region | None:
     return (v[:3], v[3:])
 
 
+def stored_cut_lamps(name: str = COLLECTION_NAME) -> list[str]:
+    """The user's lamps that a surface's plane passes through, as the write-back found them
+    (:data:`CUT_LAMPS_KEY`; ``cut_lights.cut_lamps``), kept for the panel, which must not read
+    every mesh at each redraw; empty without."""
+    values = _stored(name, CUT_LAMPS_KEY)
+    return [str(v) for v in values] if values else []
+
+
 def stored_closed(name: str = COLLECTION_NAME) -> bool:
     """Whether the VPL collection ``name`` says its lights light a closed room
     (:data:`CLOSED_KEY`)."""
@@ -427,6 +439,7 @@ def write_vpls(
         remove_collection(coll)
         raise
     replace_collection(scene, coll, name)
+    coll[CUT_LAMPS_KEY] = cut_lights.cut_lamps(scene)
     return coll
 
 

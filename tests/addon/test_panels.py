@@ -107,7 +107,15 @@ def test_panel_shows_settings_buttons_and_last_results(scene):
     assert any(
         t.startswith("1 lamp(s) with soft shadows, no jitter (e.g. 'light')") for t in labels
     )
+    # The blocks' faces' planes pass through the lamp: EEVEE darkens them, the panel says so.
+    assert any(
+        t.startswith("1 lamp(s) a surface's plane passes through (e.g. 'light')") for t in labels
+    )
     scene.objects["light"].data.use_shadow_jitter = True
+    labels = [t for kind, t in draw(scene) if kind == "label"]
+    assert not any(t.startswith("1 lamp(s) with soft shadows") for t in labels)
+    assert "EEVEE's own light, not vplace's:" in labels  # the plane through the lamp stays
+    apply.find_collection()[apply.CUT_LAMPS_KEY] = []
     assert "EEVEE's own light, not vplace's:" not in [t for _, t in draw(scene)]
     # A setting that would drop the VPLs' shadows is named in the panel.
     scene.eevee.use_shadows = False
