@@ -658,6 +658,22 @@ def colour_part(
     return light * (ee - cy)
 
 
+def _rgb_like(name: str, image: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray | None:
+    """``image`` checked as :func:`attribute`'s (H, W, 3) image ``name`` of ``shape``, finite,
+    as float64 RGB (None stays None)."""
+    if image is None:
+        return None
+    a = np.asarray(image, dtype=np.float64)
+    if a.ndim != 3 or a.shape[-1] < 3 or a[..., :3].shape != shape:
+        raise ValueError(
+            f"attribute: {name} must be an (H, W, 3) image of shape {shape}, got {a.shape}"
+        )
+    a = a[..., :3]
+    if not np.isfinite(a).all():
+        raise ValueError(f"attribute: {name} holds NaN or infinity")
+    return a
+
+
 def _pixel_mask(name: str, mask: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray | None:
     """``mask`` checked as :func:`attribute`'s (H, W) bool mask ``name`` (None stays None)."""
     if mask is None:
@@ -705,27 +721,8 @@ def attribute(
         raise ValueError("attribute: an image holds NaN or infinity")
     seen = _pixel_mask("seen", seen, e.shape[:2])
     cut = _pixel_mask("cut", cut, e.shape[:2])
-    col = None
-    if colour is not None:
-        col = np.asarray(colour, dtype=np.float64)
-        if col.ndim != 3 or col.shape[-1] < 3 or col[..., :3].shape != e.shape:
-            raise ValueError(
-                f"attribute: colour must be an (H, W, 3) image of shape {e.shape}, got {col.shape}"
-            )
-        col = col[..., :3]
-        if not np.isfinite(col).all():
-            raise ValueError("attribute: colour holds NaN or infinity")
-    si = None
-    if stand_ins is not None:
-        si = np.asarray(stand_ins, dtype=np.float64)
-        if si.ndim != 3 or si.shape[-1] < 3 or si[..., :3].shape != e.shape:
-            raise ValueError(
-                f"attribute: stand_ins must be an (H, W, 3) image of shape {e.shape}, got "
-                f"{si.shape}"
-            )
-        si = si[..., :3]
-        if not np.isfinite(si).all():
-            raise ValueError("attribute: stand_ins holds NaN or infinity")
+    col = _rgb_like("colour", colour, e.shape)
+    si = _rgb_like("stand_ins", stand_ins, e.shape)
     ve = e - ed
     parts = {"direct": ed - cd, "vpl": ve - vx, "rest": cd + vx - t}
     total = e - t
