@@ -269,6 +269,12 @@ def _report_options(sub: argparse._SubParsersAction) -> None:
         help="never add the light between nearby surfaces (by default the captures decide)",
     )  # fmt: skip
     rep.add_argument(
+        "--match-eevee", action="store_true",
+        help="lay out vplace+refit as the demo's --match-eevee does: the refit fits each fit "
+        "view's indirect light plus what EEVEE's direct light lacks (an EEVEE render per "
+        "captured view first, counted in the one-time cost)",
+    )  # fmt: skip
+    rep.add_argument(
         "--radius", type=float, default=None,
         help="near-field radius of the VPLs, m (default: 1%% of the scene's diagonal)",
     )  # fmt: skip
@@ -369,6 +375,7 @@ def run(args: argparse.Namespace) -> None:
             generated_views=args.generated_views,
             truth_noise=not args.single_truth,
             radius=args.radius,
+            match_eevee=args.match_eevee,
         )
         if args.eevee_samples is not None:
             config.eevee_samples = args.eevee_samples

@@ -299,9 +299,11 @@ def lay_out(
     views: Sequence[vplace.View] | None = None,
     timer: StageTimer | None = None,
     progress: vplace.Progress | None = None,
+    refit_views: Sequence[vplace.View] | None = None,
 ) -> Laid:
     """``vplace.job.lay_out`` (the one method dispatch) on the prepared scene and ``views``
-    (default: every prepared view). No bpy: safe on a worker thread; ``progress`` cancels it."""
+    (default: every prepared view); the refit fits ``refit_views`` when given
+    (:func:`eevee_refit_views`). No bpy: safe on a worker thread; ``progress`` cancels it."""
     job.validate()
     return vplace.job.lay_out(
         prepared.scene,
@@ -310,6 +312,7 @@ def lay_out(
         fitted=fitted,
         timer=timer,
         progress=progress,
+        refit_views=refit_views,
     )
 
 

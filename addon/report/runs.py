@@ -140,6 +140,11 @@ class SceneData:
     views: list[ViewData]
     resolution: tuple[int, int]
     capture_seconds: float
+    #: With ``ReportConfig.match_eevee``: the views ``vplace+refit``'s refit fits (the
+    #: captures with EEVEE's direct-light deficit added) and, per matched view, the deficit's
+    #: share of Cycles' direct light (``pipeline.eevee_refit_views``).
+    refit_views: list[vplace.View] | None = None
+    matched: dict[str, float] = field(default_factory=dict)
 
 
 def generate_held_out(
@@ -217,6 +222,7 @@ def load_scene(
             render_coverage=config.render_coverage,
         ),
         radius=config.radius,
+        match_eevee=config.match_eevee,
     ).in_scene_units(export.unit_scale(bl_scene))
     cams = {}
     for name in (*preset.fit_views, *preset.held_out_views):
@@ -263,7 +269,16 @@ def load_scene(
     seconds = sum(c.render_seconds for c in prepared.captures)
     if prepared.coverage is not None:
         seconds += prepared.coverage.seconds
-    return SceneData(prepared, job, views, resolution, seconds)
+    refit_views, matched = None, {}
+    if config.match_eevee and "vplace+refit" in config.methods:
+        start = time.perf_counter()
+        refit_views, matched = pipeline.eevee_refit_views(
+            bl_scene, prepared, replace(job, method="vplace+refit"), timer
+        )
+        seconds += time.perf_counter() - start
+        shares = ", ".join(f"{name} {share:+.1%}" for name, share in matched.items())
+        log(f"[vplace] EEVEE's direct-light deficit the refit makes up for: {shares}")
+    return SceneData(prepared, job, views, resolution, seconds, refit_views, matched)
 
 
 def _timed(fn: Callable[[], Any]) -> tuple[float, Any]:
@@ -319,6 +334,7 @@ def lay_out_all(
                         prepared,
                         replace(job, method="vplace+refit" if both else "vplace"),
                         fitted=fitted,
+                        refit_views=data.refit_views,
                     )
                 layout = guided.layout
                 assert layout is not None
@@ -891,6 +907,7 @@ def _run_scene(
         "fit": asdict(vplace.job.FitSummary.of(fitted)),
         "fit_seconds": fit_seconds,
         "capture_seconds": data.capture_seconds,
+        "eevee_deficit_matched": data.matched if data.refit_views is not None else None,
         "views": {},
         "lamp_notes": eevee_setup.lamp_notes(bl_scene) if config.with_eevee else [],
         "vpl_specular": data.prepared.vpl_specular,

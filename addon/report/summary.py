@@ -838,6 +838,20 @@ def region_sentence(region: dict[str, Any] | None) -> str:
     )
 
 
+def _matched_lines(info: dict[str, Any]) -> list[str]:
+    """With ``--match-eevee``: what vplace+refit's powers make up for, per captured view."""
+    matched = info.get("eevee_deficit_matched")
+    if matched is None:
+        return []
+    shares = ", ".join(f"{view} {share:+.1%}" for view, share in matched.items()) or "none"
+    return [
+        "vplace+refit matches EEVEE's direct light (`--match-eevee`): its refit also fits what "
+        f"EEVEE's direct light lacks against Cycles', of Cycles' direct light: {shares}. The "
+        "EEVEE renders this takes count in the captures' time.",
+        "",
+    ]
+
+
 def _scene_lines(name: str, info: dict[str, Any], rows: Sequence[Row]) -> list[str]:
     """One scene's section: the fit, then per view the evaluator's and the renderers' tables."""
     fit = info["fit"]
@@ -851,6 +865,7 @@ def _scene_lines(name: str, info: dict[str, Any], rows: Sequence[Row]) -> list[s
         f"the fit views: {info['capture_seconds']:.1f} s.",
         "",
         *[line for note in info.get("lamp_notes", []) for line in (f"Note: {note}.", "")],
+        *_matched_lines(info),
         *_light_lines(info),
     ]
     budgets = sorted({r.n_vpls for r in rows if r.scene == name and r.renderer == "evaluator"})

@@ -95,6 +95,8 @@ class VPLACE_PT_main(_Panel, bpy.types.Panel):
         if cut:
             notes.append(f"{len(cut)} lamp(s) a surface's plane passes through (e.g. {cut[0]!r}):")
             notes.append("  EEVEE's soft shadow darkens that surface (0.8x Cycles)")
+            if not settings.match_eevee:
+                notes.append("  'Match EEVEE's direct light' makes up for it")
         if notes:
             box = layout.box()
             box.label(text="EEVEE's own light, not vplace's:", icon="INFO")

@@ -575,7 +575,9 @@ def lamp_notes(scene: bpy.types.Scene) -> list[str]:
             f"EEVEE darkens the surfaces whose plane passes through {len(cut)} of your lamps "
             f"(e.g. {cut[0]!r}): its soft shadows count the part of the lamp behind such a "
             "surface as shadowed (the Cornell box's tall block gets 0.80x Cycles' direct light); "
-            "no EEVEE setting changes it but the lamp's shadow"
+            "no EEVEE setting changes it but the lamp's shadow. vplace's 'Match EEVEE's direct "
+            "light' (`--match-eevee`) lets the VPL powers make up for it (on the Cornell box "
+            "EEVEE's RMSE fell 21-22 % on the two views it darkens most)"
         )
     return notes
 

@@ -111,6 +111,13 @@ def test_panel_shows_settings_buttons_and_last_results(scene):
     assert any(
         t.startswith("1 lamp(s) a surface's plane passes through (e.g. 'light')") for t in labels
     )
+    # It names the remedy vplace has (the VPL powers made up for EEVEE's direct light) until
+    # that is ticked.
+    remedy = "  'Match EEVEE's direct light' makes up for it"
+    assert remedy in labels
+    scene.vplace.match_eevee = True
+    assert remedy not in [t for kind, t in draw(scene) if kind == "label"]
+    scene.vplace.match_eevee = False
     scene.objects["light"].data.use_shadow_jitter = True
     labels = [t for kind, t in draw(scene) if kind == "label"]
     assert not any(t.startswith("1 lamp(s) with soft shadows") for t in labels)

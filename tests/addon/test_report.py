@@ -612,3 +612,35 @@ def test_a_held_out_view_says_whether_it_stands_in_the_region():
     near = dict(far, distance=1.2, inside=True)
     assert "1.2 m from CameraWest, inside the region" in summary.region_sentence(near)
     assert summary.region_sentence(None) == ""
+
+
+@pytest.mark.slow
+def test_match_eevee_refits_vplace_refits_powers_to_eevees_direct_light_and_says_so(tmp_path):
+    # The demo's --match-eevee, scored by the report: the same layout (vplace's rows are the
+    # same), other powers for vplace+refit, the deficit per captured camera in the scene's
+    # section, and the EEVEE renders it takes in the captures' time.
+    change = {
+        "with_eevee": False,
+        "capture_curve": [],
+        "budgets": [16],
+        "seeds": [0],
+        "methods": ["vplace", "vplace+refit"],
+    }
+    plain = report.run_report(tiny(**change), tmp_path / "plain", log=lambda _line: None)
+    matched = report.run_report(
+        tiny(**change, match_eevee=True), tmp_path / "matched", log=lambda _line: None
+    )
+    (name,) = plain["scenes"]
+    assert plain["scenes"][name]["eevee_deficit_matched"] is None
+    shares = matched["scenes"][name]["eevee_deficit_matched"]
+    assert set(shares) >= set(FIT) and all(np.isfinite(list(shares.values())))
+    assert matched["scenes"][name]["capture_seconds"] > plain["scenes"][name]["capture_seconds"]
+
+    def ssim(result, method):
+        return [r["ssim"] for r in _rows(result, renderer="evaluator", method=method)]
+
+    assert ssim(matched, "vplace") == ssim(plain, "vplace")
+    assert ssim(matched, "vplace+refit") != ssim(plain, "vplace+refit")
+    text = (tmp_path / "matched" / "report.md").read_text()
+    assert "vplace+refit matches EEVEE's direct light (`--match-eevee`)" in text
+    assert "--match-eevee" not in (tmp_path / "plain" / "report.md").read_text()

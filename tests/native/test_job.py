@@ -331,6 +331,16 @@ def test_attribution_says_how_much_of_eevees_direct_error_is_where_a_lights_plan
     assert a.cut_pixels == pytest.approx(2 / w)
     assert a.cut_share == pytest.approx(strip / (strip + patch))
     assert a.cut_brightness == pytest.approx(0.8)
+    # Where the lights EEVEE renders are stand-ins, their own error in the cut pixels is not
+    # EEVEE's darkening: measured against Cycles' render of the stand-ins, EEVEE there is right.
+    stand_ins = cycles_direct.copy()
+    stand_ins[cut] *= 0.8
+    own = vjob.attribute(
+        eevee_direct + vpl, eevee_direct, cycles_direct, vpl, truth, None, stand_ins, cut
+    )
+    assert own.cut_share == pytest.approx(0.0, abs=1e-12)
+    assert own.cut_brightness == pytest.approx(1.0)
+    assert own.stand_in_share == pytest.approx(strip / (strip + patch))
     none = vjob.attribute(truth, cycles_direct, cycles_direct, vpl, truth, None, None, ~cut & cut)
     assert none.cut_pixels == 0.0 and none.cut_share == 0.0 and np.isnan(none.cut_brightness)
     assert np.isnan(vjob.attribute(truth, cycles_direct, cycles_direct, vpl, truth).cut_share)

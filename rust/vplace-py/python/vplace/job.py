@@ -495,8 +495,10 @@ class Attribution:
     hot_evaluator_vpl: float = float("nan")
     #: With a ``cut`` mask (:func:`cut_by_lights`): the share of pixels whose surface's plane
     #: cuts one of the scene's lights (EEVEE's soft shadows darken them), the share of EEVEE's
-    #: squared error that part ``direct`` holds in them, and EEVEE's direct light over Cycles'
-    #: there (mean luminance); NaN without a mask (the brightness also where no pixel is cut).
+    #: squared error that EEVEE's rendering of the lights holds in them (its direct light minus
+    #: Cycles' render of the same lights: the stand-ins' where given, else Cycles' direct light),
+    #: and EEVEE's direct light over that render there (mean luminance); NaN without a mask (the
+    #: brightness also where no pixel is cut).
     cut_pixels: float = float("nan")
     cut_share: float = float("nan")
     cut_brightness: float = float("nan")
@@ -708,8 +710,10 @@ def attribute(
     from) splits part ``direct`` into the stand-ins' own error and EEVEE's rendering of them
     (``stand_in_share``).
     ``cut`` ((H, W) bool, :func:`cut_by_lights`) marks the pixels whose surface's plane cuts a
-    light: how much of part ``direct`` lies there, and how bright EEVEE's direct light is
-    there, are ``cut_share`` and ``cut_brightness``.
+    light: how much of EEVEE's rendering error lies there, and how bright EEVEE's direct light
+    is there, are ``cut_share`` and ``cut_brightness``, both against Cycles' render of the same
+    lights (``stand_ins`` where given, else ``cycles_direct``): the stand-ins' own error in
+    those pixels is not EEVEE's darkening.
     ``colour`` (RGB, the same shape: :func:`colour_part`) is the part of ``eevee_direct -
     cycles_direct`` that EEVEE's filtering of the surfaces' colour makes (``colour_share``)."""
     arrays = [eevee, eevee_direct, cycles_direct, evaluator_vpl, truth]
@@ -728,6 +732,8 @@ def attribute(
     total = e - t
     sq = float((total * total).sum())
     model = si - cd if si is not None else None
+    # The lights EEVEE renders, rendered by Cycles: what EEVEE's darkening is measured against.
+    same = si if si is not None else cd
     lum = np.asarray(vplace.LUMINANCE, dtype=np.float64)
 
     def share_of(part: np.ndarray) -> float:
@@ -759,8 +765,8 @@ def attribute(
         seen_pixels=float(seen.mean()) if seen is not None else float("nan"),
         seen_share=share_of(parts["direct"] * seen[..., None]) if seen is not None else math.nan,
         cut_pixels=float(cut.mean()) if cut is not None else math.nan,
-        cut_share=share_of(parts["direct"] * cut[..., None]) if cut is not None else math.nan,
-        cut_brightness=ratio(ed[cut], cd[cut]) if cut is not None and cut.any() else math.nan,
+        cut_share=share_of((ed - same) * cut[..., None]) if cut is not None else math.nan,
+        cut_brightness=ratio(ed[cut], same[cut]) if cut is not None and cut.any() else math.nan,
         colour_share=share_of(col) if col is not None else math.nan,
         colour_rmse=float(np.sqrt((col * col).mean())) if col is not None else math.nan,
         stand_in_share=share_of(model) if model is not None else math.nan,
