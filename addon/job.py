@@ -23,7 +23,7 @@ import functools
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -299,11 +299,12 @@ def lay_out(
     views: Sequence[vplace.View] | None = None,
     timer: StageTimer | None = None,
     progress: vplace.Progress | None = None,
-    refit_views: Sequence[vplace.View] | None = None,
+    match: vplace.job.EeveeMatch | None = None,
 ) -> Laid:
     """``vplace.job.lay_out`` (the one method dispatch) on the prepared scene and ``views``
-    (default: every prepared view); the refit fits ``refit_views`` when given
-    (:func:`eevee_refit_views`). No bpy: safe on a worker thread; ``progress`` cancels it."""
+    (default: every prepared view); the refit matches EEVEE's direct light with ``match``
+    where that helps (:func:`eevee_match`). No bpy: safe on a worker thread; ``progress``
+    cancels it."""
     job.validate()
     return vplace.job.lay_out(
         prepared.scene,
@@ -312,20 +313,21 @@ def lay_out(
         fitted=fitted,
         timer=timer,
         progress=progress,
-        refit_views=refit_views,
+        match=match,
     )
 
 
-def eevee_refit_views(
+def eevee_match(
     bl_scene: bpy.types.Scene, prepared: Prepared, job: Job, timer: StageTimer
-) -> tuple[list[vplace.View] | None, dict[str, float]]:
-    """With ``job.match_eevee`` and a method that refits: the views the refit fits instead of
-    the captures (``writeback.match_eevee``: EEVEE's direct-light deficit added to their
-    targets) and per matched view its share of Cycles' direct light; else (None, {}). Uses bpy:
-    call it on Blender's main thread, after :func:`prepare`."""
+) -> tuple[vplace.job.EeveeMatch | None, dict[str, float]]:
+    """With ``job.match_eevee`` and a method that refits: what the refit may fit instead of the
+    captures (``writeback.match_eevee``: EEVEE's direct-light deficit added to their targets,
+    and the judge of whether that helps) and per matched view its share of Cycles' direct
+    light; else (None, {}). Uses bpy: call it on Blender's main thread, after
+    :func:`prepare`."""
     if not job.match_eevee or job.method != "vplace+refit":
         return None, {}
-    return match_eevee.refit_views(
+    return match_eevee.eevee_match(
         bl_scene,
         prepared.captures,
         prepared.captured_views,
@@ -351,7 +353,7 @@ def compute(
     progress: vplace.Progress | None = None,
     fitted: vplace.Fit | None = None,
     reference: Reference | None = None,
-    refit_views: Sequence[vplace.View] | None = None,
+    match: vplace.job.EeveeMatch | None = None,
 ) -> Computed:
     """``vplace.job.compute`` (fit, lay out, evaluate, score) on the prepared views against the
     reference (default: the first view's capture). No bpy: safe on a worker thread;
@@ -365,8 +367,18 @@ def compute(
         timer=timer,
         progress=progress,
         fitted=fitted,
-        refit_views=refit_views,
+        match=match,
     )
+
+
+def record_match(
+    report: vplace.job.JobSummary, computed: Computed, matched: dict[str, float]
+) -> None:
+    """Puts "Match EEVEE's direct light" into ``report``: ``matched`` (per captured view, the
+    deficit the refit was offered) where the refit kept it, and its choice (``Laid.match``)."""
+    choice = computed.laid.match
+    report.eevee_matched = matched if choice is not None and choice.kept else {}
+    report.eevee_match = asdict(choice) if choice is not None else None
 
 
 def render_eevee_preview(
@@ -530,10 +542,10 @@ def run_main_job(
     prepared = prepare(bl_scene, job, timer, reference=reference_render(job, truth_samples))
     reference = prepared.reference
     assert reference is not None  # prepare(reference=...) made it
-    refit_views: list[vplace.View] | None = None
+    match: vplace.job.EeveeMatch | None = None
     matched: dict[str, float] = {}
     if job.match_eevee:
-        refit_views, matched = eevee_refit_views(bl_scene, prepared, job, timer)
+        match, matched = eevee_match(bl_scene, prepared, job, timer)
     computed, compared = vplace.job.compute_with_baselines(
         prepared.scene,
         prepared.views,
@@ -541,7 +553,7 @@ def run_main_job(
         reference,
         baselines,
         timer=timer,
-        refit_views=refit_views,
+        match=match,
     )
     written = None
     if write_back:
@@ -577,6 +589,6 @@ def run_main_job(
     report.eevee_problems = written.problems if written else []
     report.eevee_lamp_notes = written.lamp_notes if written else []
     report.baselines = compared
-    report.eevee_matched = matched
+    record_match(report, computed, matched)
     vplace.job.write_files(out_dir, report, reference, computed, job.cell_px, log)
     return report

@@ -307,6 +307,9 @@ class RowDetails:
     near_field: bool | None = None
     near_field_without: float | None = None
     near_field_with: float | None = None
+    #: vplace+refit with ``--match-eevee``: whether the refit kept EEVEE's direct-light deficit,
+    #: and EEVEE's predicted RMSE on the matched views with and without (``MatchChoice``).
+    eevee_match: dict[str, Any] | None = None
     #: EEVEE rows of written VPLs: where EEVEE's error comes from (``vplace.job.Attribution``).
     attribution: dict[str, Any] | None = None
     #: Rows averaged over seeds (``summary.aggregate``): how many, each seed's scores, spreads.

@@ -140,10 +140,10 @@ class SceneData:
     views: list[ViewData]
     resolution: tuple[int, int]
     capture_seconds: float
-    #: With ``ReportConfig.match_eevee``: the views ``vplace+refit``'s refit fits (the
-    #: captures with EEVEE's direct-light deficit added) and, per matched view, the deficit's
-    #: share of Cycles' direct light (``pipeline.eevee_refit_views``).
-    refit_views: list[vplace.View] | None = None
+    #: With ``ReportConfig.match_eevee``: what ``vplace+refit``'s refit may fit (the captures
+    #: with EEVEE's direct-light deficit added, and the judge of whether it helps) and, per
+    #: matched view, the deficit's share of Cycles' direct light (``pipeline.eevee_match``).
+    match: vplace.job.EeveeMatch | None = None
     matched: dict[str, float] = field(default_factory=dict)
 
 
@@ -269,16 +269,16 @@ def load_scene(
     seconds = sum(c.render_seconds for c in prepared.captures)
     if prepared.coverage is not None:
         seconds += prepared.coverage.seconds
-    refit_views, matched = None, {}
+    match, matched = None, {}
     if config.match_eevee and "vplace+refit" in config.methods:
         start = time.perf_counter()
-        refit_views, matched = pipeline.eevee_refit_views(
+        match, matched = pipeline.eevee_match(
             bl_scene, prepared, replace(job, method="vplace+refit"), timer
         )
         seconds += time.perf_counter() - start
         shares = ", ".join(f"{name} {share:+.1%}" for name, share in matched.items())
-        log(f"[vplace] EEVEE's direct-light deficit the refit makes up for: {shares}")
-    return SceneData(prepared, job, views, resolution, seconds, refit_views, matched)
+        log(f"[vplace] EEVEE's direct-light deficit offered to the refit: {shares}")
+    return SceneData(prepared, job, views, resolution, seconds, match, matched)
 
 
 def _timed(fn: Callable[[], Any]) -> tuple[float, Any]:
@@ -334,7 +334,7 @@ def lay_out_all(
                         prepared,
                         replace(job, method="vplace+refit" if both else "vplace"),
                         fitted=fitted,
-                        refit_views=data.refit_views,
+                        match=data.match,
                     )
                 layout = guided.layout
                 assert layout is not None
@@ -357,6 +357,7 @@ def lay_out_all(
                         refit_ridge=refitted.ridge,
                         refit_gain=refitted.gain,
                         switched_off=int((refitted.scales == 0).sum()),
+                        eevee_match=asdict(guided.match) if guided.match is not None else None,
                     )
                 elif guided.refit is None:
                     vpls, near = guided.vpls, guided.near_field
@@ -907,7 +908,7 @@ def _run_scene(
         "fit": asdict(vplace.job.FitSummary.of(fitted)),
         "fit_seconds": fit_seconds,
         "capture_seconds": data.capture_seconds,
-        "eevee_deficit_matched": data.matched if data.refit_views is not None else None,
+        "eevee_deficit_matched": data.matched if data.match is not None else None,
         "views": {},
         "lamp_notes": eevee_setup.lamp_notes(bl_scene) if config.with_eevee else [],
         "vpl_specular": data.prepared.vpl_specular,

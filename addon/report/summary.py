@@ -845,9 +845,11 @@ def _matched_lines(info: dict[str, Any]) -> list[str]:
         return []
     shares = ", ".join(f"{view} {share:+.1%}" for view, share in matched.items()) or "none"
     return [
-        "vplace+refit matches EEVEE's direct light (`--match-eevee`): its refit also fits what "
-        f"EEVEE's direct light lacks against Cycles', of Cycles' direct light: {shares}. The "
-        "EEVEE renders this takes count in the captures' time.",
+        "vplace+refit may match EEVEE's direct light (`--match-eevee`): its refit is offered "
+        f"what EEVEE's direct light lacks against Cycles', of Cycles' direct light: {shares}, "
+        "and keeps it where EEVEE's image predicted on those views comes out closer (each "
+        "row's `eevee_match` in results.json). The EEVEE renders this takes count in the "
+        "captures' time.",
         "",
     ]
 

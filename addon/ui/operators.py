@@ -180,9 +180,7 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
         self.prepared = pipeline.prepare(scene, self.job, self.timer)
         self.key = _model_key(self.job, self.prepared)
         self.fitted = _stored_fit(scene, self.key)
-        self.refit_views, self.matched = pipeline.eevee_refit_views(
-            scene, self.prepared, self.job, self.timer
-        )
+        self.match, self.matched = pipeline.eevee_match(scene, self.prepared, self.job, self.timer)
 
     def work(self, progress: vplace.Progress | None) -> Any:
         if self.frames is not None:
@@ -193,7 +191,7 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
             self.timer,
             progress,
             self.fitted,
-            refit_views=self.refit_views,
+            match=self.match,
         )
 
     def finish(self, context: bpy.types.Context, result: Any) -> set[str]:
@@ -212,7 +210,7 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
             closed=self.prepared.stand_ins.closed,
         )
         summary = pipeline.summary(scene, self.job, self.prepared, computed, self.timer)
-        summary.eevee_matched = self.matched
+        pipeline.record_match(summary, computed, self.matched)
         if scene.vplace.check_eevee:
             summary.eevee = self._check_eevee(scene, computed)
         scene.vplace.last_report = json.dumps(summary.to_dict())

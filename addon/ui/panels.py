@@ -126,6 +126,13 @@ class VPLACE_PT_main(_Panel, bpy.types.Panel):
                 text=f"Matched EEVEE's direct light: {name} "
                 f"{vplace.markdown.percent(share, signed=True)}"
             )
+        choice = report.eevee_match
+        if choice is not None and not choice["kept"]:
+            box.label(text="Match EEVEE's direct light left out: it would not help here")
+            box.label(
+                text=f"  EEVEE's RMSE {choice['with_match']:.4g} with it, "
+                f"{choice['without']:.4g} without"
+            )
         for line in report.eevee_lines():
             box.label(text=line)
         fit = report.fit

@@ -21,6 +21,8 @@ sees. It costs an EEVEE render per captured view at the capture size, seconds on
 
 from __future__ import annotations
 
+import functools
+import math
 from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager
 from pathlib import Path
@@ -43,7 +45,7 @@ if TYPE_CHECKING:
 COLLECTION = apply.COLLECTION_NAME + " (matching EEVEE)"
 
 
-def refit_views(
+def eevee_match(
     bl_scene: bpy.types.Scene,
     captures: Sequence[Capture],
     views: Sequence[vplace.View],
@@ -54,12 +56,13 @@ def refit_views(
     cell_px: int,
     cache_dir: Path | None,
     stage: Callable[[str], AbstractContextManager[None]],
-) -> tuple[list[vplace.View], dict[str, float]]:
-    """The views the refit fits (``vplace.job.lay_out(refit_views=...)``) in place of the
-    captured ``views`` (one per capture of ``captures``, ``gloss`` their glossy masks): each
+) -> tuple[vplace.job.EeveeMatch, dict[str, float]]:
+    """What the refit may fit (``vplace.job.lay_out(match=...)``) in place of the captured
+    ``views`` (one per capture of ``captures``, ``gloss`` their glossy masks): each
     view whose capture is its camera at the current frame with EEVEE's direct-light deficit
-    (boxes of ``cell_px``) added to its target, the others as they are; and per matched view,
-    the deficit's mean over Cycles' direct light's (luminance). EEVEE lights the scene with
+    (boxes of ``cell_px``) added to its target, the others as they are, with the error EEVEE's
+    image of a set of VPLs would have on those views (:func:`predicted_error`); and per matched
+    view, the deficit's mean over Cycles' direct light's (luminance). EEVEE lights the scene with
     ``stand_ins``, written into :data:`COLLECTION` and removed after; any vplace collection
     already in the scene is hidden for the renders, and every setting is restored, even on
     error. ``scene`` (the job's ``vplace.Scene``) gives the stand-ins' size and region, and
@@ -71,9 +74,11 @@ def refit_views(
         radius=0.01,
     )
     lum = np.asarray(vplace.LUMINANCE, dtype=np.float64)
+    plain = list(views)
     views = list(views)
     region = scene.region
     matched: dict[str, float] = {}
+    judged: list[tuple[vplace.View, np.ndarray, np.ndarray, np.ndarray]] = []
     with override() as g:
         old = apply.find_collection()
         if old is not None:
@@ -112,10 +117,34 @@ def refit_views(
                     )
                     mask = gloss[i] if gloss else None
                     views[i] = view_of(cap, gloss=mask, offset=deficit, scene=scene)
+                    # EEVEE's image of the VPLs would be its direct light plus their light; the
+                    # capture's light is Cycles' direct light plus the indirect light they fit.
+                    target = cap.direct[..., :3] + cap.modelled_indirect(mask)[..., :3]
+                    judged.append((plain[i], img.image[..., :3], target, cap.covered & ~seen))
                     direct = float((cap.direct[..., :3] @ lum).mean())
                     matched[cap.view] = (
                         float((deficit @ lum).mean()) / direct if direct > 0 else 0.0
                     )
         finally:
             apply.clear_vpls(COLLECTION)
-    return views, matched
+    return vplace.job.EeveeMatch(views, functools.partial(predicted_error, scene, judged)), matched
+
+
+def predicted_error(
+    scene: vplace.Scene,
+    judged: Sequence[tuple[vplace.View, np.ndarray, np.ndarray, np.ndarray]],
+    vpls: vplace.VplSet,
+) -> float:
+    """EEVEE's predicted RMSE over the matched views of ``judged`` (each: the captured view,
+    EEVEE's direct light rendered on it, the capture's light, and its surface pixels) with
+    ``vpls``: EEVEE's direct light plus the VPLs' light as the evaluator computes it (EEVEE's
+    image of the VPLs is within 1.5 % of it, ``docs/EEVEE_NOTES.md`` Q7), against the
+    capture's light, over the surfaces (the emitters and the world seen directly are left
+    out: the VPLs do not light them). No bpy: the refit's judge on a worker thread."""
+    total, count = 0.0, 0
+    for view, eevee_direct, target, mask in judged:
+        light, _ = vplace.evaluate(scene, view, vpls)
+        diff = (eevee_direct + np.asarray(light)[..., :3] - target)[mask]
+        total += float((diff.astype(np.float64) ** 2).sum())
+        count += 3 * int(mask.sum())
+    return math.sqrt(total / count) if count else 0.0

@@ -640,7 +640,17 @@ def test_match_eevee_refits_vplace_refits_powers_to_eevees_direct_light_and_says
         return [r["ssim"] for r in _rows(result, renderer="evaluator", method=method)]
 
     assert ssim(matched, "vplace") == ssim(plain, "vplace")
-    assert ssim(matched, "vplace+refit") != ssim(plain, "vplace+refit")
+    # The refit keeps the deficit only where EEVEE's image predicted on the matched views comes
+    # out closer with it; each row says which, and the powers follow.
+    refits = _rows(matched, renderer="evaluator", method="vplace+refit")
+    choices = {json.dumps(r["extra"]["eevee_match"], sort_keys=True) for r in refits}
+    (choice,) = [json.loads(c) for c in choices]
+    assert choice["kept"] == (choice["with_match"] < choice["without"])
+    assert all(r["extra"].get("eevee_match") is None for r in _rows(plain, method="vplace+refit"))
+    if choice["kept"]:
+        assert ssim(matched, "vplace+refit") != ssim(plain, "vplace+refit")
+    else:
+        assert ssim(matched, "vplace+refit") == ssim(plain, "vplace+refit")
     text = (tmp_path / "matched" / "report.md").read_text()
-    assert "vplace+refit matches EEVEE's direct light (`--match-eevee`)" in text
+    assert "vplace+refit may match EEVEE's direct light (`--match-eevee`)" in text
     assert "--match-eevee" not in (tmp_path / "plain" / "report.md").read_text()

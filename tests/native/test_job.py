@@ -69,21 +69,34 @@ def test_compute_scores_against_the_reference(room):
     )
 
 
-def test_the_refit_fits_the_views_it_is_given_for_eevees_direct_light(room):
+def test_the_refit_matches_eevees_direct_light_only_where_the_judge_says_it_helps(room):
     scene, v, ref = room
     cap = bench_layout.synthetic_capture(48, 32)
     plain = vjob.lay_out(scene, [v], settings(method="vplace+refit"))
-    # The same targets give the same lights; a target raised where EEVEE's direct light falls
-    # short gives the VPLs more power (the layout itself, placed for Cycles' light, is kept).
-    same = vjob.lay_out(scene, [v], settings(method="vplace+refit"), refit_views=[v])
-    assert np.array_equal(same.vpls.flux, plain.vpls.flux)
+    assert plain.match is None
+    # A target raised where EEVEE's direct light falls short gives the VPLs more power (the
+    # layout itself, placed for Cycles' light, is kept) where EEVEE's image would come out
+    # closer with it: here a judge that wants more light.
     short = 0.5 * ref.modelled_indirect
     raised = view(cap, indirect=ref.modelled_indirect + short, diffuse_indirect=ref.gi)
-    more = vjob.lay_out(scene, [v], settings(method="vplace+refit"), refit_views=[raised])
+    wanted = 1.5 * float(plain.vpls.flux.sum())
+
+    def error(vpls):
+        return abs(float(vpls.flux.sum()) - wanted)
+
+    match = vjob.EeveeMatch([raised], error)
+    more = vjob.lay_out(scene, [v], settings(method="vplace+refit"), match=match)
+    assert more.match is not None and more.match.kept
+    assert more.match.with_match < more.match.without == pytest.approx(error(plain.vpls))
     assert np.array_equal(more.layout.vpls.position, plain.layout.vpls.position)
     assert more.vpls.flux.sum() > 1.2 * plain.vpls.flux.sum()
-    out = vjob.compute(scene, [v], settings(method="vplace+refit"), ref, refit_views=[raised])
+    out = vjob.compute(scene, [v], settings(method="vplace+refit"), ref, match=match)
     assert np.array_equal(out.vpls.flux, more.vpls.flux)
+    # A judge that finds EEVEE's image the closer without it: the plain powers stay.
+    kept_out = vjob.EeveeMatch([raised], lambda vpls: float(vpls.flux.sum()))
+    same = vjob.lay_out(scene, [v], settings(method="vplace+refit"), match=kept_out)
+    assert same.match is not None and not same.match.kept
+    assert np.array_equal(same.vpls.flux, plain.vpls.flux)
 
 
 def _box_mean_by_loops(diff, mask, size):
@@ -134,6 +147,14 @@ def test_the_note_says_where_the_powers_make_up_for_eevees_direct_light():
     assert vjob.eevee_matched_notes({}) == []
     (line,) = vjob.eevee_matched_notes({"Camera": 0.034, "Side": -0.002})
     assert "Camera +3%, Side +0%" in line
+    kept = {"kept": True, "with_match": 0.0035, "without": 0.0045}
+    (line,) = vjob.eevee_matched_notes({"Camera": 0.034}, kept)
+    assert "Camera +3%" in line and "RMSE 0.0035 with it, 0.0045 without" in line
+    # Left out where it would not help: said so, with the figures, and no share.
+    left = dict(kept, kept=False, with_match=0.127)
+    (line,) = vjob.eevee_matched_notes({}, left)
+    assert line.startswith("Match EEVEE's direct light was left out")
+    assert "RMSE 0.127 with it, 0.0045 without" in line
 
 
 def test_score_of_the_truth_is_perfect_and_ssim_needs_11_pixels():

@@ -126,6 +126,34 @@ class NearFieldChoice:
 
 
 @dataclass
+class EeveeMatch:
+    """What "Match EEVEE's direct light" gives the refit (the add-on's
+    ``writeback.match_eevee``): ``views``, the captured views with EEVEE's smooth direct-light
+    deficit (:func:`eevee_deficit`) added to the light the VPLs are fitted to, and ``error``,
+    the squared error EEVEE's image would have on the matched views with a set of VPLs (EEVEE's
+    own direct light, rendered, plus the VPLs' light, against the captures' light). The refit
+    keeps the deficit only where ``error`` says it helps (:class:`MatchChoice`)."""
+
+    views: list[vplace.View]
+    error: Callable[[vplace.VplSet], float]
+
+
+@dataclass
+class MatchChoice:
+    """Whether the refit kept EEVEE's direct-light deficit (:class:`EeveeMatch`), and the
+    evidence: EEVEE's predicted RMSE on the matched views with the powers refitted to it and
+    with the powers refitted without it. Where the deficit is sharp (a sun patch's edge, a
+    texture EEVEE filters its own way) the smooth VPL light cannot follow it, and fitting its
+    average raised EEVEE's error (the sky room's camera: RMSE .1246 -> .1269); where it is a
+    lamp's light EEVEE darkens smoothly, it lowered it (the Cornell box's left view: .00452 ->
+    .00352; README, "Match EEVEE's direct light, only where it helps")."""
+
+    kept: bool
+    with_match: float
+    without: float
+
+
+@dataclass
 class Laid:
     """The VPLs of one method, and how they were made."""
 
@@ -140,6 +168,8 @@ class Laid:
     near_field: NearFieldChoice | None = None
     #: Seconds of that choice.
     near_field_seconds: float = 0.0
+    #: With an :class:`EeveeMatch`: whether the refit kept it (vplace+refit).
+    match: MatchChoice | None = None
 
 
 #: :func:`choose_near_field` compares block means of this many pixels a side: the captures'
@@ -344,14 +374,15 @@ def lay_out(
     fitted: vplace.Fit | None = None,
     timer: StageTimer | None = None,
     progress: vplace.Progress | None = None,
-    refit_views: Sequence[vplace.View] | None = None,
+    match: EeveeMatch | None = None,
     judge_near_field: bool = True,
 ) -> Laid:
     """The VPLs of ``settings.method`` (the one method dispatch). ``views`` are what the
     regression-guided layout places for and iterates against (views without an indirect image
     give a one-shot layout); ``fitted`` is the model (fitted here when None). The refit fits
-    ``refit_views`` when given (the captures with EEVEE's direct-light deficit added to their
-    targets: :func:`eevee_deficit`), else the captured views of ``views``. With
+    the captured views of ``views``; with ``match``, also ``match.views`` in their place (the
+    captures with EEVEE's direct-light deficit added to their targets), and keeps the powers
+    whose EEVEE image ``match.error`` predicts the closer (``Laid.match``). With
     ``judge_near_field`` the regression-guided sets take the near-field gather where the
     captures say it helps (:func:`choose_near_field`); without, they stay without it (keyed
     lights: EEVEE's fast GI is one setting for every frame)."""
@@ -402,15 +433,26 @@ def lay_out(
     if settings.method == "vplace+refit" and all(v.has_indirect for v in views):
         with timer.stage("refit VPL powers"):
             start = time.perf_counter()
-            out.refit = refit_powers(
-                scene, views, laid.vpls, refit_views=refit_views, progress=progress
-            )
+            out.refit = refit_powers(scene, views, laid.vpls, progress=progress)
             out.refit_seconds = time.perf_counter() - start
+        if match is not None:
+            with timer.stage("refit VPL powers to EEVEE's direct light"):
+                start = time.perf_counter()
+                matched = refit_powers(
+                    scene, views, laid.vpls, refit_views=match.views, progress=progress
+                )
+                with_match, without = match.error(matched.vpls), match.error(out.refit.vpls)
+                out.match = MatchChoice(with_match < without, with_match, without)
+                if out.match.kept:
+                    out.refit = matched
+                out.refit_seconds += time.perf_counter() - start
         out.vpls = out.refit.vpls
     if judge_near_field and settings.near_field and any(v.has_indirect for v in views):
         with timer.stage("near-field light: with or without"):
             start = time.perf_counter()
-            judged = captures_of(views) if refit_views is None else list(refit_views)
+            judged = captures_of(views)
+            if match is not None and out.match is not None and out.match.kept:
+                judged = list(match.views)
             out.near_field = choose_near_field(scene, judged, out.vpls, progress=progress)
             out.vpls = out.vpls.with_near_field(out.near_field.on)
             out.near_field_seconds = time.perf_counter() - start
@@ -880,10 +922,11 @@ def compute(
     timer: StageTimer | None = None,
     progress: vplace.Progress | None = None,
     fitted: vplace.Fit | None = None,
-    refit_views: Sequence[vplace.View] | None = None,
+    match: EeveeMatch | None = None,
 ) -> Computed:
-    """:func:`fit` (unless ``fitted``), :func:`lay_out` (its refit on ``refit_views`` when
-    given), the evaluator on the reference view and the metrics against it."""
+    """:func:`fit` (unless ``fitted``), :func:`lay_out` (its refit matching EEVEE's direct
+    light with ``match`` where that helps), the evaluator on the reference view and the
+    metrics against it."""
     timer = timer or quiet_timer()
     if fitted is None:
         with timer.stage("fit regression"):
@@ -895,7 +938,7 @@ def compute(
         fitted=fitted,
         timer=timer,
         progress=progress,
-        refit_views=refit_views,
+        match=match,
     )
     with timer.stage("evaluate VPLs"):
         indirect, stats = vplace.evaluate(scene, reference.view, laid.vpls, progress=progress)
@@ -1031,6 +1074,9 @@ class JobSummary:
     #: :func:`eevee_deficit` over the mean of Cycles' direct light (luminance; negative where
     #: EEVEE's direct light is the brighter). Empty when the job did not match.
     eevee_matched: dict[str, float] = field(default_factory=dict)
+    #: Where the job asked to match: whether the refit kept it and EEVEE's predicted RMSE on
+    #: the matched views with and without (:class:`MatchChoice`, as a dict); None otherwise.
+    eevee_match: dict[str, Any] | None = None
     reference: ReferenceInfo | None = None
     eevee: dict[str, float] | None = None
     eevee_problems: list[str] = field(default_factory=list)
@@ -1063,8 +1109,9 @@ class PanelReport:
     stage_seconds: dict[str, float] = field(default_factory=dict)
     #: EEVEE's scores of the written lights ("Check in EEVEE"; ``JobSummary.eevee``).
     eevee: dict[str, float] = field(default_factory=dict)
-    #: "Match EEVEE's direct light" (``JobSummary.eevee_matched``).
+    #: "Match EEVEE's direct light" (``JobSummary.eevee_matched``, ``JobSummary.eevee_match``).
     eevee_matched: dict[str, float] = field(default_factory=dict)
+    eevee_match: dict[str, Any] | None = None
 
     @classmethod
     def from_json(cls, text: str) -> PanelReport | None:
@@ -1081,6 +1128,7 @@ class PanelReport:
             stage_seconds=data.get("stage_seconds") or {},
             eevee=data.get("eevee") or {},
             eevee_matched=data.get("eevee_matched") or {},
+            eevee_match=data.get("eevee_match"),
         )
 
     def eevee_lines(self) -> list[str]:
@@ -1132,12 +1180,12 @@ def compute_with_baselines(
     baselines: Sequence[str],
     *,
     timer: StageTimer | None = None,
-    refit_views: Sequence[vplace.View] | None = None,
+    match: EeveeMatch | None = None,
 ) -> tuple[Computed, dict[str, Baseline]]:
-    """:func:`compute` for the settings' method (its refit on ``refit_views`` when given), then
-    each other method of ``baselines`` at the same budget, with the same fit and reference,
-    timed apart and quietly."""
-    computed = compute(scene, views, settings, reference, timer=timer, refit_views=refit_views)
+    """:func:`compute` for the settings' method (with ``match`` when given), then each other
+    method of ``baselines`` at the same budget, with the same fit and reference, timed apart
+    and quietly."""
+    computed = compute(scene, views, settings, reference, timer=timer, match=match)
     compared = {}
     for method in (b for b in baselines if b != settings.method):
         quiet = quiet_timer()
@@ -1338,9 +1386,23 @@ def _region(report: JobSummary) -> str:
     )
 
 
-def eevee_matched_notes(matched: dict[str, float]) -> list[str]:
-    """The main job's line on "Match EEVEE's direct light" (``JobSummary.eevee_matched``):
-    on which views the refit made up for EEVEE's direct light, and by how much (none without)."""
+def eevee_matched_notes(
+    matched: dict[str, float], choice: dict[str, Any] | None = None
+) -> list[str]:
+    """The main job's line on "Match EEVEE's direct light" (``JobSummary.eevee_matched``,
+    ``JobSummary.eevee_match``): on which views the refit made up for EEVEE's direct light,
+    and by how much, or that it left it out because it would not help (none without)."""
+    judged = ""
+    if choice is not None:
+        judged = (
+            f"EEVEE's image predicted on the captured views: RMSE {choice['with_match']:.4g} "
+            f"with it, {choice['without']:.4g} without"
+        )
+        if not choice["kept"]:
+            return [
+                "Match EEVEE's direct light was left out: the VPLs' smooth light would not make "
+                f"up for what EEVEE's direct light lacks here ({judged})."
+            ]
     if not matched:
         return []
     views = ", ".join(
@@ -1348,7 +1410,8 @@ def eevee_matched_notes(matched: dict[str, float]) -> list[str]:
     )
     return [
         "The VPL powers make up for EEVEE's direct light (Match EEVEE's direct light): its "
-        f"smooth shortfall against Cycles' direct light, in the captured views: {views}."
+        f"smooth shortfall against Cycles' direct light, in the captured views: {views}"
+        + (f" ({judged})." if judged else ".")
     ]
 
 
@@ -1390,7 +1453,11 @@ def job_report(report: JobSummary) -> str:
             for line in (note, "")
         ],
         *[line for note in report.eevee_lamp_notes for line in (note + ".", "")],
-        *[line for note in eevee_matched_notes(report.eevee_matched) for line in (note, "")],
+        *[
+            line
+            for note in eevee_matched_notes(report.eevee_matched, report.eevee_match)
+            for line in (note, "")
+        ],
         *_view_weight_lines(s.refit_view_weights),
         *_near_field_lines(s.near_field, report.unit_scale),
         f"Evaluator: {s.shadow_rays} shadow rays in {s.seconds:.3f} s "
