@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 
 import numpy as np
 import pytest
@@ -81,22 +82,45 @@ def test_the_refit_matches_eevees_direct_light_only_where_the_judge_says_it_help
     raised = view(cap, indirect=ref.modelled_indirect + short, diffuse_indirect=ref.gi)
     wanted = 1.5 * float(plain.vpls.flux.sum())
 
-    def error(vpls):
-        return abs(float(vpls.flux.sum()) - wanted)
+    def error(vpls, index):
+        assert index == 0
+        return (float(vpls.flux.sum()) - wanted) ** 2
 
-    match = vjob.EeveeMatch([raised], error)
+    match = vjob.EeveeMatch([raised], [v], [0], error)
     more = vjob.lay_out(scene, [v], settings(method="vplace+refit"), match=match)
-    assert more.match is not None and more.match.kept
-    assert more.match.with_match < more.match.without == pytest.approx(error(plain.vpls))
+    # One matched view: judged on the view it was fitted to.
+    assert more.match is not None and more.match.kept and not more.match.held_out
+    assert more.match.with_match < more.match.without
+    assert more.match.without == pytest.approx(math.sqrt(error(plain.vpls, 0)))
     assert np.array_equal(more.layout.vpls.position, plain.layout.vpls.position)
     assert more.vpls.flux.sum() > 1.2 * plain.vpls.flux.sum()
     out = vjob.compute(scene, [v], settings(method="vplace+refit"), ref, match=match)
     assert np.array_equal(out.vpls.flux, more.vpls.flux)
     # A judge that finds EEVEE's image the closer without it: the plain powers stay.
-    kept_out = vjob.EeveeMatch([raised], lambda vpls: float(vpls.flux.sum()))
+    kept_out = vjob.EeveeMatch([raised], [v], [0], lambda vpls, _i: float(vpls.flux.sum()))
     same = vjob.lay_out(scene, [v], settings(method="vplace+refit"), match=kept_out)
     assert same.match is not None and not same.match.kept
     assert np.array_equal(same.vpls.flux, plain.vpls.flux)
+    # Two matched views: each is judged by the powers refitted to the other's deficit alone.
+    # The raised view's deficit carries over to the other; the other's is none, so on the
+    # raised view, judged left out, the powers are the plain ones and the judge says no gain.
+    judged = []
+
+    def both(vpls, index):
+        judged.append((index, float(vpls.flux.sum())))
+        return (float(vpls.flux.sum()) - wanted) ** 2
+
+    two = vjob.EeveeMatch([raised, v], [v, v], [0, 1], both)
+    out2 = vjob.lay_out(scene, [v, v], settings(method="vplace+refit"), match=two)
+    assert out2.match is not None and out2.match.held_out
+    plain2 = vjob.lay_out(scene, [v, v], settings(method="vplace+refit"))
+    on_raised = [f for i, f in judged if i == 0]  # left out: refitted to view 1 (no deficit)
+    assert on_raised[0] == pytest.approx(float(plain2.vpls.flux.sum()), rel=1e-6)
+    on_other = [f for i, f in judged if i == 1]  # left out: refitted to the raised view
+    assert on_other[0] > 1.1 * float(plain2.vpls.flux.sum())
+    # No matched view: nothing to judge, nothing kept.
+    none = vjob.EeveeMatch([v], [v], [], error)
+    assert not vjob.lay_out(scene, [v], settings(method="vplace+refit"), match=none).match.kept
 
 
 def _box_mean_by_loops(diff, mask, size):

@@ -129,28 +129,74 @@ class NearFieldChoice:
 class EeveeMatch:
     """What "Match EEVEE's direct light" gives the refit (the add-on's
     ``writeback.match_eevee``): ``views``, the captured views with EEVEE's smooth direct-light
-    deficit (:func:`eevee_deficit`) added to the light the VPLs are fitted to, and ``error``,
-    the squared error EEVEE's image would have on the matched views with a set of VPLs (EEVEE's
-    own direct light, rendered, plus the VPLs' light, against the captures' light). The refit
-    keeps the deficit only where ``error`` says it helps (:class:`MatchChoice`)."""
+    deficit (:func:`eevee_deficit`) added to the light the VPLs are fitted to on the views of
+    ``matched`` (indices into ``views``), and ``plain``, the same captured views without it;
+    ``error(vpls, i)``, the mean squared error EEVEE's image would have on matched view ``i``
+    with a set of VPLs (EEVEE's own direct light, rendered, plus the VPLs' light, against the
+    capture's light). The refit keeps the deficit only where it helps (:class:`MatchChoice`)."""
 
     views: list[vplace.View]
-    error: Callable[[vplace.VplSet], float]
+    plain: list[vplace.View]
+    matched: list[int]
+    error: Callable[[vplace.VplSet, int], float]
 
 
 @dataclass
 class MatchChoice:
     """Whether the refit kept EEVEE's direct-light deficit (:class:`EeveeMatch`), and the
     evidence: EEVEE's predicted RMSE on the matched views with the powers refitted to it and
-    with the powers refitted without it. Where the deficit is sharp (a sun patch's edge, a
-    texture EEVEE filters its own way) the smooth VPL light cannot follow it, and fitting its
-    average raised EEVEE's error (the sky room's camera: RMSE .1246 -> .1269); where it is a
-    lamp's light EEVEE darkens smoothly, it lowered it (the Cornell box's left view: .00452 ->
-    .00352; README, "Match EEVEE's direct light, only where it helps")."""
+    with the powers refitted without it. With two matched views or more each is judged left
+    out (``held_out``): the powers refitted to the other views' deficit, on its own view, so
+    that the deficit is kept only where it carries over to a view it was not fitted to (a view
+    no capture saw, such as the sky room's held-out ceiling, is such a view); with one, on the
+    view it was fitted to. It is kept where EEVEE's image comes out closer on every view judged
+    (``per_view``). Where the deficit is sharp (a sun patch's edge, a texture EEVEE
+    filters its own way) the smooth VPL light cannot follow it, and fitting its average raised
+    EEVEE's error (the sky room: RMSE .1246 -> .1269 on the camera, .0567 -> .0666 on the
+    held-out ceiling); where it is a lamp's light EEVEE darkens smoothly, it lowered it (the
+    Cornell box's left view: .00452 -> .00352; README, "Match EEVEE's direct light, only where
+    it helps")."""
 
     kept: bool
     with_match: float
     without: float
+    held_out: bool = False
+    #: Per matched view: EEVEE's predicted RMSE with the deficit and without.
+    per_view: list[list[float]] = field(default_factory=list)
+
+
+def choose_match(
+    scene: vplace.Scene,
+    views: Sequence[vplace.View],
+    vpls: vplace.VplSet,
+    plain: vplace.Refit,
+    match: EeveeMatch,
+    progress: vplace.Progress | None = None,
+) -> tuple[MatchChoice, vplace.Refit | None]:
+    """Whether ``match`` helps the refit of ``vpls`` (the layout's set; ``plain`` its refit
+    without it), judged as :class:`MatchChoice` says, and the refit with it (None when it is
+    left out)."""
+    if not match.matched:
+        return MatchChoice(False, math.nan, math.nan), None
+    matched = refit_powers(scene, views, vpls, refit_views=match.views, progress=progress)
+    held_out = len(match.matched) >= 2
+    with_match, without = [], []
+    for i in match.matched:
+        judged = matched
+        if held_out:
+            others = list(match.views)
+            others[i] = match.plain[i]
+            judged = refit_powers(scene, views, vpls, refit_views=others, progress=progress)
+        with_match.append(match.error(judged.vpls, i))
+        without.append(match.error(plain.vpls, i))
+    a, b = math.sqrt(float(np.mean(with_match))), math.sqrt(float(np.mean(without)))
+    per_view = [[math.sqrt(w), math.sqrt(o)] for w, o in zip(with_match, without, strict=True)]
+    # Kept where it helps on every view judged, not on their mean alone: a mean gain of a few
+    # parts in ten thousand, made of one view's gain and another's loss, is no evidence that
+    # it carries over to a view no capture saw.
+    kept = all(w < o for w, o in per_view)
+    choice = MatchChoice(kept, a, b, held_out, per_view)
+    return choice, matched if choice.kept else None
 
 
 @dataclass
@@ -438,12 +484,10 @@ def lay_out(
         if match is not None:
             with timer.stage("refit VPL powers to EEVEE's direct light"):
                 start = time.perf_counter()
-                matched = refit_powers(
-                    scene, views, laid.vpls, refit_views=match.views, progress=progress
+                out.match, matched = choose_match(
+                    scene, views, laid.vpls, out.refit, match, progress=progress
                 )
-                with_match, without = match.error(matched.vpls), match.error(out.refit.vpls)
-                out.match = MatchChoice(with_match < without, with_match, without)
-                if out.match.kept:
+                if matched is not None:
                     out.refit = matched
                 out.refit_seconds += time.perf_counter() - start
         out.vpls = out.refit.vpls
