@@ -163,8 +163,12 @@ def test_match_and_check_in_eevee_show_eevees_direct_light_and_whose_part_its_di
         assert abs(e["attribution_stand_in_share"]) < 0.05
         labels = [t for kind, t in draw(scene) if kind == "label"]
         assert any(t.startswith("EEVEE: SSIM ") for t in labels)
-        # "Match EEVEE's direct light" rendered it first and says by how much it differs.
-        assert any(t.startswith("Matched EEVEE's direct light: Cornell camera ") for t in labels)
+        # "Match EEVEE's direct light" rendered it first, judged whether it helps, and says
+        # which: by how much it differs where it was kept, the figures where it was left out.
+        choice = json.loads(scene.vplace.last_report)["eevee_match"]
+        matched = any(t.startswith("Matched EEVEE's direct light: Cornell camera ") for t in labels)
+        left_out = "Match EEVEE's direct light left out: it would not help here" in labels
+        assert (matched, left_out) == (choice["kept"], not choice["kept"])
         assert any(t.endswith("EEVEE's rendering (not vplace's)") for t in labels)
 
 
