@@ -23,7 +23,7 @@ import functools
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -371,16 +371,6 @@ def compute(
     )
 
 
-def record_match(
-    report: vplace.job.JobSummary, computed: Computed, matched: dict[str, float]
-) -> None:
-    """Puts "Match EEVEE's direct light" into ``report``: ``matched`` (per captured view, the
-    deficit the refit was offered) where the refit kept it, and its choice (``Laid.match``)."""
-    choice = computed.laid.match
-    report.eevee_matched = matched if choice is not None and choice.kept else {}
-    report.eevee_match = asdict(choice) if choice is not None else None
-
-
 def render_eevee_preview(
     bl_scene: bpy.types.Scene, path: Path, resolution: tuple[int, int]
 ) -> float:
@@ -589,6 +579,6 @@ def run_main_job(
     report.eevee_problems = written.problems if written else []
     report.eevee_lamp_notes = written.lamp_notes if written else []
     report.baselines = compared
-    record_match(report, computed, matched)
+    report.set_match(matched, computed.laid.match)
     vplace.job.write_files(out_dir, report, reference, computed, job.cell_px, log)
     return report

@@ -210,7 +210,7 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
             closed=self.prepared.stand_ins.closed,
         )
         summary = pipeline.summary(scene, self.job, self.prepared, computed, self.timer)
-        pipeline.record_match(summary, computed, self.matched)
+        summary.set_match(self.matched, computed.laid.match)
         if scene.vplace.check_eevee:
             summary.eevee = self._check_eevee(scene, computed)
         scene.vplace.last_report = json.dumps(summary.to_dict())

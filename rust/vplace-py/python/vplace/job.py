@@ -1129,6 +1129,13 @@ class JobSummary:
     baselines: dict[str, Baseline] = field(default_factory=dict)
     files: list[str] = field(default_factory=list)
 
+    def set_match(self, matched: dict[str, float], choice: MatchChoice | None) -> None:
+        """Puts "Match EEVEE's direct light" in: ``matched`` (per captured view, the deficit
+        the refit was offered) where the refit kept it (``choice``, ``Laid.match``), else
+        nothing; and the choice itself."""
+        self.eevee_matched = matched if choice is not None and choice.kept else {}
+        self.eevee_match = asdict(choice) if choice is not None else None
+
     def to_dict(self, *, main_job: bool = False) -> dict[str, Any]:
         """JSON-ready; the main job's fields only with ``main_job``."""
         out = asdict(self)
