@@ -76,7 +76,7 @@ from .config import (
     row_dict,
     write_csv,
 )
-from .summary import aggregate, break_even, markdown, pct, targets
+from .summary import aggregate, break_even, markdown, matched_shares, pct, targets
 
 
 @contextmanager
@@ -276,8 +276,9 @@ def load_scene(
             bl_scene, prepared, replace(job, method="vplace+refit"), timer
         )
         seconds += time.perf_counter() - start
-        shares = ", ".join(f"{name} {share:+.1%}" for name, share in matched.items())
-        log(f"[vplace] EEVEE's direct-light deficit offered to the refit: {shares}")
+        log(
+            f"[vplace] EEVEE's direct-light deficit offered to the refit: {matched_shares(matched)}"
+        )
     return SceneData(prepared, job, views, resolution, seconds, match, matched)
 
 

@@ -838,12 +838,18 @@ def region_sentence(region: dict[str, Any] | None) -> str:
     )
 
 
+def matched_shares(matched: dict[str, float]) -> str:
+    """``--match-eevee``'s deficit per matched view, of Cycles' direct light: "A +0.6%, B
+    -0.6%" ("none" where no view was matched)."""
+    return ", ".join(f"{view} {share:+.1%}" for view, share in matched.items()) or "none"
+
+
 def _matched_lines(info: dict[str, Any]) -> list[str]:
     """With ``--match-eevee``: what vplace+refit's powers make up for, per captured view."""
     matched = info.get("eevee_deficit_matched")
     if matched is None:
         return []
-    shares = ", ".join(f"{view} {share:+.1%}" for view, share in matched.items()) or "none"
+    shares = matched_shares(matched)
     return [
         "vplace+refit may match EEVEE's direct light (`--match-eevee`): its refit is offered "
         f"what EEVEE's direct light lacks against Cycles', of Cycles' direct light: {shares}, "

@@ -178,15 +178,22 @@ def choose_match(
     left out)."""
     if not match.matched:
         return MatchChoice(False, math.nan, math.nan), None
-    matched = refit_powers(scene, views, vpls, refit_views=match.views, progress=progress)
+
+    def refit(refit_views: Sequence[vplace.View]) -> vplace.Refit:
+        return refit_powers(scene, views, vpls, refit_views=refit_views, progress=progress)
+
     held_out = len(match.matched) >= 2
+    # Judged on the views it was fitted to, the refit with every deficit is the one judged;
+    # judged left out, it is needed only where it is kept (below).
+    matched = None if held_out else refit(match.views)
     with_match, without = [], []
     for i in match.matched:
-        judged = matched
-        if held_out:
+        if matched is None:
             others = list(match.views)
             others[i] = match.plain[i]
-            judged = refit_powers(scene, views, vpls, refit_views=others, progress=progress)
+            judged = refit(others)
+        else:
+            judged = matched
         with_match.append(match.error(judged.vpls, i))
         without.append(match.error(plain.vpls, i))
     a, b = math.sqrt(float(np.mean(with_match))), math.sqrt(float(np.mean(without)))
@@ -196,7 +203,9 @@ def choose_match(
     # it carries over to a view no capture saw.
     kept = all(w < o for w, o in per_view)
     choice = MatchChoice(kept, a, b, held_out, per_view)
-    return choice, matched if choice.kept else None
+    if not kept:
+        return choice, None
+    return choice, matched if matched is not None else refit(match.views)
 
 
 @dataclass
