@@ -77,7 +77,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
 
 
 def _demo_options(sub: argparse._SubParsersAction) -> None:
-    from .job import FEATURE_MODES, Job
+    from .job import FEATURE_MODES, MATCH_EEVEE, Job
     from .scenes.registry import BUILTIN
 
     demo = sub.add_parser("demo", help="run the main job on a scene (default: the Cornell box)")
@@ -165,9 +165,11 @@ def _demo_options(sub: argparse._SubParsersAction) -> None:
         "--no-refit", action="store_true", help="vplace: keep the layout's VPL powers"
     )
     demo.add_argument(
-        "--match-eevee", action="store_true",
+        "--match-eevee", nargs="?", choices=MATCH_EEVEE, default="auto", const="on",
         help="refit the powers so that EEVEE's direct light plus the VPLs' light matches the "
-        "captures (an EEVEE render per captured view first; not with --animate)",
+        "captures, where that helps (an EEVEE render per captured view first; not with "
+        "--animate): on (the flag alone), off, or auto (the default: on only where a surface the "
+        "cameras see cuts one of your lamps, which EEVEE darkens)",
     )  # fmt: skip
     demo.add_argument(
         "--no-near-field", action="store_true",
@@ -193,7 +195,7 @@ def _demo_options(sub: argparse._SubParsersAction) -> None:
 
 
 def _report_options(sub: argparse._SubParsersAction) -> None:
-    from .job import FEATURE_MODES
+    from .job import FEATURE_MODES, MATCH_EEVEE
     from .report.config import PRESETS, ReportConfig
 
     rep = sub.add_parser(
@@ -269,10 +271,10 @@ def _report_options(sub: argparse._SubParsersAction) -> None:
         help="never add the light between nearby surfaces (by default the captures decide)",
     )  # fmt: skip
     rep.add_argument(
-        "--match-eevee", action="store_true",
-        help="lay out vplace+refit as the demo's --match-eevee does: the refit fits each fit "
-        "view's indirect light plus what EEVEE's direct light lacks (an EEVEE render per "
-        "captured view first, counted in the one-time cost)",
+        "--match-eevee", nargs="?", choices=MATCH_EEVEE, default="auto", const="on",
+        help="lay out vplace+refit as the demo's --match-eevee does (default auto; the flag "
+        "alone: on): the refit fits each fit view's indirect light plus what EEVEE's direct "
+        "light lacks (an EEVEE render per captured view first, counted in the one-time cost)",
     )  # fmt: skip
     rep.add_argument(
         "--radius", type=float, default=None,
@@ -422,7 +424,7 @@ def run(args: argparse.Namespace) -> None:
             "--score-between, --cycles-samples, --eevee-still, --volume-once, "
             "--volume-per-frame and --truth-noise go with --animate"
         )
-    if args.match_eevee and (args.animate or job.method != "vplace+refit"):
+    if args.match_eevee == "on" and (args.animate or job.method != "vplace+refit"):
         from .errors import AddonError
 
         raise AddonError(

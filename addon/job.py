@@ -55,6 +55,8 @@ from .writeback.stand_ins import StandIns, stand_ins
 #: report): the methods, the feature modes, the timer, and the typed results of a run.
 METHODS = vplace.job.METHODS
 FEATURE_MODES = vplace.job.FEATURE_MODES
+#: ``Job.match_eevee``'s values.
+MATCH_EEVEE = ("auto", "on", "off")
 StageTimer = vplace.job.StageTimer
 quiet_timer = vplace.job.quiet_timer
 method_name = vplace.job.method_name
@@ -82,9 +84,11 @@ class Job(vplace.job.LayoutSettings):
     views: ViewSet = field(default_factory=ViewSet)
     cache_dir: Path | None = None
     #: Refit the powers so that EEVEE's direct light plus the VPLs' light matches the captures
-    #: (``writeback.match_eevee``: an EEVEE render per captured view first). Off: it costs
-    #: those renders, and it only helps where EEVEE's direct light is off smoothly.
-    match_eevee: bool = False
+    #: (``writeback.match_eevee``: an EEVEE render per captured view first, kept only where
+    #: it helps), one of :data:`MATCH_EEVEE`: "on"; "off"; "auto", on only where a surface
+    #: the cameras see cuts one of the user's lamps (``match_eevee.cut_lamps_seen``), which
+    #: EEVEE darkens smoothly, so that the renders are paid only where they can help.
+    match_eevee: str = "auto"
 
     def validate(self) -> None:
         """Raises :class:`AddonError` for settings no stage can run with."""
@@ -102,6 +106,15 @@ class Job(vplace.job.LayoutSettings):
             raise AddonError(f"layout iterations must be 0 (off) or more, got {self.iterations}")
         if self.radius is not None and not (self.radius >= 0 and math.isfinite(self.radius)):
             raise AddonError(f"the near-field radius must be 0 or more, got {self.radius:g}")
+        if self.cell_px < 1:  # before anything renders (the match's boxes are cells too)
+            raise AddonError(
+                f"cell_px = {self.cell_px} is out of range: the regression's grid cell must be "
+                "at least 1 pixel"
+            )
+        if self.match_eevee not in MATCH_EEVEE:
+            raise AddonError(
+                f"match_eevee must be one of {list(MATCH_EEVEE)}, got {self.match_eevee!r}"
+            )
         self.views.validate()
 
     def in_scene_units(self, metres_per_unit: float) -> Job:
@@ -320,12 +333,13 @@ def lay_out(
 def eevee_match(
     bl_scene: bpy.types.Scene, prepared: Prepared, job: Job, timer: StageTimer
 ) -> tuple[vplace.job.EeveeMatch | None, dict[str, float]]:
-    """With ``job.match_eevee`` and a method that refits: what the refit may fit instead of the
-    captures (``writeback.match_eevee``: EEVEE's direct-light deficit added to their targets,
-    and the judge of whether that helps) and per matched view its share of Cycles' direct
-    light; else (None, {}). Uses bpy: call it on Blender's main thread, after
-    :func:`prepare`."""
-    if not job.match_eevee or job.method != "vplace+refit":
+    """With ``job.match_eevee`` on, or "auto" where a surface the cameras see cuts one of the
+    user's lamps, and a method that refits: what the refit may fit instead of the captures
+    (``writeback.match_eevee``: EEVEE's direct-light deficit added to their targets, and the
+    judge of whether that helps) and per matched view its share of Cycles' direct light; else
+    (None, {}). Left to "auto", a failed EEVEE render is logged and the layout goes on without
+    the match. Uses bpy: call it on Blender's main thread, after :func:`prepare`."""
+    if job.match_eevee == "off" or job.method != "vplace+refit":
         return None, {}
     return match_eevee.eevee_match(
         bl_scene,
@@ -337,6 +351,8 @@ def eevee_match(
         cell_px=job.cell_px,
         cache_dir=job.cache_dir,
         stage=timer.stage,
+        mode=job.match_eevee,
+        log=timer.log,
     )
 
 
@@ -532,10 +548,7 @@ def run_main_job(
     prepared = prepare(bl_scene, job, timer, reference=reference_render(job, truth_samples))
     reference = prepared.reference
     assert reference is not None  # prepare(reference=...) made it
-    match: vplace.job.EeveeMatch | None = None
-    matched: dict[str, float] = {}
-    if job.match_eevee:
-        match, matched = eevee_match(bl_scene, prepared, job, timer)
+    match, matched = eevee_match(bl_scene, prepared, job, timer)
     computed, compared = vplace.job.compute_with_baselines(
         prepared.scene,
         prepared.views,

@@ -185,10 +185,11 @@ class ReportConfig:
     truth_noise: bool = True
     #: The VPLs' near-field radius, metres (``Job.radius``); None: 1 % of the scene's diagonal.
     radius: float | None = None
-    #: Lay out ``vplace+refit`` as ``demo --match-eevee`` does (``Job.match_eevee``,
-    #: ``writeback.match_eevee``): the refit fits what EEVEE's direct light lacks on each
-    #: captured view as well; the EEVEE renders that takes count in the one-time cost.
-    match_eevee: bool = False
+    #: Lay out ``vplace+refit`` as ``demo --match-eevee`` does (``Job.match_eevee``: "auto",
+    #: "on" or "off"; ``writeback.match_eevee``): the refit fits what EEVEE's direct light
+    #: lacks on each captured view as well, where that helps; the EEVEE renders that takes
+    #: count in the one-time cost.
+    match_eevee: str = "auto"
 
     def generated_for(self, preset: ScenePreset) -> int:
         """How many held-out views the report makes for ``preset``."""

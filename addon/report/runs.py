@@ -270,15 +270,17 @@ def load_scene(
     if prepared.coverage is not None:
         seconds += prepared.coverage.seconds
     match, matched = None, {}
-    if config.match_eevee and "vplace+refit" in config.methods:
+    if "vplace+refit" in config.methods:
         start = time.perf_counter()
         match, matched = pipeline.eevee_match(
             bl_scene, prepared, replace(job, method="vplace+refit"), timer
         )
         seconds += time.perf_counter() - start
-        log(
-            f"[vplace] EEVEE's direct-light deficit offered to the refit: {matched_shares(matched)}"
-        )
+        if match is not None:
+            log(
+                "[vplace] EEVEE's direct-light deficit offered to the refit: "
+                f"{matched_shares(matched)}"
+            )
     return SceneData(prepared, job, views, resolution, seconds, match, matched)
 
 

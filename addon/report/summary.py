@@ -851,7 +851,8 @@ def _matched_lines(info: dict[str, Any]) -> list[str]:
         return []
     shares = matched_shares(matched)
     return [
-        "vplace+refit may match EEVEE's direct light (`--match-eevee`): its refit is offered "
+        "vplace+refit may match EEVEE's direct light (`--match-eevee`; by default where a "
+        "surface the fit cameras see cuts one of the scene's lamps): its refit is offered "
         f"what EEVEE's direct light lacks against Cycles', of Cycles' direct light: {shares}, "
         "and keeps it where EEVEE's image predicted on those views comes out closer (each "
         "row's `eevee_match` in results.json). The EEVEE renders this takes count in the "

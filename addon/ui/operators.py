@@ -269,7 +269,7 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
         assert self.frames is not None
         tracked = animation.key_lights(scene, self.frames, self.frame_preps, vpl_sets, self.timer)
         for on, what in (
-            (scene.vplace.match_eevee, "Match"),
+            (scene.vplace.match_eevee == "on", "Match"),
             (scene.vplace.check_eevee, "Check in"),
         ):
             if on:

@@ -95,7 +95,7 @@ class VPLACE_PT_main(_Panel, bpy.types.Panel):
         if cut:
             notes.append(f"{len(cut)} lamp(s) a surface's plane passes through (e.g. {cut[0]!r}):")
             notes.append("  EEVEE's soft shadow darkens that surface (0.8x Cycles)")
-            if not settings.match_eevee:
+            if settings.match_eevee == "off":
                 notes.append("  'Match EEVEE's direct light' makes up for it")
         if notes:
             box = layout.box()

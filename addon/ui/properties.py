@@ -45,6 +45,20 @@ VIEW_MODE_ITEMS = [
 ]
 #: The view mode that animates the lights (``addon.animation``) rather than picking views.
 ANIMATE = "animate"
+#: "Match EEVEE's direct light" (``Job.match_eevee``). Numbered so that a .blend saved with
+#: the earlier on/off box reads on as "on" (1) and off as "auto" (0), the new default.
+MATCH_EEVEE_ITEMS = [
+    (
+        "auto",
+        "Where a lamp is cut",
+        "Only where a surface the cameras see passes through the plane of one of your lamps, "
+        "which EEVEE's soft shadows darken there (0.8x Cycles' light on the Cornell box's "
+        "blocks): the EEVEE renders are paid only where they can help",
+        0,
+    ),
+    ("on", "Always", "On every still layout that refits its powers", 1),
+    ("off", "Never", "Fit the powers to Cycles' light alone", 2),
+]
 FEATURE_MODE_ITEMS = [
     (
         "auto",
@@ -178,13 +192,14 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
         default=True,
     )
     seed: IntProperty(name="Seed", default=0, min=0)  # type: ignore[valid-type]
-    match_eevee: BoolProperty(  # type: ignore[valid-type]
+    match_eevee: EnumProperty(  # type: ignore[valid-type]
         name="Match EEVEE's direct light",
         description="Refit the VPL powers so that EEVEE's own direct light plus the VPLs' light "
-        "matches the captures: EEVEE renders each captured view's direct light first (under a "
-        "second on a GPU, 7-16 s a view at 160 px on 2 CPU cores). Helps where EEVEE lights the "
-        "scene's lamps smoothly darker or brighter than Cycles; needs Refit powers",
-        default=False,
+        "matches the captures, where that helps: EEVEE renders each captured view's direct "
+        "light first (under a second on a GPU, about 6 s a view at 192 px on 2 CPU cores). "
+        "Needs Refit powers",
+        items=MATCH_EEVEE_ITEMS,
+        default="auto",
     )
     near_field: BoolProperty(  # type: ignore[valid-type]
         name="Light between nearby surfaces",

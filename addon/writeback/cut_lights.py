@@ -109,6 +109,26 @@ def cut_pixels(
     return cut if seen is None else cut & ~np.asarray(seen, dtype=bool)
 
 
+def lamps_cut_in(
+    scene: bpy.types.Scene, gbuffers: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray]]
+) -> list[str]:
+    """The user's shadowed lamps (not vplace's, :func:`scene_lights`) whose shape the plane of
+    a pixel of ``gbuffers`` cuts (each: positions and normals (H, W, 3) and the (H, W) mask of
+    the pixels to test, a capture's surfaces): where "Match EEVEE's direct light" is worth its
+    EEVEE renders when left to decide (``Job.match_eevee`` "auto"). Sorted by name."""
+    lamps = {o.name: s for o in scene_lights(scene, users_only=True) if (s := light_shape(o))}
+    found: set[str] = set()
+    for position, normal, mask in gbuffers:
+        m = np.asarray(mask, dtype=bool)
+        if not m.any():
+            continue
+        x, n = np.asarray(position)[m], np.asarray(normal)[m]
+        for name, shape in lamps.items():
+            if name not in found and vplace.job.cut_by_lights(x, n, [shape], TOLERANCE).any():
+                found.add(name)
+    return sorted(found)
+
+
 def _triangles(scene: bpy.types.Scene) -> Iterable[tuple[np.ndarray, np.ndarray]]:
     """Each render-visible mesh's triangles in world space: (centroids (T, 3), unit normals)."""
     depsgraph = bpy.context.evaluated_depsgraph_get()

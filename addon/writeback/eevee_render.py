@@ -71,7 +71,7 @@ EEVEE_SAMPLES = 16
 #: with it (what vplace writes) it rose 0.963 -> 0.965 and RMSE fell 0.045 -> 0.027.
 FILM_FILTER_SIZE = 1.0
 #: Bump when a cached render's meaning changes.
-RENDER_VERSION = 6
+RENDER_VERSION = 7
 
 
 @dataclass(frozen=True)
@@ -85,6 +85,11 @@ class Setup:
     fast_gi: bool = True
     volume: bool = False
     denoise: bool = False
+    #: The VPL collection whose kept region and near-field distance set the lamps' reach and
+    #: the fast GI (``eevee_setup.threshold_for``, ``fast_gi_for``): the written lights', or
+    #: another that a render writes for itself (``match_eevee.COLLECTION``), so that a run
+    #: renders the same whether or not an earlier run's lights are in the scene.
+    collection: str = apply.COLLECTION_NAME
 
     def configure(self, g: SettingsGuard, scene: bpy.types.Scene) -> None:
         """Applies this set-up's settings through ``g`` (restored by its guard)."""
@@ -104,7 +109,7 @@ class Setup:
         g.set(scene.render, "filter_size", FILM_FILTER_SIZE)
         # Every EEVEE set-up lets the user's lamps reach across the scene (Cycles never fades
         # them): the comparison is about bounce light, not a threshold a user would fix anyway.
-        threshold = eevee_setup.threshold_for(scene)
+        threshold = eevee_setup.threshold_for(scene, self.collection)
         if threshold != e.light_threshold:
             g.set(e, "light_threshold", threshold)
         # Every EEVEE set-up traces the soft shadows with the rays vplace's set-up gives them
@@ -114,7 +119,7 @@ class Setup:
             g.set(e, "shadow_ray_count", rays)
         # Lights written with the near-field gather leave it to the fast GI, which EEVEE
         # applies only with ray tracing on.
-        method, near = eevee_setup.fast_gi_for(scene) if self.vpls else ("", 0.0)
+        method, near = eevee_setup.fast_gi_for(scene, self.collection) if self.vpls else ("", 0.0)
         raytracing = self.raytracing or near > 0.0
         g.set(e, "use_raytracing", raytracing)
         if hasattr(e, "use_fast_gi"):  # Blender 4.5 on; 4.2's fast GI is on with ray tracing
@@ -272,11 +277,15 @@ def _key(
     h.update(repr([list(r) for r in camera.matrix_world]).encode())
     h.update(repr(render_key.plain_values(camera.data)).encode())
     name = setup.name if setup is not None else "scene"
+    if setup is not None and setup.collection != apply.COLLECTION_NAME:
+        name += f" ({setup.collection})"
+    if setup is not None and engine != "CYCLES":  # the lamps' reach follows the kept region
+        h.update(repr(apply.stored_region(setup.collection)).encode())
     h.update(repr((resolution, samples, engine, name, seed, RENDER_VERSION, renderer)).encode())
     if diffuse_color:
         h.update(b"diffuse color")
     if setup is not None and setup.vpls and engine != "CYCLES":
-        method, near = eevee_setup.fast_gi_for(scene)
+        method, near = eevee_setup.fast_gi_for(scene, setup.collection)
         if near > 0.0:  # the fast GI the set-up applies follows the written lights
             h.update(repr((method, near)).encode())
     return h.hexdigest()[:24]

@@ -135,11 +135,12 @@ def lamp_reach(light: bpy.types.Light, threshold: float) -> float:
     return math.sqrt(max(power, 0.0) / (100.0 * threshold))
 
 
-def _reach_needed(scene: bpy.types.Scene) -> float | None:
+def _reach_needed(scene: bpy.types.Scene, collection: str = apply.COLLECTION_NAME) -> float | None:
     """How far every lamp must reach: :data:`LAMP_REACH_DIAGONALS` scene diagonals (None
-    without a visible mesh)."""
+    without a visible mesh); the scene's box as :func:`scene_bounds` finds it with the region
+    kept on the VPL collection ``collection``."""
     try:
-        lo, hi = scene_bounds(scene)
+        lo, hi = scene_bounds(scene, collection=collection)
     except AddonError:
         return None
     return LAMP_REACH_DIAGONALS * (hi - lo).length
@@ -167,12 +168,13 @@ def faded_lamps(scene: bpy.types.Scene) -> list[tuple[str, float]]:
     return _faded(scene, _reach_needed(scene))
 
 
-def threshold_for(scene: bpy.types.Scene) -> float:
+def threshold_for(scene: bpy.types.Scene, collection: str = apply.COLLECTION_NAME) -> float:
     """The largest ``light_threshold`` at which every lamp of ``scene`` reaches
-    :data:`LAMP_REACH_DIAGONALS` scene diagonals (the current one when none falls short).
+    :data:`LAMP_REACH_DIAGONALS` scene diagonals (the current one when none falls short), the
+    scene's box taken with the region kept on the VPL collection ``collection``.
     A lamp's reach goes as ``1 / sqrt(threshold)``, so the shortest reach sets it."""
     threshold = scene.eevee.light_threshold
-    need = _reach_needed(scene)
+    need = _reach_needed(scene, collection)
     faded = _faded(scene, need)
     if need is None or not faded:
         return threshold
@@ -576,20 +578,24 @@ def lamp_notes(scene: bpy.types.Scene) -> list[str]:
             f"(e.g. {cut[0]!r}): its soft shadows count the part of the lamp behind such a "
             "surface as shadowed (the Cornell box's tall block gets 0.80x Cycles' direct light); "
             "no EEVEE setting changes it but the lamp's shadow. vplace's 'Match EEVEE's direct "
-            "light' (`--match-eevee`) lets the VPL powers make up for it (on the Cornell box "
+            "light' (`--match-eevee`; 'Auto' by default: on where the cameras see such a "
+            "surface) lets the VPL powers make up for it where that helps (on the Cornell box "
             "EEVEE's RMSE fell 21-22 % on the two views it darkens most)"
         )
     return notes
 
 
 def scene_bounds(
-    scene: bpy.types.Scene, region: apply.Region | None = None
+    scene: bpy.types.Scene,
+    region: apply.Region | None = None,
+    *,
+    collection: str = apply.COLLECTION_NAME,
 ) -> tuple[Vector, Vector]:
     """The box the EEVEE set-up works over: ``region``, else the region kept on the VPL
-    collection (``apply.stored_region``: where the cameras see far less than the scene, as a
-    room on a kilometre of ground), else the world-space bounds of the scene's render-visible
-    meshes (vplace's lights excluded)."""
-    region = region if region is not None else apply.stored_region()
+    collection ``collection`` (``apply.stored_region``: where the cameras see far less than the
+    scene, as a room on a kilometre of ground), else the world-space bounds of the scene's
+    render-visible meshes (vplace's lights excluded)."""
+    region = region if region is not None else apply.stored_region(collection)
     if region is not None:
         return Vector(region[0]), Vector(region[1])
     corners = [
@@ -787,14 +793,16 @@ def shadow_rays_for(scene: bpy.types.Scene) -> int | None:
     return max(int(e.shadow_ray_count), SHADOW_RAYS)
 
 
-def fast_gi_for(scene: bpy.types.Scene) -> tuple[str, float]:
+def fast_gi_for(
+    scene: bpy.types.Scene, collection: str = apply.COLLECTION_NAME
+) -> tuple[str, float]:
     """The fast GI that shows the written lights as the evaluator computes them: with the
-    near-field distance the VPL collection keeps (``apply.stored_near_field``), global
-    illumination within that distance (the light between nearby surfaces that no VPL carries,
-    ``vplace.evaluate(..., near_field=True)``); without, ambient occlusion only. Either way no
-    second bounce from beyond the distance, which the VPLs carry."""
+    near-field distance the VPL collection ``collection`` keeps (``apply.stored_near_field``),
+    global illumination within that distance (the light between nearby surfaces that no VPL
+    carries, ``vplace.evaluate(..., near_field=True)``); without, ambient occlusion only.
+    Either way no second bounce from beyond the distance, which the VPLs carry."""
     del scene  # the VPL collection is found by name, as everywhere in the write-back
-    near = apply.stored_near_field()
+    near = apply.stored_near_field(collection)
     return ("GLOBAL_ILLUMINATION", near) if near > 0.0 else ("AMBIENT_OCCLUSION_ONLY", 0.0)
 
 

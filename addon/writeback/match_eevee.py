@@ -27,11 +27,15 @@ as Cycles on two views, EEVEE's luminance RMSE fell 5-28 % on every view, held-o
 included; in the panel and L-shaped rooms it moved by -3.3..+0.5 %; in the sky room by
 -2.4..-0.1 % on four views and +4.3 % on the held-out view of the ceiling, which no capture
 sees. It costs an EEVEE render per captured view at the capture size, seconds on a GPU and
-7-16 s a view on these CPU-only machines (llvmpipe), so it is off by default.
+7-16 s a view on these CPU-only machines (llvmpipe; 6 s for the Cornell box's lamp alone at
+192x108). So by default (``Job.match_eevee`` "auto", stop 69) it runs only where a surface the
+cameras see cuts one of the user's lamps (:func:`cut_lamps_seen`), the smooth shortfall it
+fixes; elsewhere nothing renders.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager
@@ -42,9 +46,10 @@ import bpy
 import numpy as np
 
 from ..capture.native_view import view_of
+from ..errors import AddonError
 from ..native import vplace
 from ..settings import override
-from . import apply, eevee_setup
+from . import apply, cut_lights, eevee_setup
 from . import eevee_render as eevee
 
 if TYPE_CHECKING:
@@ -56,6 +61,53 @@ COLLECTION = apply.COLLECTION_NAME + " (matching EEVEE)"
 
 
 def eevee_match(
+    bl_scene: bpy.types.Scene,
+    captures: Sequence[Capture],
+    views: Sequence[vplace.View],
+    gloss: Sequence[np.ndarray | None],
+    stand_ins: StandIns,
+    *,
+    scene: vplace.Scene,
+    cell_px: int,
+    cache_dir: Path | None,
+    stage: Callable[[str], AbstractContextManager[None]],
+    mode: str = "on",
+    log: Callable[[str], None] = print,
+) -> tuple[vplace.job.EeveeMatch | None, dict[str, float]]:
+    """:func:`matched_views` where ``mode`` ("on" or "auto", ``Job.match_eevee``) asks for it,
+    else (None, {}). "auto" asks only where a surface the captures see cuts one of the user's
+    lamps (:func:`cut_lamps_seen`, and ``log`` says which), and where EEVEE then fails to
+    render, ``log`` says so and it is (None, {}): the layout goes on without it. "on" always
+    asks, and a failed render is the error it is."""
+    if mode == "auto":
+        lamps = cut_lamps_seen(bl_scene, captures)
+        if not lamps:
+            return None, {}
+        log(
+            f"[vplace] Match EEVEE's direct light (auto): the plane of a surface the cameras "
+            f"see passes through {len(lamps)} of your lamps (e.g. {lamps[0]!r}), which EEVEE "
+            "darkens there; the refit makes up for it where that helps"
+        )
+    try:
+        return matched_views(
+            bl_scene,
+            captures,
+            views,
+            gloss,
+            stand_ins,
+            scene=scene,
+            cell_px=cell_px,
+            cache_dir=cache_dir,
+            stage=stage,
+        )
+    except AddonError as exc:
+        if mode != "auto":
+            raise
+        log(f"[vplace] warning: Match EEVEE's direct light (auto) left out: {exc}")
+        return None, {}
+
+
+def matched_views(
     bl_scene: bpy.types.Scene,
     captures: Sequence[Capture],
     views: Sequence[vplace.View],
@@ -89,6 +141,9 @@ def eevee_match(
     region = scene.region
     matched: dict[str, float] = {}
     judged: dict[int, tuple[vplace.View, np.ndarray, np.ndarray, np.ndarray]] = {}
+    # Lit as this run's lights will be (its region), not by what an earlier run's collection
+    # keeps: the second run of a file renders as the first.
+    setup = dataclasses.replace(eevee.SETUPS["vpl"], collection=COLLECTION)
     with override() as g:
         old = apply.find_collection()
         if old is not None:
@@ -109,16 +164,16 @@ def eevee_match(
                 bl_scene, portals=stand_ins.world_shut_out, region=region
             ):
                 for i, cap in enumerate(captures):
-                    camera = bpy.data.objects.get(cap.camera)
-                    if camera is None or cap.view != cap.camera:  # another frame's view
+                    if not _matchable(cap):  # another frame's view, or no camera
                         continue
+                    camera = bpy.data.objects[cap.camera]
                     with stage(f"EEVEE's direct light {cap.view}"):
                         img = eevee.render(
                             bl_scene,
                             resolution=(cap.width, cap.height),
                             camera=camera,
                             samples=eevee.EEVEE_SAMPLES,
-                            setup=eevee.SETUPS["vpl"],
+                            setup=setup,
                             cache_dir=cache_dir,
                         )
                     seen = vplace.job.seen_directly(cap.seen_light, cap.direct)
@@ -139,6 +194,27 @@ def eevee_match(
             apply.clear_vpls(COLLECTION)
     error = functools.partial(predicted_error, scene, judged)
     return vplace.job.EeveeMatch(views, plain, sorted(judged), error), matched
+
+
+def _matchable(cap: Capture) -> bool:
+    """Whether EEVEE can render ``cap``'s view: its camera, at the current frame."""
+    return cap.view == cap.camera and bpy.data.objects.get(cap.camera) is not None
+
+
+def cut_lamps_seen(bl_scene: bpy.types.Scene, captures: Sequence[Capture]) -> list[str]:
+    """The user's lamps that EEVEE darkens on the views :func:`eevee_match` would render: those
+    whose shape the plane of a surface one of those captures sees passes through
+    (``cut_lights.lamps_cut_in``; the pixels that see an emitter left out). Where there are
+    none, the match has nothing smooth to make up for that vplace knows of, and ``Job``'s
+    "auto" leaves it (and its EEVEE renders) out."""
+    return cut_lights.lamps_cut_in(
+        bl_scene,
+        (
+            (c.position, c.normal, c.covered & ~vplace.job.seen_directly(c.seen_light, c.direct))
+            for c in captures
+            if _matchable(c)
+        ),
+    )
 
 
 def predicted_error(

@@ -111,13 +111,14 @@ def test_panel_shows_settings_buttons_and_last_results(scene):
     assert any(
         t.startswith("1 lamp(s) a surface's plane passes through (e.g. 'light')") for t in labels
     )
-    # It names the remedy vplace has (the VPL powers made up for EEVEE's direct light) until
-    # that is ticked.
+    # It names the remedy vplace has (the VPL powers made up for EEVEE's direct light) where
+    # that is turned off; left to decide ("auto", the default), the remedy was offered already.
     remedy = "  'Match EEVEE's direct light' makes up for it"
-    assert remedy in labels
-    scene.vplace.match_eevee = True
+    assert scene.vplace.match_eevee == "auto" and remedy not in labels
+    scene.vplace.match_eevee = "off"
+    assert remedy in [t for kind, t in draw(scene) if kind == "label"]
+    scene.vplace.match_eevee = "on"
     assert remedy not in [t for kind, t in draw(scene) if kind == "label"]
-    scene.vplace.match_eevee = False
     scene.objects["light"].data.use_shadow_jitter = True
     labels = [t for kind, t in draw(scene) if kind == "label"]
     assert not any(t.startswith("1 lamp(s) with soft shadows") for t in labels)
@@ -146,7 +147,7 @@ def test_cancelled_compute_writes_nothing(scene):
 @pytest.mark.slow
 def test_match_and_check_in_eevee_show_eevees_direct_light_and_whose_part_its_difference_is():
     with addon_cornell(
-        capture_size=48, samples=64, vpl_budget=64, check_eevee=True, match_eevee=True
+        capture_size=48, samples=64, vpl_budget=64, check_eevee=True, match_eevee="on"
     ) as scene:
         scene.eevee.light_threshold = 1e-4
         before = (scene.render.engine, scene.render.resolution_x, scene.render.film_transparent)

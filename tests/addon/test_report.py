@@ -626,9 +626,11 @@ def test_match_eevee_refits_vplace_refits_powers_to_eevees_direct_light_and_says
         "seeds": [0],
         "methods": ["vplace", "vplace+refit"],
     }
-    plain = report.run_report(tiny(**change), tmp_path / "plain", log=lambda _line: None)
+    plain = report.run_report(
+        tiny(**change, match_eevee="off"), tmp_path / "plain", log=lambda _line: None
+    )
     matched = report.run_report(
-        tiny(**change, match_eevee=True), tmp_path / "matched", log=lambda _line: None
+        tiny(**change, match_eevee="on"), tmp_path / "matched", log=lambda _line: None
     )
     (name,) = plain["scenes"]
     assert plain["scenes"][name]["eevee_deficit_matched"] is None
@@ -652,5 +654,5 @@ def test_match_eevee_refits_vplace_refits_powers_to_eevees_direct_light_and_says
     else:
         assert ssim(matched, "vplace+refit") == ssim(plain, "vplace+refit")
     text = (tmp_path / "matched" / "report.md").read_text()
-    assert "vplace+refit may match EEVEE's direct light (`--match-eevee`)" in text
+    assert "vplace+refit may match EEVEE's direct light (`--match-eevee`;" in text
     assert "--match-eevee" not in (tmp_path / "plain" / "report.md").read_text()

@@ -32,11 +32,11 @@ def _run(scene, out, **options):
 
 def test_the_refit_matches_eevees_direct_light_where_it_helps_and_nothing_else_changes(tmp_path):
     scene = cornell()
-    plain = _run(scene, tmp_path / "plain")
+    plain = _run(scene, tmp_path / "plain", match_eevee="off")
     before = apply.find_collection()
     assert before is not None and not plain.eevee_matched
     settings = (scene.render.engine, scene.render.resolution_x, scene.eevee.taa_render_samples)
-    matched = _run(scene, tmp_path / "matched", match_eevee=True)
+    matched = _run(scene, tmp_path / "matched", match_eevee="on")
     # EEVEE's direct light of the box's lamp differs from Cycles' (on llvmpipe a little
     # brighter): EEVEE renders the one captured view, the refit is offered the difference, and
     # keeps it only where EEVEE's image predicted on that view comes out closer with it.
@@ -66,3 +66,23 @@ def test_the_refit_matches_eevees_direct_light_where_it_helps_and_nothing_else_c
     )
     assert report["eevee_matched"] == matched.eevee_matched
     assert any(stage.startswith("EEVEE's direct light") for stage in report["stage_seconds"])
+
+
+def test_left_to_decide_it_matches_the_box_whose_lamp_a_block_cuts_and_gives_the_same_lights(
+    tmp_path,
+):
+    # The default ("auto"): the camera sees the blocks' faces, whose planes pass through the
+    # box's lamp, so EEVEE renders and the lights are those of "on", the same file twice.
+    scene = cornell()
+    on = _run(scene, tmp_path / "on", match_eevee="on")
+    auto = _run(scene, tmp_path / "auto")
+    _run(scene, tmp_path / "again")
+    csv = [(tmp_path / n / "vpls.csv").read_bytes() for n in ("on", "auto", "again")]
+    assert csv[0] == csv[1] == csv[2]
+    assert auto.eevee_match == on.eevee_match is not None
+    # With the lamp's shadow off EEVEE does not darken the blocks: nothing renders.
+    scene.objects["light"].data.use_shadow = False
+    _run(scene, tmp_path / "unshadowed")
+    report = json.loads((tmp_path / "unshadowed" / "report.json").read_text())
+    assert report["eevee_match"] is None
+    assert not any(stage.startswith("EEVEE's direct light") for stage in report["stage_seconds"])

@@ -1,0 +1,102 @@
+"""Match EEVEE's direct light left to decide (``Job.match_eevee`` "auto", the default): EEVEE
+renders the captured views' direct light only where a surface the cameras see cuts one of the
+user's lamps, which EEVEE darkens (``docs/EEVEE_NOTES.md``, Q11); elsewhere nothing renders and
+the layout is the plain refit's. The renders themselves are
+``tests/render/test_match_eevee.py``'s; here they are stood in for, so that the decision is
+tested without EEVEE."""
+
+import numpy as np
+import pytest
+from blender_util import cornell
+
+from addon import job as pipeline
+from addon.errors import AddonError
+from addon.writeback import cut_lights, match_eevee
+
+
+@pytest.fixture
+def prepared():
+    scene = cornell()
+    job = pipeline.Job(size=32, samples=2, n_vpls=16)
+    prepared = pipeline.prepare(scene, job, pipeline.quiet_timer())
+    return scene, job, prepared
+
+
+def _decide(monkeypatch, scene, prepared, job, result=None):
+    """``pipeline.eevee_match`` with EEVEE's renders stood in for: (what it returned, whether it
+    would have rendered, the lines it logged)."""
+    calls, lines = [], []
+
+    def render(*_args, **_kwargs):
+        calls.append(1)
+        if isinstance(result, Exception):
+            raise result
+        return "the match", {"Cornell camera": 0.01}
+
+    monkeypatch.setattr(match_eevee, "matched_views", render)
+    got = pipeline.eevee_match(scene, prepared, job, pipeline.StageTimer(log=lines.append))
+    return got, bool(calls), lines
+
+
+def test_auto_matches_only_where_a_lamp_the_cameras_see_is_cut(monkeypatch, prepared):
+    scene, job, prep = prepared
+    assert job.match_eevee == "auto"
+    # The box's blocks stand beside its ceiling lamp and the camera sees their faces.
+    assert match_eevee.cut_lamps_seen(scene, prep.captures) == ["light"]
+    got, rendered, lines = _decide(monkeypatch, scene, prep, job)
+    assert rendered and got[0] == "the match"
+    assert any("Match EEVEE's direct light (auto)" in line and "'light'" in line for line in lines)
+    # A lamp whose shadow is off is not darkened: nothing renders, the plain refit stays.
+    scene.objects["light"].data.use_shadow = False
+    assert match_eevee.cut_lamps_seen(scene, prep.captures) == []
+    assert _decide(monkeypatch, scene, prep, job)[:2] == ((None, {}), False)
+    # "on" renders all the same; "off" never; nor does a method without a refit.
+    on = pipeline.Job(size=32, samples=2, n_vpls=16, match_eevee="on")
+    assert _decide(monkeypatch, scene, prep, on)[1]
+    scene.objects["light"].data.use_shadow = True
+    off = pipeline.Job(size=32, samples=2, n_vpls=16, match_eevee="off")
+    assert _decide(monkeypatch, scene, prep, off)[:2] == ((None, {}), False)
+    plain = pipeline.Job(size=32, samples=2, n_vpls=16, method="vplace")
+    assert _decide(monkeypatch, scene, prep, plain)[:2] == ((None, {}), False)
+
+
+def test_auto_goes_on_without_the_match_where_eevee_cannot_render(monkeypatch, prepared):
+    scene, job, prep = prepared
+    failed = AddonError("the BLENDER_EEVEE_NEXT render of scene 'Scene' did not finish: no GPU")
+    got, rendered, lines = _decide(monkeypatch, scene, prep, job, failed)
+    assert rendered and got == (None, {})
+    assert any(
+        line.startswith("[vplace] warning: Match EEVEE's direct light (auto) left out")
+        and "no GPU" in line
+        for line in lines
+    )
+    # Asked for, it is the user's error to see.
+    on = pipeline.Job(size=32, samples=2, n_vpls=16, match_eevee="on")
+    with pytest.raises(AddonError, match="no GPU"):
+        _decide(monkeypatch, scene, prep, on, failed)
+
+
+def test_only_the_pixels_given_are_tested_and_only_the_users_shadowed_lamps():
+    scene = cornell()
+    lamp = scene.objects["light"]
+    centre = np.asarray(lamp.matrix_world.translation)
+    # One point whose plane (normal +x) passes through the lamp's centre, one whose plane
+    # (normal +z, facing the lamp from below) does not cut it.
+    position = np.array([[[centre[0], centre[1], centre[2] - 0.5]] * 2], np.float32)
+    normal = np.array([[[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]], np.float32)
+    cut = np.array([[True, False]])
+    assert cut_lights.lamps_cut_in(scene, [(position, normal, cut)]) == ["light"]
+    assert cut_lights.lamps_cut_in(scene, [(position, normal, ~cut)]) == []
+    assert cut_lights.lamps_cut_in(scene, [(position, normal, np.zeros_like(cut))]) == []
+    lamp.hide_render = True
+    assert cut_lights.lamps_cut_in(scene, [(position, normal, cut)]) == []
+    lamp.hide_render = False
+    scene.eevee.use_shadows = False  # EEVEE shadows nothing: it darkens nothing
+    assert cut_lights.lamps_cut_in(scene, [(position, normal, cut)]) == []
+
+
+def test_the_setting_takes_three_values():
+    with pytest.raises(AddonError, match="match_eevee must be one of"):
+        pipeline.Job(match_eevee=True).validate()  # type: ignore[arg-type]
+    for value in pipeline.MATCH_EEVEE:
+        pipeline.Job(match_eevee=value).validate()
