@@ -170,10 +170,10 @@ def test_eevees_deficit_is_the_smooth_part_of_its_direct_light_on_the_surfaces()
 def test_the_note_says_where_the_powers_make_up_for_eevees_direct_light():
     assert vjob.eevee_matched_notes({}) == []
     (line,) = vjob.eevee_matched_notes({"Camera": 0.034, "Side": -0.002})
-    assert "Camera +3%, Side +0%" in line
+    assert "Camera +3.4%, Side -0.2%" in line
     kept = {"kept": True, "with_match": 0.0035, "without": 0.0045}
     (line,) = vjob.eevee_matched_notes({"Camera": 0.034}, kept)
-    assert "Camera +3%" in line and "RMSE 0.0035 with it, 0.0045 without" in line
+    assert "Camera +3.4%" in line and "RMSE 0.0035 with it, 0.0045 without" in line
     # Left out where it would not help: said so, with the figures, and no share.
     left = dict(kept, kept=False, with_match=0.127)
     (line,) = vjob.eevee_matched_notes({}, left)

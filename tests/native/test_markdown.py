@@ -22,6 +22,9 @@ def test_a_share_that_rounds_to_zero_has_no_minus_sign():
     assert markdown.percent(-0.04, signed=True) == "-4%"
     assert markdown.percent(0.456) == "46%"
     assert markdown.percent(0.456, signed=True) == "+46%"
+    assert markdown.percent(0.0031, signed=True, digits=1) == "+0.3%"
+    assert markdown.percent(-0.0004, signed=True, digits=1) == "+0.0%"
+    assert markdown.percent(-0.0024, digits=1) == "-0.2%"
     assert markdown.percent(float("nan")) == "-"
 
 
@@ -154,5 +157,7 @@ def test_job_report_says_where_the_vpl_powers_make_up_for_eevees_direct_light():
     text = vjob.job_report(_report(eevee_matched={"Camera": 0.034}))
     assert (
         "The VPL powers make up for EEVEE's direct light (Match EEVEE's direct light): its "
-        "smooth shortfall against Cycles' direct light, in the captured views: Camera +3%."
+        "smooth shortfall against Cycles' direct light, in the captured views: Camera +3.4%."
     ) in text
+    text = vjob.job_report(_report(eevee_matched={"Camera": 0.0031, "Left": -0.0004}))
+    assert "in the captured views: Camera +0.3%, Left +0.0%." in text

@@ -1465,8 +1465,11 @@ def eevee_matched_notes(
             ]
     if not matched:
         return []
+    # A tenth of a percent: the shortfall of a view where few pixels are cut is a fraction of
+    # one (the Cornell box's camera: 0.3 %), which whole percents would write as +0%.
     views = ", ".join(
-        f"{name} {markdown.percent(share, signed=True)}" for name, share in matched.items()
+        f"{name} {markdown.percent(share, signed=True, digits=1)}"
+        for name, share in matched.items()
     )
     return [
         "The VPL powers make up for EEVEE's direct light (Match EEVEE's direct light): its "

@@ -18,11 +18,14 @@ def table(header: Sequence[str], rows: Iterable[Sequence[object]]) -> list[str]:
     return lines
 
 
-def percent(share: float, *, signed: bool = False) -> str:
-    """``share`` (a fraction) as a whole percentage: ``"12%"``, or ``"+12%"`` with ``signed``.
-    A share that rounds to zero is written ``"0%"`` (``"+0%"``), never ``"-0%"``; one that is
-    not finite is ``"-"``."""
+def percent(share: float, *, signed: bool = False, digits: int = 0) -> str:
+    """``share`` (a fraction) as a percentage with ``digits`` decimals (default a whole one):
+    ``"12%"``, or ``"+12%"`` with ``signed``. A share that rounds to zero is written ``"0%"``
+    (``"+0%"``, ``"+0.0%"``), never with a minus; one that is not finite is ``"-"``."""
     if not math.isfinite(share):
         return "-"
-    whole = round(100.0 * share)
-    return f"{whole:+d}%" if signed else f"{whole:d}%"
+    value = round(100.0 * share, digits) + 0.0  # + 0.0: no negative zero
+    if value == 0.0:
+        value = 0.0
+    text = f"{value:+.{digits}f}" if signed else f"{value:.{digits}f}"
+    return text + "%"
