@@ -170,7 +170,10 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
     def start(self, context: bpy.types.Context) -> None:
         scene = context.scene
         self.job = _job(scene)
-        self.timer = pipeline.quiet_timer()
+        # Quiet, but a warning the stages log (an export's, "Match EEVEE's direct light" left
+        # out where EEVEE cannot render) is the user's to see: reported when it finishes.
+        self.warnings: list[str] = []
+        self.timer = pipeline.StageTimer(log=self._keep_warning)
         animate = scene.vplace.animate_frames()
         self.frames = None if animate is None else animation.check_animation(self.job, animate)
         if self.frames is not None:
@@ -181,6 +184,11 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
         self.key = _model_key(self.job, self.prepared)
         self.fitted = _stored_fit(scene, self.key)
         self.match, self.matched = pipeline.eevee_match(scene, self.prepared, self.job, self.timer)
+
+    def _keep_warning(self, line: str) -> None:
+        prefix = "[vplace] warning: "
+        if line.startswith(prefix):
+            self.warnings.append(line.removeprefix(prefix))
 
     def work(self, progress: vplace.Progress | None) -> Any:
         if self.frames is not None:
@@ -195,6 +203,8 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
         )
 
     def finish(self, context: bpy.types.Context, result: Any) -> set[str]:
+        for warning in self.warnings:
+            self.report({"WARNING"}, warning)
         if self.frames is not None:
             return self._finish_animation(context, result)
         scene, computed = context.scene, result

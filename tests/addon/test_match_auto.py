@@ -5,13 +5,14 @@ the layout is the plain refit's. The renders themselves are
 ``tests/render/test_match_eevee.py``'s; here they are stood in for, so that the decision is
 tested without EEVEE."""
 
+import bpy
 import numpy as np
 import pytest
-from blender_util import cornell
+from blender_util import addon_cornell, cornell
 
 from addon import job as pipeline
 from addon.errors import AddonError
-from addon.writeback import cut_lights, match_eevee
+from addon.writeback import apply, cut_lights, match_eevee
 
 
 @pytest.fixture
@@ -100,3 +101,18 @@ def test_the_setting_takes_three_values():
         pipeline.Job(match_eevee=True).validate()  # type: ignore[arg-type]
     for value in pipeline.MATCH_EEVEE:
         pipeline.Job(match_eevee=value).validate()
+
+
+def test_the_panel_says_when_auto_left_the_match_out(monkeypatch, capfd):
+    def fail(*_args, **_kwargs):
+        raise AddonError("the EEVEE render did not finish: no GPU")
+
+    monkeypatch.setattr(match_eevee, "matched_views", fail)
+    with addon_cornell() as scene:
+        assert scene.vplace.match_eevee == "auto"
+        assert bpy.ops.vplace.apply() == {"FINISHED"}  # the lights are written all the same
+        assert apply.find_collection() is not None
+    out = capfd.readouterr()
+    assert "Match EEVEE's direct light (auto) left out: the EEVEE render did not finish" in (
+        out.out + out.err
+    )
