@@ -196,7 +196,7 @@ class VPLACE_PG_settings(bpy.types.PropertyGroup):
         name="Match EEVEE's direct light",
         description="Refit the VPL powers so that EEVEE's own direct light plus the VPLs' light "
         "matches the captures, where that helps: EEVEE renders each captured view's direct "
-        "light first (under a second on a GPU, about 6 s a view at 192 px on 2 CPU cores). "
+        "light first (a second or two on a GPU, about 6 s a view at 192 px on 2 CPU cores). "
         "Needs Refit powers",
         items=MATCH_EEVEE_ITEMS,
         default="auto",
