@@ -491,4 +491,19 @@ def replace_collection(scene: bpy.types.Scene, coll: bpy.types.Collection, name:
     receivers = _receivers(coll)
     if receivers is not None:
         receivers.name = name + UNLIT_SUFFIX
+    # Written beside the old lights, the new ones took Blender's ".001" names; with the old
+    # gone, each takes its own name back, so that every run names its lights alike.
+    for obj in coll.objects:
+        if obj.get(VPL_MARKER, False):
+            for block in (obj, obj.data):
+                _own_name(block)
     scene.collection.children.link(coll)
+
+
+def _own_name(block: bpy.types.ID) -> None:
+    """Renames ``block`` from Blender's "name.001" to "name" where that name is free."""
+    base, dot, tail = block.name.rpartition(".")
+    if dot and len(tail) == 3 and tail.isdigit() and base:
+        kind = bpy.data.objects if isinstance(block, bpy.types.Object) else bpy.data.lights
+        if base not in kind:
+            block.name = base

@@ -28,7 +28,11 @@ def test_rerun_replaces_only_the_vpl_collection(profile):
     before = data_snapshot()
     n_lights = len(bpy.data.lights)
     apply.write_vpls(scene, some_vpls(10, profile=profile), scene_diagonal=3.4)
+    first = sorted((o.name, o.data.name) for o in apply.find_collection().objects)
     apply.write_vpls(scene, some_vpls(7, seed=1, profile=profile), scene_diagonal=3.4)
+    # The new lights, written beside the old, take their own names once the old are gone.
+    again = sorted((o.name, o.data.name) for o in apply.find_collection().objects)
+    assert again == first[:7]
     colls = [c for c in bpy.data.collections if c.get(VPL_MARKER)]
     assert [c.name for c in colls] == [apply.COLLECTION_NAME]
     assert len(colls[0].objects) == 7
