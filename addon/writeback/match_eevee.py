@@ -74,51 +74,6 @@ def eevee_match(
     mode: str = "on",
     log: Callable[[str], None] = print,
 ) -> tuple[vplace.job.EeveeMatch | None, dict[str, float]]:
-    """:func:`matched_views` where ``mode`` ("on" or "auto", ``Job.match_eevee``) asks for it,
-    else (None, {}). "auto" asks only where a surface the captures see cuts one of the user's
-    lamps (:func:`cut_lamps_seen`, and ``log`` says which), and where EEVEE then fails to
-    render, ``log`` says so and it is (None, {}): the layout goes on without it. "on" always
-    asks, and a failed render is the error it is."""
-    if mode == "auto":
-        lamps = cut_lamps_seen(bl_scene, captures)
-        if not lamps:
-            return None, {}
-        log(
-            f"[vplace] Match EEVEE's direct light (auto): the plane of a surface the cameras "
-            f"see passes through {len(lamps)} of your lamps (e.g. {lamps[0]!r}), which EEVEE "
-            "darkens there; the refit makes up for it where that helps"
-        )
-    try:
-        return matched_views(
-            bl_scene,
-            captures,
-            views,
-            gloss,
-            stand_ins,
-            scene=scene,
-            cell_px=cell_px,
-            cache_dir=cache_dir,
-            stage=stage,
-        )
-    except AddonError as exc:
-        if mode != "auto":
-            raise
-        log(f"[vplace] warning: Match EEVEE's direct light (auto) left out: {exc}")
-        return None, {}
-
-
-def matched_views(
-    bl_scene: bpy.types.Scene,
-    captures: Sequence[Capture],
-    views: Sequence[vplace.View],
-    gloss: Sequence[np.ndarray | None],
-    stand_ins: StandIns,
-    *,
-    scene: vplace.Scene,
-    cell_px: int,
-    cache_dir: Path | None,
-    stage: Callable[[str], AbstractContextManager[None]],
-) -> tuple[vplace.job.EeveeMatch, dict[str, float]]:
     """What the refit may fit (``vplace.job.lay_out(match=...)``) in place of the captured
     ``views`` (one per capture of ``captures``, ``gloss`` their glossy masks): each
     view whose capture is its camera at the current frame with EEVEE's direct-light deficit
@@ -128,7 +83,22 @@ def matched_views(
     ``stand_ins``, written into :data:`COLLECTION` and removed after; any vplace collection
     already in the scene is hidden for the renders, and every setting is restored, even on
     error. ``scene`` (the job's ``vplace.Scene``) gives the stand-ins' size and region, and
-    lights a rough metal's pixels as the captured views do (``native_view.metal_irradiance``)."""
+    lights a rough metal's pixels as the captured views do (``native_view.metal_irradiance``).
+
+    ``mode`` (``Job.match_eevee``): "on" always; "auto" only where a surface the captures see
+    cuts one of the user's lamps (:func:`cut_lamps_seen`; ``log`` says which), else
+    (None, {}) with nothing rendered, and where EEVEE then fails to render, ``log`` says so and
+    it is (None, {}): the layout goes on without it. Under "on" a failed render is the error
+    it is."""
+    if mode == "auto":
+        lamps = cut_lamps_seen(bl_scene, captures)
+        if not lamps:
+            return None, {}
+        log(
+            f"[vplace] Match EEVEE's direct light (auto): the plane of a surface the cameras "
+            f"see passes through {len(lamps)} of your lamps (e.g. {lamps[0]!r}), which EEVEE "
+            "darkens there; the refit makes up for it where that helps"
+        )
     nothing = vplace.VplSet(
         np.zeros((1, 3), np.float32),
         np.array([[0.0, 0.0, 1.0]], np.float32),
@@ -167,15 +137,21 @@ def matched_views(
                     if not _matchable(cap):  # another frame's view, or no camera
                         continue
                     camera = bpy.data.objects[cap.camera]
-                    with stage(f"EEVEE's direct light {cap.view}"):
-                        img = eevee.render(
-                            bl_scene,
-                            resolution=(cap.width, cap.height),
-                            camera=camera,
-                            samples=eevee.EEVEE_SAMPLES,
-                            setup=setup,
-                            cache_dir=cache_dir,
-                        )
+                    try:
+                        with stage(f"EEVEE's direct light {cap.view}"):
+                            img = eevee.render(
+                                bl_scene,
+                                resolution=(cap.width, cap.height),
+                                camera=camera,
+                                samples=eevee.EEVEE_SAMPLES,
+                                setup=setup,
+                                cache_dir=cache_dir,
+                            )
+                    except AddonError as exc:
+                        if mode != "auto":
+                            raise
+                        log(f"[vplace] warning: Match EEVEE's direct light (auto) left out: {exc}")
+                        return None, {}
                     seen = vplace.job.seen_directly(cap.seen_light, cap.direct)
                     deficit = vplace.job.eevee_deficit(
                         cap.direct, img.image, cap.covered & ~seen, cell_px

@@ -12,7 +12,8 @@ from blender_util import addon_cornell, cornell
 
 from addon import job as pipeline
 from addon.errors import AddonError
-from addon.writeback import apply, cut_lights, match_eevee
+from addon.native import vplace
+from addon.writeback import apply, cut_lights, eevee_render, match_eevee
 
 
 @pytest.fixture
@@ -28,13 +29,13 @@ def _decide(monkeypatch, scene, prepared, job, result=None):
     would have rendered, the lines it logged)."""
     calls, lines = [], []
 
-    def render(*_args, **_kwargs):
+    def render(_scene, *, resolution, **_kwargs):
         calls.append(1)
         if isinstance(result, Exception):
             raise result
-        return "the match", {"Cornell camera": 0.01}
+        return eevee_render.EeveeImage(np.zeros((resolution[1], resolution[0], 3), np.float32), 0.0)
 
-    monkeypatch.setattr(match_eevee, "matched_views", render)
+    monkeypatch.setattr(eevee_render, "render", render)
     got = pipeline.eevee_match(scene, prepared, job, pipeline.StageTimer(log=lines.append))
     return got, bool(calls), lines
 
@@ -45,7 +46,7 @@ def test_auto_matches_only_where_a_lamp_the_cameras_see_is_cut(monkeypatch, prep
     # The box's blocks stand beside its ceiling lamp and the camera sees their faces.
     assert match_eevee.cut_lamps_seen(scene, prep.captures) == ["light"]
     got, rendered, lines = _decide(monkeypatch, scene, prep, job)
-    assert rendered and got[0] == "the match"
+    assert rendered and isinstance(got[0], vplace.job.EeveeMatch) and got[0].matched
     assert any("Match EEVEE's direct light (auto)" in line and "'light'" in line for line in lines)
     # A lamp whose shadow is off is not darkened: nothing renders, the plain refit stays.
     scene.objects["light"].data.use_shadow = False
@@ -66,6 +67,7 @@ def test_auto_goes_on_without_the_match_where_eevee_cannot_render(monkeypatch, p
     failed = AddonError("the BLENDER_EEVEE_NEXT render of scene 'Scene' did not finish: no GPU")
     got, rendered, lines = _decide(monkeypatch, scene, prep, job, failed)
     assert rendered and got == (None, {})
+    assert bpy.data.collections.get(match_eevee.COLLECTION) is None  # its stand-ins gone
     assert any(
         line.startswith("[vplace] warning: Match EEVEE's direct light (auto) left out")
         and "no GPU" in line
@@ -107,7 +109,7 @@ def test_the_panel_says_when_auto_left_the_match_out(monkeypatch, capfd):
     def fail(*_args, **_kwargs):
         raise AddonError("the EEVEE render did not finish: no GPU")
 
-    monkeypatch.setattr(match_eevee, "matched_views", fail)
+    monkeypatch.setattr(eevee_render, "render", fail)
     with addon_cornell() as scene:
         assert scene.vplace.match_eevee == "auto"
         assert bpy.ops.vplace.apply() == {"FINISHED"}  # the lights are written all the same
