@@ -841,7 +841,8 @@ def region_sentence(region: dict[str, Any] | None) -> str:
 def matched_shares(matched: dict[str, float]) -> str:
     """``--match-eevee``'s deficit per matched view, of Cycles' direct light: "A +0.6%, B
     -0.6%" ("none" where no view was matched)."""
-    return ", ".join(f"{view} {share:+.1%}" for view, share in matched.items()) or "none"
+    views = (f"{view} {pct(share, signed=True, digits=1)}" for view, share in matched.items())
+    return ", ".join(views) or "none"
 
 
 def _matched_lines(info: dict[str, Any]) -> list[str]:
