@@ -588,6 +588,7 @@ def _score_eevee_still(
         emitters=p.stand_ins.emitters,
         sun=p.stand_ins.sun,
         closed=p.stand_ins.closed,
+        cut_lamps=p.cut_lamps,
     )
     height, width = run.reference.gi.shape[:2]
     with timer.stage(f"EEVEE + still VPLs, frame {run.frame}"):

@@ -85,9 +85,10 @@ class Job(vplace.job.LayoutSettings):
     cache_dir: Path | None = None
     #: Refit the powers so that EEVEE's direct light plus the VPLs' light matches the captures
     #: (``writeback.match_eevee``: an EEVEE render per captured view first, kept only where
-    #: it helps), one of :data:`MATCH_EEVEE`: "on"; "off"; "auto", on only where a surface
-    #: the cameras see cuts one of the user's lamps (``match_eevee.cut_lamps_seen``), which
-    #: EEVEE darkens smoothly, so that the renders are paid only where they can help.
+    #: it helps), one of :data:`MATCH_EEVEE`: "on"; "off"; "auto", on only where surfaces
+    #: the cameras see cut one of the user's lamps and hold at least
+    #: ``vplace.job.CUT_SHARE`` of a view's direct light (``match_eevee.cut_lamps_seen``),
+    #: which EEVEE darkens smoothly, so that the renders are paid only where they can help.
     match_eevee: str = "auto"
 
     def validate(self) -> None:
@@ -186,6 +187,10 @@ class Prepared:
     #: The written VPLs' specular factor, decided on the captures (``Captured.specular``,
     #: ``capture.native_view.vpl_specular``; 0: no glossy layer modelled, ``gloss`` all None).
     vpl_specular: float = 0.0
+    #: The user's lamps that EEVEE darkens on the surfaces the cameras see
+    #: (``writeback.match_eevee.cut_lamps_seen``), found by :func:`eevee_match`, which every
+    #: job runs after :func:`prepare`: what the write-back notes.
+    cut_lamps: list[str] = field(default_factory=list)
 
     @property
     def vpl_unlit(self) -> list[str]:
@@ -338,10 +343,10 @@ def eevee_match(
     (``writeback.match_eevee``: EEVEE's direct-light deficit added to their targets, and the
     judge of whether that helps) and per matched view its share of Cycles' direct light; else
     (None, {}). Left to "auto", a failed EEVEE render is logged and the layout goes on without
-    the match. Uses bpy: call it on Blender's main thread, after :func:`prepare`."""
-    if job.match_eevee == "off" or job.method != "vplace+refit":
-        return None, {}
-    return match_eevee.eevee_match(
+    the match. Whatever the setting, ``prepared.cut_lamps`` gets the lamps EEVEE darkens on
+    what the cameras see, for the write-back's notes. Uses bpy: call it on Blender's main
+    thread, after :func:`prepare`."""
+    match, matched, prepared.cut_lamps = match_eevee.eevee_match(
         bl_scene,
         prepared.captures,
         prepared.captured_views,
@@ -351,9 +356,10 @@ def eevee_match(
         cell_px=job.cell_px,
         cache_dir=job.cache_dir,
         stage=timer.stage,
-        mode=job.match_eevee,
+        mode=job.match_eevee if job.method == "vplace+refit" else "off",
         log=timer.log,
     )
+    return match, matched
 
 
 def capture_reference(prepared: Prepared, job: Job) -> Reference:
@@ -567,6 +573,7 @@ def run_main_job(
             scene=prepared.scene,
             exported=prepared.exported,
             lights=prepared.stand_ins,
+            cut_lamps=prepared.cut_lamps,
             blend_path=out_dir / "scene.blend",
             stage=timer.stage,
             log=log,

@@ -269,12 +269,12 @@ def load_scene(
     seconds = sum(c.render_seconds for c in prepared.captures)
     if prepared.coverage is not None:
         seconds += prepared.coverage.seconds
-    match, matched = None, {}
-    if "vplace+refit" in config.methods:
-        start = time.perf_counter()
-        match, matched = pipeline.eevee_match(
-            bl_scene, prepared, replace(job, method="vplace+refit"), timer
-        )
+    # Every run: it also finds the lamps EEVEE darkens (``prepared.cut_lamps``), for the notes.
+    refit = "vplace+refit" in config.methods
+    start = time.perf_counter()
+    asked = replace(job, method="vplace+refit") if refit else replace(job, match_eevee="off")
+    match, matched = pipeline.eevee_match(bl_scene, prepared, asked, timer)
+    if refit:
         seconds += time.perf_counter() - start
         if match is not None:
             log(
@@ -913,7 +913,9 @@ def _run_scene(
         "capture_seconds": data.capture_seconds,
         "eevee_deficit_matched": data.matched if data.match is not None else None,
         "views": {},
-        "lamp_notes": eevee_setup.lamp_notes(bl_scene) if config.with_eevee else [],
+        "lamp_notes": (
+            eevee_setup.lamp_notes(bl_scene, data.prepared.cut_lamps) if config.with_eevee else []
+        ),
         "vpl_specular": data.prepared.vpl_specular,
         "vpl_unlit": data.prepared.vpl_unlit,
     }

@@ -218,6 +218,7 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
             emitters=self.prepared.stand_ins.emitters,
             sun=self.prepared.stand_ins.sun,
             closed=self.prepared.stand_ins.closed,
+            cut_lamps=self.prepared.cut_lamps,
         )
         summary = pipeline.summary(scene, self.job, self.prepared, computed, self.timer)
         summary.set_match(self.matched, computed.laid.match)

@@ -69,7 +69,6 @@ from mathutils import Matrix, Quaternion, Vector
 from ..errors import WriteBackError
 from ..native import vplace
 from ..scene.export import VPL_MARKER
-from . import cut_lights
 from .stand_ins import EmitterLight, SunLight
 
 if TYPE_CHECKING:
@@ -88,8 +87,9 @@ CLOSED_KEY = "vplace_closed"
 #: gathers the light between nearby surfaces (``vplace.VplSet.near_field_distance``): what the
 #: evaluator adds with ``near_field=True`` (``eevee_setup.set_up``). Absent for points.
 NEAR_FIELD_KEY = "vplace_near_field_distance"
-#: The VPL collection's custom property naming the user's lamps that a surface's plane passes
-#: through (``cut_lights.cut_lamps``, found at the write-back): what the panel notes.
+#: The VPL collection's custom property naming the user's lamps that the planes of surfaces the
+#: cameras see pass through (``Prepared.cut_lamps``, given to the write-back): what the panel
+#: and ``eevee_setup.lamp_notes`` note.
 CUT_LAMPS_KEY = "vplace_cut_lamps"
 #: EEVEE renders 8,192 lights; beyond 65,536 it drops them (DESIGN). We refuse more than this.
 MAX_VPLS = 8192
@@ -362,9 +362,9 @@ def stored_region(name: str = COLLECTION_NAME) -> Region | None:
 
 
 def stored_cut_lamps(name: str = COLLECTION_NAME) -> list[str]:
-    """The user's lamps that a surface's plane passes through, as the write-back found them
-    (:data:`CUT_LAMPS_KEY`; ``cut_lights.cut_lamps``), kept for the panel, which must not read
-    every mesh at each redraw; empty without."""
+    """The user's lamps that the planes of surfaces the cameras see pass through, as the
+    write-back was given them (:data:`CUT_LAMPS_KEY`; ``Prepared.cut_lamps``): what the panel
+    notes; empty without."""
     values = _stored(name, CUT_LAMPS_KEY)
     return [str(v) for v in values] if values else []
 
@@ -387,6 +387,7 @@ def write_vpls(
     region: Region | None = None,
     closed: bool = False,
     unlit: Sequence[str] = (),
+    cut_lamps: Sequence[str] = (),
     name: str = COLLECTION_NAME,
 ) -> bpy.types.Collection:
     """Writes the VPLs of ``vpls`` that carry power as lights (by its profile and near-field
@@ -396,8 +397,10 @@ def write_vpls(
     (``Prepared.vpl_unlit``, :func:`exclude_receivers`); ``emitters`` are written beside them,
     lights that stand in for emissive meshes EEVEE does not light with (``emitter_lights``),
     and ``sun``, a SUN light for the world's sun (``emitter_lights.world_sun``). ``region``
-    (``vplace.Scene.region``) is kept on the collection (:data:`REGION_KEY`), and ``closed``,
-    a closed room (``StandIns.closed``; :data:`CLOSED_KEY`). See the module docs."""
+    (``vplace.Scene.region``) is kept on the collection (:data:`REGION_KEY`), ``closed``, a
+    closed room (``StandIns.closed``; :data:`CLOSED_KEY`), and ``cut_lamps``, the user's lamps
+    EEVEE darkens on what the cameras see (``Prepared.cut_lamps``; :data:`CUT_LAMPS_KEY`). See
+    the module docs."""
     n = len(vpls)
     if n > MAX_VPLS:
         raise WriteBackError(
@@ -439,7 +442,7 @@ def write_vpls(
         remove_collection(coll)
         raise
     replace_collection(scene, coll, name)
-    coll[CUT_LAMPS_KEY] = cut_lights.cut_lamps(scene)
+    coll[CUT_LAMPS_KEY] = list(cut_lamps)
     return coll
 
 

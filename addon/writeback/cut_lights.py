@@ -7,8 +7,11 @@ on top of the part its shading already leaves out: the Cornell box's tall block 
 Cycles' direct light in EEVEE, 1.025x with the lamp's shadow off, and every other surface 1.00x
 (Blender 5.0, four shadow rays). Jitter, the shadow filter and the shadow map's resolution do
 not change it. It is EEVEE's rendering of the light, not vplace's: this module finds those
-surfaces, for the report's attribution (:func:`cut_pixels`) and for the lamp notes
-(:func:`cut_lamps`).
+surfaces, for the report's attribution (:func:`cut_pixels`), and the lamps whose light such
+surfaces the cameras see hold a share of (:func:`lamps_cut_in`), for "Match EEVEE's direct
+light" left to decide and for the lamp notes. The share counts: a curved surface's planes pass
+through every lamp along its terminator, lit at grazing angles, where EEVEE darkens next to
+nothing.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ import numpy as np
 from mathutils import Matrix, Vector
 
 from ..native import vplace
-from ..scene.export import GEOMETRY_TYPES, VPL_MARKER, world_triangles
+from ..scene.export import VPL_MARKER
 
 #: A plane "cuts" a light where more than this share of the light's radius lies on each side of
 #: it (a wall flush with a lamp's edge, or a lamp flush with the ceiling, does not cut it).
@@ -110,59 +113,26 @@ def cut_pixels(
 
 
 def lamps_cut_in(
-    scene: bpy.types.Scene, gbuffers: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray]]
+    scene: bpy.types.Scene,
+    gbuffers: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
 ) -> list[str]:
-    """The user's shadowed lamps (not vplace's, :func:`scene_lights`) whose shape the plane of
-    a pixel of ``gbuffers`` cuts (each: positions and normals (H, W, 3) and the (H, W) mask of
-    the pixels to test, a capture's surfaces): where "Match EEVEE's direct light" is worth its
-    EEVEE renders when left to decide (``Job.match_eevee`` "auto"). Sorted by name."""
+    """The user's shadowed lamps (not vplace's, :func:`scene_lights`) whose shape the planes of
+    pixels of ``gbuffers`` cut where those pixels hold at least ``vplace.job.CUT_SHARE`` of one
+    gbuffer's light (each: positions and normals (H, W, 3), the (H, W) mask of the pixels to
+    test, a capture's surfaces, and the (H, W) luminance of their direct light): where "Match
+    EEVEE's direct light" is worth its EEVEE renders when left to decide (``Job.match_eevee``
+    "auto"). The direct light is every lamp's, so a lamp's share is at most this. Sorted by
+    name."""
     lamps = {o.name: s for o in scene_lights(scene, users_only=True) if (s := light_shape(o))}
     found: set[str] = set()
-    for position, normal, mask in gbuffers:
+    for position, normal, mask, light in gbuffers:
         m = np.asarray(mask, dtype=bool)
         if not m.any():
             continue
-        x, n = np.asarray(position)[m], np.asarray(normal)[m]
+        x, n, w = np.asarray(position)[m], np.asarray(normal)[m], np.asarray(light)[m]
         for name, shape in lamps.items():
-            if name not in found and vplace.job.cut_by_lights(x, n, [shape], TOLERANCE).any():
-                found.add(name)
-    return sorted(found)
-
-
-def _triangles(scene: bpy.types.Scene) -> Iterable[tuple[np.ndarray, np.ndarray]]:
-    """Each render-visible mesh's triangles in world space: (centroids (T, 3), unit normals)."""
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    for inst in depsgraph.object_instances:
-        obj = inst.object
-        original = obj.original if obj.original is not None else obj
-        if obj.type not in GEOMETRY_TYPES or original.hide_render:
-            continue
-        if original.get(VPL_MARKER, False):
-            continue
-        found = world_triangles(obj, inst.matrix_world)
-        if found is None:
-            continue
-        tri = found[0]
-        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        length = np.linalg.norm(n, axis=1)
-        keep = length > 0.0
-        yield tri[keep].mean(axis=1), n[keep] / length[keep, None]
-
-
-def cut_lamps(scene: bpy.types.Scene) -> list[str]:
-    """The user's shadowed lamps (not vplace's) that the plane of a render-visible surface in
-    front of them cuts: EEVEE darkens that surface (the module docs). Sorted by name."""
-    lamps = {o.name: s for o in scene_lights(scene, users_only=True) if (s := light_shape(o))}
-    if not lamps:
-        return []
-    found: set[str] = set()
-    for centroids, normals in _triangles(scene):
-        for name, shape in lamps.items():
-            if (
-                name not in found
-                and vplace.job.cut_by_lights(centroids, normals, [shape], TOLERANCE).any()
+            if name not in found and (
+                vplace.job.cut_share(x, n, w, shape, TOLERANCE) >= vplace.job.CUT_SHARE
             ):
                 found.add(name)
-        if len(found) == len(lamps):
-            break
     return sorted(found)

@@ -552,9 +552,10 @@ def spread_lamps(scene: bpy.types.Scene) -> list[tuple[str, float]]:
     return sorted(out)
 
 
-def lamp_notes(scene: bpy.types.Scene) -> list[str]:
+def lamp_notes(scene: bpy.types.Scene, cut_lamps: Sequence[str] = ()) -> list[str]:
     """One line each on what EEVEE shows of the user's own lamps differently from Cycles, that
-    the user can change and vplace does not (the module docs)."""
+    the user can change and vplace does not (the module docs); ``cut_lamps`` are those EEVEE
+    darkens on the surfaces the cameras see (``Prepared.cut_lamps``)."""
     notes = []
     lamps = unjittered_lamps(scene)
     if lamps:
@@ -571,7 +572,8 @@ def lamp_notes(scene: bpy.types.Scene) -> list[str]:
             f"{degrees:.0f} degrees): they light wider in EEVEE than in Cycles, whose light "
             "vplace's VPLs carry on"
         )
-    cut = cut_lights.cut_lamps(scene)
+    shadowed = {o.name for o in cut_lights.scene_lights(scene, users_only=True)}
+    cut = [n for n in cut_lamps if n in shadowed]
     if cut:
         notes.append(
             f"EEVEE darkens the surfaces whose plane passes through {len(cut)} of your lamps "

@@ -28,9 +28,10 @@ included; in the panel and L-shaped rooms it moved by -3.3..+0.5 %; in the sky r
 -2.4..-0.1 % on four views and +4.3 % on the held-out view of the ceiling, which no capture
 sees. It costs an EEVEE render per captured view at the capture size, seconds on a GPU and
 7-16 s a view on these CPU-only machines (llvmpipe; 6 s for the Cornell box's lamp alone at
-192x108). So by default (``Job.match_eevee`` "auto", stop 69) it runs only where a surface the
-cameras see cuts one of the user's lamps (:func:`cut_lamps_seen`), the smooth shortfall it
-fixes; elsewhere nothing renders.
+192x108). So by default (``Job.match_eevee`` "auto", stop 69) it runs only where surfaces the
+cameras see cut one of the user's lamps (:func:`cut_lamps_seen`), the smooth shortfall it
+fixes, and hold at least ``vplace.job.CUT_SHARE`` of a view's direct light (stop 70: a ball's
+terminator cuts every lamp, lit edge on); elsewhere nothing renders.
 """
 
 from __future__ import annotations
@@ -73,7 +74,7 @@ def eevee_match(
     stage: Callable[[str], AbstractContextManager[None]],
     mode: str = "on",
     log: Callable[[str], None] = print,
-) -> tuple[vplace.job.EeveeMatch | None, dict[str, float]]:
+) -> tuple[vplace.job.EeveeMatch | None, dict[str, float], list[str]]:
     """What the refit may fit (``vplace.job.lay_out(match=...)``) in place of the captured
     ``views`` (one per capture of ``captures``, ``gloss`` their glossy masks): each
     view whose capture is its camera at the current frame with EEVEE's direct-light deficit
@@ -85,15 +86,17 @@ def eevee_match(
     error. ``scene`` (the job's ``vplace.Scene``) gives the stand-ins' size and region, and
     lights a rough metal's pixels as the captured views do (``native_view.metal_irradiance``).
 
-    ``mode`` (``Job.match_eevee``): "on" always; "auto" only where a surface the captures see
-    cuts one of the user's lamps (:func:`cut_lamps_seen`; ``log`` says which), else
-    (None, {}) with nothing rendered, and where EEVEE then fails to render, ``log`` says so and
-    it is (None, {}): the layout goes on without it. Under "on" a failed render is the error
-    it is."""
+    The third value, whatever the mode, is the user's lamps EEVEE darkens on what the cameras
+    see (:func:`cut_lamps_seen`): the write-back notes them (``Prepared.cut_lamps``).
+
+    ``mode`` (``Job.match_eevee``): "on" always; "off" never (None, {}); "auto" only where
+    those lamps are (``log`` says which), else (None, {}) with nothing rendered, and where
+    EEVEE then fails to render, ``log`` says so and it is (None, {}): the layout goes on
+    without it. Under "on" a failed render is the error it is."""
+    lamps = cut_lamps_seen(bl_scene, captures)
+    if mode == "off" or (mode == "auto" and not lamps):
+        return None, {}, lamps
     if mode == "auto":
-        lamps = cut_lamps_seen(bl_scene, captures)
-        if not lamps:
-            return None, {}
         log(
             f"[vplace] Match EEVEE's direct light (auto): the plane of a surface the cameras "
             f"see passes through {len(lamps)} of your lamps (e.g. {lamps[0]!r}), which EEVEE "
@@ -151,7 +154,7 @@ def eevee_match(
                         if mode != "auto":
                             raise
                         log(f"[vplace] warning: Match EEVEE's direct light (auto) left out: {exc}")
-                        return None, {}
+                        return None, {}, lamps
                     seen = vplace.job.seen_directly(cap.seen_light, cap.direct)
                     deficit = vplace.job.eevee_deficit(
                         cap.direct, img.image, cap.covered & ~seen, cell_px
@@ -169,7 +172,7 @@ def eevee_match(
         finally:
             apply.clear_vpls(COLLECTION)
     error = functools.partial(predicted_error, scene, judged)
-    return vplace.job.EeveeMatch(views, plain, sorted(judged), error), matched
+    return vplace.job.EeveeMatch(views, plain, sorted(judged), error), matched, lamps
 
 
 def _matchable(cap: Capture) -> bool:
@@ -179,18 +182,24 @@ def _matchable(cap: Capture) -> bool:
 
 def cut_lamps_seen(bl_scene: bpy.types.Scene, captures: Sequence[Capture]) -> list[str]:
     """The user's lamps that EEVEE darkens on the views :func:`eevee_match` would render: those
-    whose shape the plane of a surface one of those captures sees passes through
+    whose shape the planes of surfaces one of those captures sees pass through, where those
+    surfaces hold at least ``vplace.job.CUT_SHARE`` of its direct light
     (``cut_lights.lamps_cut_in``; the pixels that see an emitter left out). Where there are
     none, the match has nothing smooth to make up for that vplace knows of, and ``Job``'s
     "auto" leaves it (and its EEVEE renders) out."""
     return cut_lights.lamps_cut_in(
         bl_scene,
-        (
-            (c.position, c.normal, c.covered & ~vplace.job.seen_directly(c.seen_light, c.direct))
-            for c in captures
-            if _matchable(c)
-        ),
+        (_surfaces_lit(c) for c in captures if _matchable(c)),
     )
+
+
+def _surfaces_lit(c: Capture) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``c``'s positions, normals, the surface pixels to test (covered, finite, not seeing an
+    emitter) and their direct light's luminance (0 where it is not finite or below 0)."""
+    lum = np.asarray(c.direct, dtype=np.float64)[..., :3] @ np.asarray(vplace.LUMINANCE)
+    finite = np.isfinite(c.position).all(-1) & np.isfinite(c.normal).all(-1)
+    mask = c.covered & finite & ~vplace.job.seen_directly(c.seen_light, c.direct)
+    return c.position, c.normal, mask, np.where(np.isfinite(lum), np.maximum(lum, 0.0), 0.0)
 
 
 def predicted_error(

@@ -42,15 +42,17 @@ def write_back(
     scene: vplace.Scene,
     exported: ExportedScene,
     lights: StandIns,
+    cut_lamps: Sequence[str],
     blend_path: Path | None,
     stage: Callable[[str], AbstractContextManager[None]],
     log: Callable[[str], None],
 ) -> WrittenBack:
     """Writes ``vpls`` (specular factor ``specular``: ``Prepared.vpl_specular``) and the
     stand-in ``lights`` of ``exported`` (``stand_ins.stand_ins``) into the VPL collection
-    (``apply.write_vpls``), leaves unlit by the VPLs the objects ``native_view.vpl_unlit``
-    names (with a note), saves a copy of the file to ``blend_path`` when given, and logs
-    what EEVEE will not show right."""
+    (``apply.write_vpls``, with ``cut_lamps``: ``Prepared.cut_lamps``), leaves unlit by the
+    VPLs the objects ``native_view.vpl_unlit`` names (with a note), saves a copy of the file to
+    ``blend_path`` when given, and logs what EEVEE will not show right and the lamp notes
+    (``eevee_setup.lamp_notes``)."""
     unlit = vpl_unlit(exported, specular)
     if unlit:
         log(
@@ -68,6 +70,7 @@ def write_back(
             emitters=lights.emitters,
             sun=lights.sun,
             closed=lights.closed,
+            cut_lamps=cut_lamps,
         )
         if blend_path is not None:
             run_operator(
@@ -80,7 +83,7 @@ def write_back(
     problems = [str(p) for p in eevee_setup.problems(bl_scene)]
     for problem in problems:
         log(f"[vplace] warning: EEVEE: {problem} (Set up EEVEE for vplace fixes it)")
-    notes = eevee_setup.lamp_notes(bl_scene)
+    notes = eevee_setup.lamp_notes(bl_scene, cut_lamps)
     for note in notes:
         log(f"[vplace] note: {note}")
     return WrittenBack(lights, problems, notes)

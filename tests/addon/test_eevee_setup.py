@@ -8,10 +8,9 @@ import bpy
 import numpy as np
 import pytest
 from blender_util import addon_cornell, data_snapshot, diff
-from mathutils import Vector
 
 from addon.native import vplace
-from addon.writeback import apply, cut_lights, eevee_setup
+from addon.writeback import apply, eevee_setup
 
 
 @pytest.fixture
@@ -21,12 +20,12 @@ def scene():
         yield sc
 
 
-def write(scene, n, seed=0):
+def write(scene, n, seed=0, **kwargs):
     rng = np.random.default_rng(seed)
     pos = rng.uniform(-0.8, 0.8, (n, 3)).astype(np.float32) + np.float32([0, 0, 1])
     up = np.tile(np.float32([0, 0, 1]), (n, 1))
     flux = rng.uniform(0.1, 1.0, (n, 3)).astype(np.float32)
-    return apply.write_vpls(scene, vplace.VplSet(pos, up, flux), scene_diagonal=3.5)
+    return apply.write_vpls(scene, vplace.VplSet(pos, up, flux), scene_diagonal=3.5, **kwargs)
 
 
 def settings(found):
@@ -147,9 +146,9 @@ def test_the_operator_is_undoable_and_reports_what_it_changed(scene):
     assert "UNDO" in bpy.types.VPLACE_OT_setup_eevee.bl_options
 
 
-def _notes(scene, word):
-    """The lamp notes that name ``word``."""
-    return [n for n in eevee_setup.lamp_notes(scene) if word in n]
+def _notes(scene, word, cut=()):
+    """The lamp notes that name ``word`` (``cut``: the lamps the cameras see cut)."""
+    return [n for n in eevee_setup.lamp_notes(scene, cut) if word in n]
 
 
 def test_the_users_soft_lamps_without_jitter_are_noted_and_never_changed(scene):
@@ -176,35 +175,26 @@ def test_the_users_soft_lamps_without_jitter_are_noted_and_never_changed(scene):
 
 
 def test_a_lamp_that_a_surfaces_plane_passes_through_is_noted(scene):
-    """The Cornell box's blocks stand beside its ceiling lamp: the planes of their faces pass
-    through it, and EEVEE darkens those faces (``tests/render/test_eevee_cut_lights.py``)."""
+    """The lamps the cameras see cut (``Prepared.cut_lamps``, found on the captures:
+    ``tests/addon/test_match_auto.py``) are noted while they are the user's shadowed lamps;
+    EEVEE darkens those surfaces (``tests/render/test_eevee_cut_lights.py``)."""
     lamp = scene.objects["light"]
-    write(scene, 4)  # vplace's own lights are not the user's lamps, and are not tested
-    assert cut_lights.cut_lamps(scene) == ["light"]
-    (note,) = _notes(scene, "plane")
+    write(scene, 4)  # vplace's own lights are not the user's lamps
+    (note,) = _notes(scene, "plane", ["light"])
     assert "1 of your lamps (e.g. 'light')" in note and "darkens" in note
-    # Without the blocks only the room's walls stand around the lamp: none passes through it.
-    for name in ("tallBox", "shortBox"):
-        scene.objects[name].hide_render = True
-    assert cut_lights.cut_lamps(scene) == [] and _notes(scene, "plane") == []
-    scene.objects["tallBox"].hide_render = False
-    assert cut_lights.cut_lamps(scene) == ["light"]
+    assert _notes(scene, "plane") == [] and _notes(scene, "plane", ["gone"]) == []
     # A lamp that casts no shadow is not darkened; nor is one that lights nothing.
     lamp.data.use_shadow = False
-    assert cut_lights.cut_lamps(scene) == []
+    assert _notes(scene, "plane", ["light"]) == []
     lamp.data.use_shadow = True
     lamp.hide_render = True
-    assert cut_lights.cut_lamps(scene) == []
-    # A sphere lamp the tall block's face plane passes through is found as well.
-    bulb = bpy.data.objects.new("bulb", bpy.data.lights.new("bulb", "POINT"))
-    block = scene.objects["tallBox"]
-    face = max(block.data.polygons, key=lambda p: abs(p.normal.x))
-    bulb.location = block.matrix_world @ face.center + Vector((0.0, 0.0, 0.6))
-    bulb.data.shadow_soft_size = 0.05
-    scene.collection.objects.link(bulb)
-    assert cut_lights.cut_lamps(scene) == ["bulb"]
-    bulb.data.shadow_soft_size = 0.0  # a point: nothing to cut
-    assert cut_lights.cut_lamps(scene) == []
+    assert _notes(scene, "plane", ["light"]) == []
+    # The write-back keeps them for the panel.
+    lamp.hide_render = False
+    write(scene, 4, cut_lamps=["light"])
+    assert apply.stored_cut_lamps() == ["light"]
+    write(scene, 4)
+    assert apply.stored_cut_lamps() == []
 
 
 def test_a_ground_no_camera_sees_neither_stretches_the_volume_nor_the_lamps_reach(scene):

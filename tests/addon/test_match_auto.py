@@ -47,10 +47,13 @@ def test_auto_matches_only_where_a_lamp_the_cameras_see_is_cut(monkeypatch, prep
     assert match_eevee.cut_lamps_seen(scene, prep.captures) == ["light"]
     got, rendered, lines = _decide(monkeypatch, scene, prep, job)
     assert rendered and isinstance(got[0], vplace.job.EeveeMatch) and got[0].matched
+    assert prep.cut_lamps == ["light"]  # for the write-back's notes
     assert any("Match EEVEE's direct light (auto)" in line and "'light'" in line for line in lines)
     # A lamp whose shadow is off is not darkened: nothing renders, the plain refit stays.
     scene.objects["light"].data.use_shadow = False
     assert match_eevee.cut_lamps_seen(scene, prep.captures) == []
+    assert _decide(monkeypatch, scene, prep, job)[:2] == ((None, {}), False)
+    assert prep.cut_lamps == []
     assert _decide(monkeypatch, scene, prep, job)[:2] == ((None, {}), False)
     # "on" renders all the same; "off" never; nor does a method without a refit.
     on = pipeline.Job(size=32, samples=2, n_vpls=16, match_eevee="on")
@@ -59,7 +62,9 @@ def test_auto_matches_only_where_a_lamp_the_cameras_see_is_cut(monkeypatch, prep
     off = pipeline.Job(size=32, samples=2, n_vpls=16, match_eevee="off")
     assert _decide(monkeypatch, scene, prep, off)[:2] == ((None, {}), False)
     plain = pipeline.Job(size=32, samples=2, n_vpls=16, method="vplace")
+    prep.cut_lamps = []
     assert _decide(monkeypatch, scene, prep, plain)[:2] == ((None, {}), False)
+    assert prep.cut_lamps == ["light"]  # found all the same, for the notes
 
 
 def test_auto_goes_on_without_the_match_where_eevee_cannot_render(monkeypatch, prepared):
@@ -84,18 +89,45 @@ def test_only_the_pixels_given_are_tested_and_only_the_users_shadowed_lamps():
     lamp = scene.objects["light"]
     centre = np.asarray(lamp.matrix_world.translation)
     # One point whose plane (normal +x) passes through the lamp's centre, one whose plane
-    # (normal +z, facing the lamp from below) does not cut it.
+    # (normal +z, facing the lamp from below) does not cut it; equally lit.
     position = np.array([[[centre[0], centre[1], centre[2] - 0.5]] * 2], np.float32)
     normal = np.array([[[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]], np.float32)
     cut = np.array([[True, False]])
-    assert cut_lights.lamps_cut_in(scene, [(position, normal, cut)]) == ["light"]
-    assert cut_lights.lamps_cut_in(scene, [(position, normal, ~cut)]) == []
-    assert cut_lights.lamps_cut_in(scene, [(position, normal, np.zeros_like(cut))]) == []
+    light = np.ones((1, 2))
+    assert cut_lights.lamps_cut_in(scene, [(position, normal, cut, light)]) == ["light"]
+    assert cut_lights.lamps_cut_in(scene, [(position, normal, ~cut, light)]) == []
+    assert cut_lights.lamps_cut_in(scene, [(position, normal, np.zeros_like(cut), light)]) == []
+    # Both tested: the cut point holds half the light, then a thousandth of it.
+    both = np.ones_like(cut)
+    assert cut_lights.lamps_cut_in(scene, [(position, normal, both, light)]) == ["light"]
+    dim = np.array([[1e-3, 1.0]])
+    assert cut_lights.lamps_cut_in(scene, [(position, normal, both, dim)]) == []
     lamp.hide_render = True
-    assert cut_lights.lamps_cut_in(scene, [(position, normal, cut)]) == []
+    assert cut_lights.lamps_cut_in(scene, [(position, normal, cut, light)]) == []
     lamp.hide_render = False
     scene.eevee.use_shadows = False  # EEVEE shadows nothing: it darkens nothing
-    assert cut_lights.lamps_cut_in(scene, [(position, normal, cut)]) == []
+    assert cut_lights.lamps_cut_in(scene, [(position, normal, cut, light)]) == []
+
+
+def test_a_balls_terminator_under_the_lamp_is_no_cause_to_render(monkeypatch):
+    """A curved surface's planes pass through every lamp along its terminator, lit edge on:
+    the box without its blocks and with a ball on its floor has such pixels, which hold next
+    to none of the captured direct light, so "auto" renders nothing (it rendered before)."""
+    scene = cornell()
+    for name in ("tallBox", "shortBox"):
+        scene.objects[name].hide_render = True
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.25, location=(0.0, 0.0, 0.25))
+    bpy.context.object.modifiers.new("smooth", "SUBSURF")
+    bpy.ops.object.shade_smooth()
+    bpy.context.view_layer.update()
+    job = pipeline.Job(size=48, samples=2, n_vpls=16)
+    prep = pipeline.prepare(scene, job, pipeline.quiet_timer())
+    shape = cut_lights.light_shape(scene.objects["light"])
+    c = prep.captures[0]
+    assert vplace.job.cut_by_lights(c.position[c.covered], c.normal[c.covered], [shape], 0.02).any()
+    assert match_eevee.cut_lamps_seen(scene, prep.captures) == []
+    assert _decide(monkeypatch, scene, prep, job)[:2] == ((None, {}), False)
+    assert prep.cut_lamps == []
 
 
 def test_the_setting_takes_three_values():

@@ -359,6 +359,51 @@ def test_the_planes_that_pass_through_a_light_are_found():
         vjob.cut_by_lights(pos, nrm, [lamp], -1.0)
 
 
+def test_the_share_of_light_on_cut_planes_tells_a_block_from_a_terminator():
+    lamp = _ceiling_lamp()
+    # The floor under the lamp and a face whose plane passes through the lamp (lit by the part
+    # in front of it) get light; a face beside the lamp that turns away from it gets none.
+    pos = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 1.0], [0.6, 0.0, 1.0]])
+    nrm = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    light = vjob.light_on(pos, nrm, lamp)
+    assert light[0] > 0.0 and light[1] > 0.0 and light[2] == 0.0
+    # Directly under a small far lamp the weight is its cosines over the squared distance.
+    far = vjob.light_on(np.array([[0.0, 0.0, -8.0]]), np.array([[0.0, 0.0, 1.0]]), lamp)
+    assert far[0] == pytest.approx(1.0 / 100.0, rel=0.01)
+    # What a camera sees of a floor (2 m x 2 m) and the face of a block under the lamp (x =
+    # 0.1, 1 m tall), sampled evenly: the face holds a real share of the lamp's light on them.
+    g = np.linspace(-1.0, 1.0, 21)
+    floor = np.stack(np.meshgrid(g, g, [0.0], indexing="ij"), -1).reshape(-1, 3)
+    h = np.linspace(0.05, 0.95, 10)
+    face = np.stack(np.meshgrid([0.1], np.linspace(-0.45, 0.45, 10), h, indexing="ij"), -1)
+    face = face.reshape(-1, 3)
+    x = np.concatenate([floor, face])
+    n = np.concatenate([np.tile([0.0, 0.0, 1.0], (len(floor), 1)), np.tile([1.0, 0, 0], (100, 1))])
+    area = np.concatenate([np.full(len(floor), 0.01), np.full(100, 0.009)])
+    block = vjob.cut_share(x, n, area * vjob.light_on(x, n, lamp), lamp, 0.02)
+    assert block > vjob.CUT_SHARE
+    # A ball beside that floor, 3 m from the lamp's axis: the planes of its points along the
+    # terminator pass through the lamp too, but they are lit edge on and hold next to none.
+    k = np.arange(4000) + 0.5
+    z = 1.0 - 2.0 * k / 4000
+    phi = np.pi * (3.0 - np.sqrt(5.0)) * k
+    ball_n = np.stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z], -1)
+    ball_x = np.array([3.0, 0.0, 0.3]) + 0.3 * ball_n
+    both_x, both_n = np.concatenate([floor, ball_x]), np.concatenate([n[: len(floor)], ball_n])
+    both_w = np.concatenate([area[: len(floor)], np.full(4000, 0.4 * np.pi * 0.09 / 4000)])
+    assert vjob.cut_by_lights(ball_x, ball_n, [lamp], 0.02).any()
+    ball = vjob.cut_share(both_x, both_n, both_w * vjob.light_on(both_x, both_n, lamp), lamp, 0.02)
+    assert ball < 0.1 * vjob.CUT_SHARE
+    # Nothing lit: no share; bad weights are a clear error.
+    assert vjob.cut_share(pos, nrm, np.zeros(3), lamp, 0.02) == 0.0
+    with pytest.raises(ValueError, match="one weight per point"):
+        vjob.cut_share(pos, nrm, np.ones(2), lamp, 0.02)
+    with pytest.raises(ValueError, match=">= 0"):
+        vjob.cut_share(pos, nrm, np.array([1.0, -1.0, 0.0]), lamp, 0.02)
+    with pytest.raises(ValueError, match="one shape"):
+        vjob.light_on(pos, nrm[:2], lamp)
+
+
 def test_attribution_says_how_much_of_eevees_direct_error_is_where_a_lights_plane_is_cut():
     # A room lit by one lamp, whose plane-cut pixels (two columns) EEVEE darkens to 0.8x, and a
     # noisy patch elsewhere.
