@@ -121,8 +121,8 @@ def lamps_cut_in(
     gbuffer's light (each: positions and normals (H, W, 3), the (H, W) mask of the pixels to
     test, a capture's surfaces, and the (H, W) luminance of their direct light): where "Match
     EEVEE's direct light" is worth its EEVEE renders when left to decide (``Job.match_eevee``
-    "auto"). The direct light is every lamp's, so a lamp's share is at most this. Sorted by
-    name."""
+    "auto"). The direct light is every lamp's: the share is of the view's light that lies on
+    surfaces cutting the lamp, what EEVEE's darkening of them can touch. Sorted by name."""
     lamps = {o.name: s for o in scene_lights(scene, users_only=True) if (s := light_shape(o))}
     found: set[str] = set()
     for position, normal, mask, light in gbuffers:
