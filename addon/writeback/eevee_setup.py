@@ -552,6 +552,14 @@ def spread_lamps(scene: bpy.types.Scene) -> list[tuple[str, float]]:
     return sorted(out)
 
 
+def still_cut(scene: bpy.types.Scene, cut_lamps: Sequence[str]) -> list[str]:
+    """Those of ``cut_lamps`` (``Prepared.cut_lamps``, ``apply.stored_cut_lamps``) that are
+    still the user's render-visible lamps casting shadows in ``scene``: a lamp whose shadow
+    was turned off since is darkened no more."""
+    shadowed = {o.name for o in cut_lights.scene_lights(scene, users_only=True)}
+    return [n for n in cut_lamps if n in shadowed]
+
+
 def lamp_notes(scene: bpy.types.Scene, cut_lamps: Sequence[str] = ()) -> list[str]:
     """One line each on what EEVEE shows of the user's own lamps differently from Cycles, that
     the user can change and vplace does not (the module docs); ``cut_lamps`` are those EEVEE
@@ -572,8 +580,7 @@ def lamp_notes(scene: bpy.types.Scene, cut_lamps: Sequence[str] = ()) -> list[st
             f"{degrees:.0f} degrees): they light wider in EEVEE than in Cycles, whose light "
             "vplace's VPLs carry on"
         )
-    shadowed = {o.name for o in cut_lights.scene_lights(scene, users_only=True)}
-    cut = [n for n in cut_lamps if n in shadowed]
+    cut = still_cut(scene, cut_lamps)
     if cut:
         notes.append(
             f"EEVEE darkens the surfaces whose plane passes through {len(cut)} of your lamps "

@@ -123,6 +123,9 @@ def test_panel_shows_settings_buttons_and_last_results(scene):
     labels = [t for kind, t in draw(scene) if kind == "label"]
     assert not any(t.startswith("1 lamp(s) with soft shadows") for t in labels)
     assert "EEVEE's own light, not vplace's:" in labels  # the plane through the lamp stays
+    scene.objects["light"].data.use_shadow = False  # a lamp without shadow is not darkened
+    assert "EEVEE's own light, not vplace's:" not in [t for _, t in draw(scene)]
+    scene.objects["light"].data.use_shadow = True
     apply.find_collection()[apply.CUT_LAMPS_KEY] = []
     assert "EEVEE's own light, not vplace's:" not in [t for _, t in draw(scene)]
     # A setting that would drop the VPLs' shadows is named in the panel.
