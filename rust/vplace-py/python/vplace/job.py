@@ -700,35 +700,6 @@ def cut_by_lights(
 CUT_SHARE = 0.01
 
 
-def light_on(position: np.ndarray, normal: np.ndarray, shape: LightShape) -> np.ndarray:
-    """(...) float, for points ``position`` with unit normals ``normal`` (both (..., 3)): the
-    light ``shape`` sends onto each, unoccluded, up to one constant factor: the mean over its
-    outline points and centre of the cosine at the point (and at an area light's face) over
-    the squared distance plus the squared radius (a weight that stays finite on the light)."""
-    x = np.asarray(position, dtype=np.float64)
-    n = np.asarray(normal, dtype=np.float64)
-    if x.shape != n.shape or x.ndim < 1 or x.shape[-1] != 3:
-        raise ValueError(
-            f"light_on needs positions and normals of one shape (..., 3), got {x.shape}, {n.shape}"
-        )
-    centre = np.asarray(shape.centre, dtype=np.float64)
-    outline = np.asarray(shape.outline, dtype=np.float64).reshape(-1, 3)
-    radius2 = float(((outline - centre) ** 2).sum(-1).max()) if len(outline) else 0.0
-    facing = None if shape.facing is None else np.asarray(shape.facing, dtype=np.float64)
-    total = np.zeros(x.shape[:-1])
-    points = np.concatenate([outline, centre[None]])
-    for p in points:
-        d = p - x
-        r2 = (d * d).sum(-1)
-        r = np.sqrt(r2)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            k = np.where(r > 0.0, np.maximum((n * d).sum(-1), 0.0) / r, 0.0)
-            if facing is not None:
-                k *= np.where(r > 0.0, np.maximum(-(d @ facing), 0.0) / r, 0.0)
-        total += k / (r2 + radius2) if radius2 > 0.0 else np.where(r2 > 0.0, k / r2, 0.0)
-    return total / len(points)
-
-
 def cut_share(
     position: np.ndarray,
     normal: np.ndarray,
@@ -736,8 +707,8 @@ def cut_share(
     shape: LightShape,
     tolerance: float,
 ) -> float:
-    """The share of ``weight`` ((...) float, >= 0: the light on each point, measured or
-    :func:`light_on`) held by the points whose plane cuts ``shape`` (:func:`cut_by_lights`);
+    """The share of ``weight`` ((...) float, >= 0: the light on each point, a capture's
+    direct light) held by the points whose plane cuts ``shape`` (:func:`cut_by_lights`);
     0 where the weights sum to 0. How much of a light EEVEE's darkening can touch: a plane
     through a lamp at one grazing point is no cause to render EEVEE's direct light."""
     w = np.asarray(weight, dtype=np.float64)

@@ -25,7 +25,5 @@ def percent(share: float, *, signed: bool = False, digits: int = 0) -> str:
     if not math.isfinite(share):
         return "-"
     value = round(100.0 * share, digits) + 0.0  # + 0.0: no negative zero
-    if value == 0.0:
-        value = 0.0
     text = f"{value:+.{digits}f}" if signed else f"{value:.{digits}f}"
     return text + "%"
