@@ -41,6 +41,10 @@ HELD_OUT_SPREAD = 0.03
 #: Issue 20: the one-time cost for one camera's region at most this many Cycles + OIDN frames
 #: of that camera at this many samples, the same size.
 COST_FRAMES = 2
+#: The set-ups the report renders on every run rather than reading from its cache: the cost
+#: check sets their frames against the captures, which are rendered on every run too, so both
+#: sides are timed on the machine as it is now.
+UNCACHED = frozenset({"cycles+oidn"})
 #: Issue 21: EEVEE's RMSE at most this many times the evaluator's for the same lights, and at
 #: most this share of hot-spot pixels (``vplace.job.outliers``).
 EEVEE_RMSE_RATIO = 1.25
@@ -169,6 +173,8 @@ class ReportConfig:
     #: world's volume of the VPL renders when the world emits).
     volume_resolution: int = eevee_setup.VOLUME_PROBES
     par2d: bool = True
+    #: Where the truths and EEVEE's renders are cached (default ``OUT/cache``); what the
+    #: one-time cost and the cost check time is rendered on every run (:data:`UNCACHED`).
     cache_dir: Path | None = None
     #: Coverage views of the region around the fit cameras (``vplace.coverage``).
     coverage: int = vplace.coverage.DEFAULT_COUNT
@@ -188,7 +194,7 @@ class ReportConfig:
     #: Lay out ``vplace+refit`` as ``demo --match-eevee`` does (``Job.match_eevee``: "auto",
     #: "on" or "off"; ``writeback.match_eevee``): the refit fits what EEVEE's direct light
     #: lacks on each captured view as well, where that helps; the EEVEE renders that takes
-    #: count in the one-time cost.
+    #: count in the one-time cost (rendered on every run, never read from the cache).
     match_eevee: str = "auto"
 
     def generated_for(self, preset: ScenePreset) -> int:

@@ -22,7 +22,10 @@ with the evaluator and with EEVEE, beside what a Blender user would pick instead
 Costs are kept apart: ``one_time_seconds`` (the captures, the fit, the layout and refit, a
 volume's bake) and ``frame_seconds`` (one frame: the evaluator's image, an EEVEE or a Cycles
 render). The break-even table says after how many frames vplace's one-time cost plus its EEVEE
-frames costs less than Cycles + OIDN frames of at least the same SSIM.
+frames costs less than Cycles + OIDN frames of at least the same SSIM. The captures and the Cycles
++ OIDN frames are rendered on every run, never read from the cache (both are deterministic, and
+cheap beside the truths): a cached render keeps the seconds of the run that made it, on a machine
+that may have been busier or idler, and the cost check compares the two (:data:`UNCACHED`).
 
 Written into ``--out``: ``results.csv`` and ``results.json`` (every row), ``report.md`` (tables,
 the break-even, the target checks) and PNG plots. Renders are cached in ``out/cache``. The user's
@@ -67,6 +70,7 @@ from .config import (
     OTHER_TRUTH_SEED,
     RELAYOUT,
     TRUTH_SEED,
+    UNCACHED,
     WITH_RT,
     ReportConfig,
     Row,
@@ -232,7 +236,7 @@ def load_scene(
         cams[name] = cam
     timer = pipeline.StageTimer(log)
     specs = [ViewSpec(name, cams[name]) for name in preset.fit_views]
-    prepared = pipeline.prepare(bl_scene, job, timer, views=specs)
+    prepared = pipeline.prepare(bl_scene, replace(job, cache_dir=None), timer, views=specs)
     if prepared.skipped:
         raise ReportError(f"fit views left out: {prepared.skipped}")
     held_out = list(preset.held_out_views)
@@ -270,9 +274,11 @@ def load_scene(
     if prepared.coverage is not None:
         seconds += prepared.coverage.seconds
     # Every run: it also finds the lamps EEVEE darkens (``prepared.cut_lamps``), for the notes.
+    # Its EEVEE renders count in the one-time cost, so they are timed here, never cached.
     refit = "vplace+refit" in config.methods
     start = time.perf_counter()
-    asked = replace(job, method="vplace+refit") if refit else replace(job, match_eevee="off")
+    asked = replace(job, cache_dir=None)
+    asked = replace(asked, method="vplace+refit") if refit else replace(asked, match_eevee="off")
     match, matched = pipeline.eevee_match(bl_scene, prepared, asked, timer)
     if refit:
         seconds += time.perf_counter() - start
@@ -475,7 +481,9 @@ def capture_curve_rows(
     rows: list[Row] = []
     for spp in config.capture_curve:
         job = replace(data.job, samples=spp)
-        prepared = pipeline.prepare(bl_scene, job, pipeline.quiet_timer(), views=specs)
+        prepared = pipeline.prepare(
+            bl_scene, replace(job, cache_dir=None), pipeline.quiet_timer(), views=specs
+        )
         capture_seconds = sum(c.render_seconds for c in prepared.captures)
         fit_seconds, fitted = _timed(lambda j=job, p=prepared: pipeline.fit(p, j))
         for seed in config.seeds:
@@ -651,8 +659,9 @@ class _EeveeRun:
     def each_view(
         self, setup: eevee.Setup, samples: int, diffuse_color: bool = False
     ) -> Iterator[tuple[ViewData, eevee.EeveeImage]]:
-        """Every view EEVEE renders (:func:`eevee_views`) with ``setup`` at ``samples`` (cached;
-        with its Diffuse Color pass where ``diffuse_color``)."""
+        """Every view EEVEE renders (:func:`eevee_views`) with ``setup`` at ``samples`` (cached
+        unless the set-up is in :data:`UNCACHED`; with its Diffuse Color pass where
+        ``diffuse_color``)."""
         for view in eevee_views(self.data, self.config):
             yield (
                 view,
@@ -663,7 +672,7 @@ class _EeveeRun:
                     samples=samples,
                     setup=setup,
                     seed=CURVE_SEED,
-                    cache_dir=self.cache_dir,
+                    cache_dir=None if setup.name in UNCACHED else self.cache_dir,
                     diffuse_color=diffuse_color,
                 ),
             )

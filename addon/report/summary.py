@@ -579,7 +579,10 @@ def _intro(result: dict[str, Any]) -> list[str]:
         "states. SSIM on display luminance (DESIGN: Metrics); RMSE and relative MSE on linear "
         "HDR; brightness is the mean luminance over the truth's. One-time seconds: the captures "
         "of the fit views, the fit, the layout and refit, or a volume's bake, paid once for "
-        "every view and frame; frame seconds: one image. Stochastic layouts run with seeds "
+        "every view and frame; frame seconds: one image. The captures and the Cycles + OIDN "
+        "frames are rendered in this run, never read from the cache, so the cost check sets "
+        "seconds timed on the machine as it is now against each other (the truths' and EEVEE's "
+        "renders are cached). Stochastic layouts run with seeds "
         f"{list(result['config']['seeds'])}; rows show their mean (SSIM standard deviation in "
         "brackets); `results.csv` has every run. EEVEE here is software OpenGL on 2 CPU cores: "
         "its frame times are no measure of a GPU's." + _eevee_views_note(result),

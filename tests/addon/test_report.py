@@ -202,6 +202,14 @@ def test_report_leaves_the_blend_untouched_and_reuses_cached_renders(tiny_report
     assert apply.find_collection() is None
     assert not [o for o in bpy.data.objects if o.type == "LIGHT_PROBE"]
     cached = sorted(p.name for p in (out / "cache").iterdir())
+    # What the cost check times is rendered on every run: the cache holds the truths (32 spp),
+    # never a capture of the layout (8 spp, or the curve's 4) nor a Cycles + OIDN frame.
+    spp = {int(np.load(out / "cache" / n)["samples"]) for n in cached if n.startswith("capture-")}
+    assert spp == {32}
+    kept = {float(np.load(out / "cache" / n)["seconds"]) for n in cached if n.startswith("render-")}
+    eevee_frames = {r["frame_seconds"] for r in result["rows"] if r["renderer"] == "eevee"}
+    cycles_frames = {r["frame_seconds"] for r in result["rows"] if r["renderer"] == "cycles"}
+    assert eevee_frames & kept and cycles_frames and not cycles_frames & kept
     second = report.run_report(
         tiny(
             methods=["uniform"],
