@@ -26,9 +26,11 @@ up for EEVEE's direct light?"): on the Cornell box, whose lamp EEVEE renders 0.9
 as Cycles on two views, EEVEE's luminance RMSE fell 5-28 % on every view, held-out ones
 included; in the panel and L-shaped rooms it moved by -3.3..+0.5 %; in the sky room by
 -2.4..-0.1 % on four views and +4.3 % on the held-out view of the ceiling, which no capture
-sees. It costs an EEVEE render per captured view at the capture size, seconds on a GPU and
-7-16 s a view on these CPU-only machines (llvmpipe; 6 s for the Cornell box's lamp alone at
-192x108). So by default (``Job.match_eevee`` "auto", stop 69) it runs only where surfaces the
+sees. It costs an EEVEE render per captured view at the capture size and
+:data:`MATCH_SAMPLES` samples, a fraction of a second on a GPU and 2.3-2.7 s a view on these
+CPU-only machines (llvmpipe, the Cornell box at 192x108; 6 s at 16 samples, as it rendered
+until stop 71, for the same powers to a part in a thousand of EEVEE's RMSE). So by
+default (``Job.match_eevee`` "auto", stop 69) it runs only where surfaces the
 cameras see cut one of the user's lamps (:func:`cut_lamps_seen`), the smooth shortfall it
 fixes, and hold at least ``vplace.job.CUT_SHARE`` of a view's direct light (stop 70: a ball's
 terminator cuts every lamp, lit edge on); elsewhere nothing renders.
@@ -57,6 +59,10 @@ if TYPE_CHECKING:
     from ..capture.passes import Capture
     from .stand_ins import StandIns
 
+#: EEVEE's samples for the direct-light render: what the match uses of it is averaged over the
+#: fit's cells, and EEVEE's fixed cost per frame on a CPU is about a sample's (Cornell box,
+#: 192x108, llvmpipe: 6.5 s at 16 samples, 2.3 s at 4, 1.35 s at 1; the same at half the size).
+MATCH_SAMPLES = 4
 #: The collection the stand-ins live in while EEVEE renders the direct light (removed after).
 COLLECTION = apply.COLLECTION_NAME + " (matching EEVEE)"
 
@@ -146,7 +152,7 @@ def eevee_match(
                                 bl_scene,
                                 resolution=(cap.width, cap.height),
                                 camera=camera,
-                                samples=eevee.EEVEE_SAMPLES,
+                                samples=MATCH_SAMPLES,
                                 setup=setup,
                                 cache_dir=cache_dir,
                             )
