@@ -19,18 +19,19 @@ with the evaluator and with EEVEE, beside what a Blender user would pick instead
    with a baked light probe volume, the VPLs with ray-traced reflections, and Cycles with
    OpenImageDenoise at ``cycles_samples``; all scored against the same ground truth.
 
-Costs are kept apart: ``one_time_seconds`` (the captures, the fit, the layout and refit, a
-volume's bake) and ``frame_seconds`` (one frame: the evaluator's image, an EEVEE or a Cycles
-render). The break-even table says after how many frames vplace's one-time cost plus its EEVEE
-frames costs less than Cycles + OIDN frames of at least the same SSIM. The captures and the Cycles
-+ OIDN frames are rendered on every run, never read from the cache (both are deterministic, and
-cheap beside the truths): a cached render keeps the seconds of the run that made it, on a machine
-that may have been busier or idler, and the cost check compares the two (:data:`UNCACHED`).
+Costs are kept apart: ``one_time_seconds`` (the scene's export and the captures, the fit, the
+layout and refit, the near-field choice, the EEVEE match, a volume's bake) and ``frame_seconds``
+(one frame: the evaluator's image, an EEVEE or a Cycles render). The break-even table says after
+how many frames vplace's one-time cost plus its EEVEE frames costs less than Cycles + OIDN frames
+of at least the same SSIM. The captures, the match's EEVEE renders and the Cycles + OIDN frames
+are rendered on every run, never read from the cache (all deterministic, and cheap beside the
+truths): a cached render keeps the seconds of the run that made it, on a machine that may have
+been busier or idler, and the cost check compares them (:data:`UNCACHED`).
 
 Written into ``--out``: ``results.csv`` and ``results.json`` (every row), ``report.md`` (tables,
-the break-even, the target checks) and PNG plots. Renders are cached in ``out/cache``. The user's
-.blend is never saved: the scene camera is switched through a settings guard, and the VPL
-collection written for EEVEE is removed again.
+the break-even, the target checks) and PNG plots. The truths and EEVEE's renders are cached in
+``out/cache``. The user's .blend is never saved: the scene camera is switched through a settings
+guard, and the VPL collection written for EEVEE is removed again.
 """
 
 from __future__ import annotations
@@ -236,7 +237,11 @@ def load_scene(
         cams[name] = cam
     timer = pipeline.StageTimer(log)
     specs = [ViewSpec(name, cams[name]) for name in preset.fit_views]
+    start = time.perf_counter()
     prepared = pipeline.prepare(bl_scene, replace(job, cache_dir=None), timer, views=specs)
+    # What a user waits for before the fit: the export and its BVH, the coverage views' choice
+    # and every capture (Blender's set-up of each render included, as in a Cycles frame's).
+    seconds = time.perf_counter() - start
     if prepared.skipped:
         raise ReportError(f"fit views left out: {prepared.skipped}")
     held_out = list(preset.held_out_views)
@@ -270,9 +275,6 @@ def load_scene(
         )
         view = view_of(truth, held_out=True, gloss=gloss, scene=prepared.scene)
         views.append(ViewData(name, role, cams[name], truth, view, other))
-    seconds = sum(c.render_seconds for c in prepared.captures)
-    if prepared.coverage is not None:
-        seconds += prepared.coverage.seconds
     # Every run: it also finds the lamps EEVEE darkens (``prepared.cut_lamps``), for the notes.
     # Its EEVEE renders count in the one-time cost, so they are timed here, never cached.
     refit = "vplace+refit" in config.methods
@@ -481,10 +483,11 @@ def capture_curve_rows(
     rows: list[Row] = []
     for spp in config.capture_curve:
         job = replace(data.job, samples=spp)
+        start = time.perf_counter()
         prepared = pipeline.prepare(
             bl_scene, replace(job, cache_dir=None), pipeline.quiet_timer(), views=specs
         )
-        capture_seconds = sum(c.render_seconds for c in prepared.captures)
+        capture_seconds = time.perf_counter() - start
         fit_seconds, fitted = _timed(lambda j=job, p=prepared: pipeline.fit(p, j))
         for seed in config.seeds:
             laid = pipeline.lay_out(

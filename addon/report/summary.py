@@ -535,7 +535,8 @@ def _capture_curve_lines(rows: Sequence[Row]) -> list[str]:
         f"### Capture samples against layout quality (vplace+refit, N={curve[0].n_vpls})",
         "",
         "The fit views captured at each sample count, the same fit, layout and refit, every view "
-        "scored with the evaluator against the truth. One-time s: captures, fit, layout, refit.",
+        "scored with the evaluator against the truth. Captures s: the scene's export and the "
+        "captures; one-time s: those, the fit, layout, refit and near-field choice.",
         "",
         *vplace.markdown.table(
             ["capture spp", "captures s", "one-time s", "fit views' SSIM", "held-out SSIM"]
@@ -577,8 +578,9 @@ def _intro(result: dict[str, Any]) -> list[str]:
         "view, and, where the truth was rendered twice (two seeds), against the noise-free "
         "truth estimated from both: the truth's own noise caps SSIM, by as much as each view "
         "states. SSIM on display luminance (DESIGN: Metrics); RMSE and relative MSE on linear "
-        "HDR; brightness is the mean luminance over the truth's. One-time seconds: the captures "
-        "of the fit views, the fit, the layout and refit, or a volume's bake, paid once for "
+        "HDR; brightness is the mean luminance over the truth's. One-time seconds: the scene's "
+        "export and the captures of the fit views, the fit, the layout and refit, or a "
+        "volume's bake, paid once for "
         "every view and frame; frame seconds: one image. The captures and the Cycles + OIDN "
         "frames are rendered in this run, never read from the cache, so the cost check sets "
         "seconds timed on the machine as it is now against each other (the truths' and EEVEE's "
@@ -875,7 +877,7 @@ def _scene_lines(name: str, info: dict[str, Any], rows: Sequence[Row]) -> list[s
         f"Fit over {len(fit['view_r2'])} views: kept "
         + ", ".join(fit["kept"])
         + f" (R^2 {fit['r2']:.3f}; per view {r2}; {info['fit_seconds']:.2f} s). Captures of "
-        f"the fit views: {info['capture_seconds']:.1f} s.",
+        f"the fit views, with the scene's export: {info['capture_seconds']:.1f} s.",
         "",
         *[line for note in info.get("lamp_notes", []) for line in (f"Note: {note}.", "")],
         *_matched_lines(info),
