@@ -317,6 +317,8 @@ class RowDetails:
     #: vplace+refit with ``--match-eevee``: whether the refit kept EEVEE's direct-light deficit,
     #: and EEVEE's predicted RMSE on the matched views with and without (``MatchChoice``).
     eevee_match: dict[str, Any] | None = None
+    #: vplace+refit where the match ran: the seconds of its EEVEE renders (in the one-time cost).
+    match_seconds: float | None = None
     #: EEVEE rows of written VPLs: where EEVEE's error comes from (``vplace.job.Attribution``).
     attribution: dict[str, Any] | None = None
     #: Rows averaged over seeds (``summary.aggregate``): how many, each seed's scores, spreads.

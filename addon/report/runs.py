@@ -150,6 +150,8 @@ class SceneData:
     #: matched view, the deficit's share of Cycles' direct light (``pipeline.eevee_match``).
     match: vplace.job.EeveeMatch | None = None
     matched: dict[str, float] = field(default_factory=dict)
+    #: The match's seconds (its EEVEE renders), part of :attr:`capture_seconds`.
+    match_seconds: float = 0.0
 
 
 def generate_held_out(
@@ -282,14 +284,15 @@ def load_scene(
     asked = replace(job, cache_dir=None)
     asked = replace(asked, method="vplace+refit") if refit else replace(asked, match_eevee="off")
     match, matched = pipeline.eevee_match(bl_scene, prepared, asked, timer)
+    matching = time.perf_counter() - start
     if refit:
-        seconds += time.perf_counter() - start
+        seconds += matching
         if match is not None:
             log(
                 "[vplace] EEVEE's direct-light deficit offered to the refit: "
                 f"{matched_shares(matched)}"
             )
-    return SceneData(prepared, job, views, resolution, seconds, match, matched)
+    return SceneData(prepared, job, views, resolution, seconds, match, matched, matching)
 
 
 def _timed(fn: Callable[[], Any]) -> tuple[float, Any]:
@@ -369,6 +372,7 @@ def lay_out_all(
                         refit_gain=refitted.gain,
                         switched_off=int((refitted.scales == 0).sum()),
                         eevee_match=asdict(guided.match) if guided.match is not None else None,
+                        match_seconds=data.match_seconds if data.match is not None else None,
                     )
                 elif guided.refit is None:
                     vpls, near = guided.vpls, guided.near_field

@@ -70,6 +70,7 @@ def aggregate(rows: Sequence[Row]) -> list[Row]:
             setup=d.setup,
             bake_seconds=d.bake_seconds,
             capture_seconds=d.capture_seconds,
+            match_seconds=d.match_seconds,
             attribution=d.attribution if len(members) == 1 else None,
             seeds=len(members),
             by_seed={
@@ -422,12 +423,19 @@ def targets(
             # Captures, fit, layout and refit (coverage views included), per fit camera.
             per_camera = once[0].one_time_seconds / len(fit_views)
             frame = float(np.mean([r.frame_seconds for r in cycles]))
+            matching = once[0].details.match_seconds
             check(
                 f"{scene} N={n}: one-time cost per camera at most {COST_FRAMES} Cycles + OIDN "
                 f"{COST_SAMPLES} spp frames",
                 per_camera / frame,
                 per_camera <= COST_FRAMES * frame,
-                f"{per_camera:.2f} s per camera against {frame:.2f} s a frame",
+                f"{per_camera:.2f} s per camera against {frame:.2f} s a frame"
+                + (
+                    f"; of it {matching / len(fit_views):.2f} s the EEVEE renders of 'Match "
+                    "EEVEE's direct light' (this machine's OpenGL)"
+                    if matching is not None
+                    else ""
+                ),
             )
         curve = [r for r in mine if r.method == CAPTURE_CURVE and r.role == "fit"]
         spps = sorted({r.samples for r in curve if r.samples})

@@ -566,8 +566,13 @@ def test_the_one_time_cost_is_checked_against_two_cycles_frames_per_camera():
     cost = {c["check"]: c for c in summary.targets(rows)}[name]
     # 6 s for two cameras: 3 s a camera, against 2 x 1.5 s.
     assert cost["met"] and cost["value"] == pytest.approx(2.0)
+    assert "Match EEVEE" not in cost["detail"]
     rows[0] = _row("A", "vplace+refit", 256, 0.9, one_time_seconds=6.2)
     assert not {c["check"]: c for c in summary.targets(rows)}[name]["met"]
+    # Where the match ran, the detail says how much of it its EEVEE renders took.
+    rows[0] = replace(rows[0], details=RowDetails(match_seconds=3.0))
+    detail = {c["check"]: c for c in summary.targets(rows)}[name]["detail"]
+    assert "of it 1.50 s the EEVEE renders of 'Match EEVEE's direct light'" in detail
 
 
 def test_held_out_views_are_made_in_the_region_and_removed_after():
