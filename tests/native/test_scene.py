@@ -301,6 +301,33 @@ def test_the_gather_alone_is_what_evaluate_adds_and_bad_images_are_refused():
             vplace.near_field_light(scene, v, plain, distance)
 
 
+def test_the_gather_needs_the_vpls_light_only_where_its_reach_says():
+    w = 24
+    v = view(corner_gbuffer(w))
+    scene = vplace.Scene(*quad_scene())
+    vpls = corner_vpls(0.2)
+    distance = vpls.near_field_distance
+    plain, _ = vplace.evaluate(scene, v, vpls, near_field=False)
+    near = vplace.near_field_light(scene, v, plain, distance)
+    receivers, sources = vplace.near_field_reach(v, distance)
+    assert receivers.shape == sources.shape == (w, w) and receivers.dtype == np.bool_
+    assert receivers.any() and not receivers.all() and not near[~receivers].any()
+    # Evaluated only where the reach says, the VPLs give those pixels the same light, the
+    # rest none, and the gather comes out bit for bit the same.
+    part, stats = vplace.evaluate(scene, v.restricted(sources), vpls, near_field=False)
+    assert np.array_equal(part[sources], plain[sources]) and not part[~sources].any()
+    assert np.array_equal(vplace.near_field_light(scene, v, part, distance), near)
+    full = vplace.evaluate(scene, v, vpls, near_field=False)[1]
+    assert stats.pairs < full.pairs
+    assert not vplace.near_field_reach(v, 0.0)[0].any()
+    with pytest.raises(vplace.InputError, match="distance"):
+        vplace.near_field_reach(v, float("nan"))
+    with pytest.raises(vplace.InputError, match=r"mask must have shape \(24, 24\)"):
+        v.restricted(sources[:-1])
+    with pytest.raises(vplace.InputError, match="dtype bool"):
+        v.restricted(sources.astype(np.float32))
+
+
 def test_a_set_takes_the_near_field_where_its_captures_show_it():
     w = 24
     g = corner_gbuffer(w)

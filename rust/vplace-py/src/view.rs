@@ -116,6 +116,19 @@ impl PyView {
         }
     }
 
+    /// The same view with only the covered pixels that `mask` ((H, W) bool) marks still
+    /// covered: what `evaluate` then shades, the rest left black.
+    fn restricted(&self, py: Python<'_>, mask: &Bound<'_, PyAny>) -> PyResult<Self> {
+        let (h, w) = (self.inner.height, self.inner.width);
+        let checked = array::<bool>(mask, "mask", &[Dim::Is(h), Dim::Is(w)], "bool")?;
+        let keep = slice(&checked, "mask")?.to_vec();
+        let v = Arc::clone(&self.inner);
+        let inner = run(py, move || v.restricted(&keep))?;
+        Ok(Self {
+            inner: Arc::new(inner),
+        })
+    }
+
     /// The view's name.
     #[getter]
     fn name(&self) -> &str {

@@ -483,6 +483,25 @@ fn near_field_light<'py>(
     Ok(PyArray1::from_vec(py, near).reshape([h, w, 3])?.into_any())
 }
 
+/// Where `near_field_light` within `distance` can reach on `view`, from its geometry alone:
+/// `(receivers, sources)`, (H, W) bool each (see `vplace.near_field_reach`).
+#[pyfunction]
+fn near_field_reach<'py>(
+    py: Python<'py>,
+    view: &PyView,
+    distance: f32,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let v = Arc::clone(&view.inner);
+    let (h, w) = (v.height, v.width);
+    let (receivers, sources) = run(py, move || near_field::near_field_reach(&v, distance))?;
+    Ok((
+        PyArray1::from_vec(py, receivers)
+            .reshape([h, w])?
+            .into_any(),
+        PyArray1::from_vec(py, sources).reshape([h, w])?.into_any(),
+    ))
+}
+
 /// The near-field gather distance of VPLs of near-field radii `radii` (see
 /// `VplSet.near_field_distance`).
 #[pyfunction]
@@ -499,6 +518,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(near_field_distance, m)?)?;
     m.add_function(wrap_pyfunction!(near_field_light, m)?)?;
+    m.add_function(wrap_pyfunction!(near_field_reach, m)?)?;
     m.add("VPL_SURFACE_OFFSET", vpl::Vpl::SURFACE_OFFSET)?;
     m.add("MAX_BOUNCES", vpl::MAX_BOUNCES)?;
     Ok(())

@@ -105,6 +105,131 @@ fn steps(view: &View, x: usize, y: usize) -> (Vec3, Vec3) {
     (dx, dy)
 }
 
+/// Checks `distance` as the gather takes it.
+fn check_distance(distance: f32) -> Result<()> {
+    if distance >= 0.0 && distance.is_finite() {
+        Ok(())
+    } else {
+        Err(VplaceError::OutOfRange {
+            what: "distance".into(),
+            value: distance.to_string(),
+            expected: "finite and >= 0".into(),
+        })
+    }
+}
+
+/// Per pixel of `view`: the surface area it covers and its footprint (its shortest step to a
+/// covered neighbour; infinite without one), 0 and infinite where not covered.
+fn pixel_geometry(view: &View) -> (Vec<f32>, Vec<f32>) {
+    let (w, h) = (view.width, view.height);
+    let n = w * h;
+    let mut area = vec![0.0f32; n];
+    let mut footprint = vec![f32::INFINITY; n];
+    area.par_iter_mut()
+        .zip(footprint.par_iter_mut())
+        .enumerate()
+        .filter(|(i, _)| view.covered[*i])
+        .for_each(|(i, (a, f))| {
+            let (dx, dy) = steps(view, i % w, i / w);
+            *a = dx.cross(dy).length();
+            let (lx, ly) = (dx.length(), dy.length());
+            *f = match (lx > 0.0, ly > 0.0) {
+                (true, true) => lx.min(ly),
+                (true, false) => lx,
+                (false, true) => ly,
+                (false, false) => f32::INFINITY,
+            };
+        });
+    (area, footprint)
+}
+
+/// Whether a pixel gathers or gives near-field light: covered, and not straddling two
+/// surfaces (whose averaged normal is short).
+fn whole(view: &View, i: usize) -> bool {
+    view.covered[i] && at(&view.normal, i).length() > MIN_NORMAL
+}
+
+/// One sample of a pixel's window that faces it within the distance: the sampled pixel `j`,
+/// the offset `d` from the gathering point to it, `r^2`, the two cosines and the number of
+/// pixels the sample stands for.
+struct Sample {
+    j: usize,
+    d: Vec3,
+    r2: f32,
+    cx: f32,
+    cy: f32,
+    weight: f32,
+}
+
+/// Calls `visit` for every sample of pixel `i`'s window (a whole pixel, with `footprint` its
+/// footprint) that lies within `distance` of it and faces it, as the gather takes them: every
+/// pixel of the core, then every `k`-th pixel beyond it.
+fn window(view: &View, i: usize, distance: f32, footprint: f32, mut visit: impl FnMut(Sample)) {
+    let (w, h) = (view.width, view.height);
+    let (x, y) = ((i % w) as isize, (i / w) as isize);
+    let p = at(&view.position, i);
+    let nx = at(&view.normal, i).normalize_or_zero();
+    let d2max = distance * distance;
+    // The window spans twice the distance at this pixel's footprint (a surface folding away
+    // from the pixel, as across a corner, puts points within the distance further away on
+    // screen), sampled every `k` pixels.
+    let span = (2.0 * distance / footprint).ceil().min(4096.0) as usize;
+    let k = span.div_ceil(GATHER_HALF_WINDOW).max(1);
+    let half = (span / k).min(GATHER_HALF_WINDOW) as isize;
+    let ki = k as isize;
+    let mut sample = |dx: isize, dy: isize, weight: f32| {
+        let (xx, yy) = (x + dx, y + dy);
+        if (dx == 0 && dy == 0) || xx < 0 || yy < 0 || xx >= w as isize || yy >= h as isize {
+            return;
+        }
+        let j = yy as usize * w + xx as usize;
+        if !whole(view, j) {
+            return;
+        }
+        let d = at(&view.position, j) - p;
+        let r2 = d.length_squared();
+        if r2 >= d2max || r2 <= 0.0 {
+            return;
+        }
+        let om = d / r2.sqrt();
+        let ny = at(&view.normal, j).normalize_or_zero();
+        let (cx, cy) = (nx.dot(om), -ny.dot(om));
+        if cx <= 0.0 || cy <= 0.0 {
+            return;
+        }
+        visit(Sample {
+            j,
+            d,
+            r2,
+            cx,
+            cy,
+            weight,
+        });
+    };
+    // Every pixel of the core, where the light of a corner comes from; beyond it, every `k`-th
+    // pixel, each standing for `k x k`.
+    let core = if k == 1 {
+        half
+    } else {
+        DENSE_CORE.min(half * ki)
+    };
+    for oy in -core..=core {
+        for ox in -core..=core {
+            sample(ox, oy, 1.0);
+        }
+    }
+    if k > 1 {
+        let weight = (k * k) as f32;
+        for oy in -half..=half {
+            for ox in -half..=half {
+                if (ox * ki).abs().max((oy * ki).abs()) > core {
+                    sample(ox * ki, oy * ki, weight);
+                }
+            }
+        }
+    }
+}
+
 /// The near-field light of `view` (`H x W x 3` radiance, 0 where not covered) given the VPLs'
 /// indirect image `vpl_indirect` of the same view, gathered within `distance` (world units; 0
 /// gives zeros). With `scene`, a shadow ray between the two surfaces keeps each sample to what
@@ -127,87 +252,41 @@ pub fn near_field_light(
             got: format!("{} values", vpl_indirect.len()),
         });
     }
-    if !(distance >= 0.0 && distance.is_finite()) {
-        return Err(VplaceError::OutOfRange {
-            what: "distance".into(),
-            value: distance.to_string(),
-            expected: "finite and >= 0".into(),
-        });
-    }
+    check_distance(distance)?;
     let mut out = vec![0.0f32; w * h * 3];
     if distance == 0.0 {
         return Ok(out);
     }
-    // Per pixel: its area on the surface, its diffuse radiance and its footprint.
-    let n = w * h;
-    let mut area = vec![0.0f32; n];
-    let mut radiance = vec![Vec3::ZERO; n];
-    let mut footprint = vec![f32::INFINITY; n];
-    area.par_iter_mut()
-        .zip(radiance.par_iter_mut())
-        .zip(footprint.par_iter_mut())
-        .enumerate()
-        .filter(|(i, _)| view.covered[*i])
-        .for_each(|(i, ((a, l), f))| {
-            let (dx, dy) = steps(view, i % w, i / w);
-            *a = dx.cross(dy).length();
-            let (lx, ly) = (dx.length(), dy.length());
-            let short = match (lx > 0.0, ly > 0.0) {
-                (true, true) => lx.min(ly),
-                (true, false) => lx,
-                (false, true) => ly,
-                (false, false) => f32::INFINITY,
-            };
-            *f = short;
-            *l = at(&view.albedo, i) * at(&view.diffuse_direct, i) + at(vpl_indirect, i);
-        });
-    let d2max = distance * distance;
+    // Per pixel: its area on the surface, its footprint and its diffuse radiance.
+    let (area, footprint) = pixel_geometry(view);
+    let radiance: Vec<Vec3> = (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            if view.covered[i] {
+                at(&view.albedo, i) * at(&view.diffuse_direct, i) + at(vpl_indirect, i)
+            } else {
+                Vec3::ZERO
+            }
+        })
+        .collect();
     let eps = scene.map_or(0.0, Scene::ray_epsilon);
-    // Pixels that straddle two surfaces average their normals: neither gather nor give.
-    let whole = |i: usize| view.covered[i] && at(&view.normal, i).length() > MIN_NORMAL;
     let state = || scene.map(Scene::shadow_state);
     out.par_chunks_mut(3)
         .enumerate()
         .for_each_init(state, |traversal, (i, px)| {
-            if !whole(i) {
+            // Pixels that straddle two surfaces average their normals: neither gather nor give.
+            if !whole(view, i) {
                 return;
             }
-            let (x, y) = ((i % w) as isize, (i / w) as isize);
             let p = at(&view.position, i);
             let nx = at(&view.normal, i).normalize_or_zero();
-            // The window spans twice the distance at this pixel's footprint (a surface folding
-            // away from the pixel, as across a corner, puts points within the distance further
-            // away on screen), sampled every `k` pixels.
-            let span = (2.0 * distance / footprint[i]).ceil().min(4096.0) as usize;
-            let k = span.div_ceil(GATHER_HALF_WINDOW).max(1);
-            let half = (span / k).min(GATHER_HALF_WINDOW) as isize;
-            let ki = k as isize;
             let mut e = Vec3::ZERO;
             // The projected solid angle the samples cover: at most pi, a whole hemisphere.
             let mut solid = 0.0f32;
-            let mut sample = |dx: isize, dy: isize, weight: f32| {
-                let (xx, yy) = (x + dx, y + dy);
-                if (dx == 0 && dy == 0) || xx < 0 || yy < 0 || xx >= w as isize || yy >= h as isize
-                {
-                    return;
-                }
-                let j = yy as usize * w + xx as usize;
-                if !whole(j) {
-                    return;
-                }
-                let d = at(&view.position, j) - p;
-                let r2 = d.length_squared();
-                if r2 >= d2max || r2 <= 0.0 {
-                    return;
-                }
-                let om = d / r2.sqrt();
-                let ny = at(&view.normal, j).normalize_or_zero();
-                let (cx, cy) = (nx.dot(om), -ny.dot(om));
-                if cx <= 0.0 || cy <= 0.0 {
-                    return;
-                }
+            window(view, i, distance, footprint[i], |s| {
                 if let (Some(scene), Some(t)) = (scene, traversal.as_mut()) {
-                    let (from, to) = (p + nx * eps, p + d + ny * eps);
+                    let ny = at(&view.normal, s.j).normalize_or_zero();
+                    let (from, to) = (p + nx * eps, p + s.d + ny * eps);
                     let seg = to - from;
                     let len = seg.length();
                     if len > 0.0
@@ -221,33 +300,11 @@ pub fn near_field_light(
                 }
                 // The pixel as a disk of its area: `A / (r^2 + A / pi)` stays below pi where
                 // `A / r^2` would not (two surfaces in contact).
-                let a = area[j] * weight;
-                let g = cx * cy * a / (r2 + a / std::f32::consts::PI);
-                e += radiance[j] * g;
+                let a = area[s.j] * s.weight;
+                let g = s.cx * s.cy * a / (s.r2 + a / std::f32::consts::PI);
+                e += radiance[s.j] * g;
                 solid += g;
-            };
-            // Every pixel of the core, where the light of a corner comes from; beyond it, every
-            // `k`-th pixel, each standing for `k x k`.
-            let core = if k == 1 {
-                half
-            } else {
-                DENSE_CORE.min(half * ki)
-            };
-            for oy in -core..=core {
-                for ox in -core..=core {
-                    sample(ox, oy, 1.0);
-                }
-            }
-            if k > 1 {
-                let weight = (k * k) as f32;
-                for oy in -half..=half {
-                    for ox in -half..=half {
-                        if (ox * ki).abs().max((oy * ki).abs()) > core {
-                            sample(ox * ki, oy * ki, weight);
-                        }
-                    }
-                }
-            }
+            });
             if solid > std::f32::consts::PI {
                 e *= std::f32::consts::PI / solid;
             }
@@ -255,6 +312,43 @@ pub fn near_field_light(
             px.copy_from_slice(&add.to_array());
         });
     Ok(out)
+}
+
+/// Where [`near_field_light`] within `distance` can reach on `view`, from its geometry alone
+/// (no shadow ray, no light): `(receivers, sources)`, each `H x W`. A pixel off `receivers`
+/// gathers nothing whatever the light, and a receiver's gather reads the VPLs' light only at
+/// `sources` pixels, so the gather of every pixel needs the VPLs' light only there. Both are
+/// supersets: a shadow ray or a dark source may still leave a receiver with nothing.
+///
+/// # Errors
+/// [`VplaceError::OutOfRange`] for a negative or non-finite `distance`.
+pub fn near_field_reach(view: &View, distance: f32) -> Result<(Vec<bool>, Vec<bool>)> {
+    check_distance(distance)?;
+    let n = view.width * view.height;
+    if distance == 0.0 {
+        return Ok((vec![false; n], vec![false; n]));
+    }
+    let (area, footprint) = pixel_geometry(view);
+    let none = || (vec![false; n], vec![false; n]);
+    let (receivers, sources) = (0..n)
+        .into_par_iter()
+        .filter(|&i| whole(view, i))
+        .fold(none, |(mut receivers, mut sources), i| {
+            window(view, i, distance, footprint[i], |s| {
+                // A source of no area gives nothing.
+                if area[s.j] > 0.0 {
+                    receivers[i] = true;
+                    sources[s.j] = true;
+                }
+            });
+            (receivers, sources)
+        })
+        .reduce(none, |(mut r, mut s), (r2, s2)| {
+            r.iter_mut().zip(r2).for_each(|(a, b)| *a |= b);
+            s.iter_mut().zip(s2).for_each(|(a, b)| *a |= b);
+            (r, s)
+        });
+    Ok((receivers, sources))
 }
 
 #[cfg(test)]
@@ -443,6 +537,37 @@ mod tests {
                 Err(VplaceError::OutOfRange { .. })
             ));
         }
+    }
+
+    #[test]
+    fn the_reach_holds_every_pixel_the_gather_reads_and_lights() {
+        // The corner, lit by the VPLs as well (a pattern, so that a wrong source would show).
+        let (w, h, s, a, l, d) = (80, 61, 0.01, 0.6, 2.0, 0.2);
+        let view = corner(w, h, s, a, l);
+        let vpl: Vec<f32> = (0..w * h * 3).map(|i| (i % 7) as f32 * 0.1).collect();
+        let full = near_field_light(&view, &vpl, d, None).unwrap();
+        let (receivers, sources) = near_field_reach(&view, d).unwrap();
+        // Gathering points near the corner, beyond it none.
+        let r = h / 2;
+        assert!(receivers[r * w + w / 2 - 3] && !receivers[r * w + w / 2 - 25]);
+        assert!(sources[r * w + w / 2 + 3] && !sources[r * w + w / 2 + 25]);
+        for (i, &on) in receivers.iter().enumerate() {
+            if !on {
+                assert_eq!(&full[3 * i..3 * i + 3], &[0.0; 3], "pixel {i} gathers");
+            }
+        }
+        // The VPLs' light off the sources changes no pixel's gather.
+        let kept: Vec<f32> = (0..w * h * 3)
+            .map(|i| if sources[i / 3] { vpl[i] } else { 0.0 })
+            .collect();
+        assert_eq!(near_field_light(&view, &kept, d, None).unwrap(), full);
+        let (none, _) = near_field_reach(&view, 0.0).unwrap();
+        assert!(none.iter().all(|&r| !r));
+        assert!(near_field_reach(&view, f32::NAN).is_err());
+        // A flat floor gathers nowhere.
+        let flat = FloorView::new(16, Vec3::new(0.0, 0.0, 1.0), 50.0).view();
+        let (r, s) = near_field_reach(&flat, 1.0).unwrap();
+        assert!(r.iter().chain(&s).all(|&x| !x));
     }
 
     #[test]

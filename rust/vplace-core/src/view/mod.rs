@@ -206,6 +206,31 @@ impl View {
         }
     }
 
+    /// The view with only the covered pixels that `mask` (`H x W`) marks still covered: what
+    /// the evaluator then shades, the rest left black.
+    ///
+    /// # Errors
+    /// [`VplaceError::Shape`] when `mask` is not the view's size.
+    pub fn restricted(&self, mask: &[bool]) -> Result<Self> {
+        if mask.len() != self.width * self.height {
+            return Err(VplaceError::Shape {
+                what: "mask".into(),
+                expected: format!("({}, {})", self.height, self.width),
+                got: format!("{} values", mask.len()),
+            });
+        }
+        let covered = self
+            .covered
+            .iter()
+            .zip(mask)
+            .map(|(&c, &m)| c && m)
+            .collect();
+        Ok(Self {
+            covered,
+            ..self.clone()
+        })
+    }
+
     /// The G-buffer of the view, for the feature extraction, the evaluator and the refit.
     #[must_use]
     pub fn gbuffer(&self) -> GBuffer<'_> {

@@ -44,7 +44,9 @@ The pieces, in pipeline order:
   global-illumination fast GI gives within that distance with ray tracing on, as the
   write-back and EEVEE's set-up apply it for such a set. ``vplace.job.lay_out`` gives it to the
   regression-guided sets whose captures it brings closer (``vplace.job.choose_near_field``).
-  :func:`near_field_light` gives that gather alone, from an image ``evaluate`` already made.
+  :func:`near_field_light` gives that gather alone, from an image ``evaluate`` already made,
+  and :func:`near_field_reach` where it can reach: the pixels that gather, and those whose
+  light they read (with ``View.restricted``, ``evaluate`` shades only the pixels asked for).
 - :func:`rmse`, :func:`relative_mse`, :func:`ssim`: the metrics of DESIGN.md;
   :func:`ssim_noise_free`, :func:`ssim_ceiling` and :func:`rmse_noise_free`: SSIM and RMSE seen
   through the truth's own noise, from two renders of the truth with different seeds.
@@ -94,6 +96,7 @@ from vplace._native import (
     layout,
     near_field_distance,
     near_field_light,
+    near_field_reach,
     refit,
     refit_frames,
     relative_mse,
@@ -148,6 +151,7 @@ __all__ = [
     "layout",
     "near_field_distance",
     "near_field_light",
+    "near_field_reach",
     "refit",
     "refit_frames",
     "refit_stride_for",

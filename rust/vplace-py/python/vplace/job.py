@@ -113,8 +113,8 @@ def fit(scene: vplace.Scene, views: Sequence[vplace.View], settings: LayoutSetti
 class NearFieldChoice:
     """Whether a set's light includes the near-field gather (``VplSet.near_field``), and the
     captures' evidence (:func:`choose_near_field`): the luminance RMSE of the VPLs' light
-    against the captured views' indirect light (over :data:`NEAR_FIELD_BLOCK`-pixel blocks),
-    without and with the gather."""
+    against the captured views' indirect light (over the :data:`NEAR_FIELD_BLOCK`-pixel blocks
+    where some pixel gathers), without and with the gather."""
 
     on: bool
     without: float
@@ -262,8 +262,11 @@ def choose_near_field(
     views of ``views`` with an indirect image (the captures the VPLs were fitted to): on when
     the VPLs' light with it is closer to those images than without (luminance, squared error
     of the means of the covered pixels over :data:`NEAR_FIELD_BLOCK`-pixel blocks, summed over
-    the views). Ties, sets without a gather distance (points) and views without an indirect
-    image leave it off.
+    the views, over the blocks where some pixel gathers: elsewhere the two are the same). Ties,
+    sets without a gather distance (points) and views without an indirect image leave it off.
+    The VPLs are evaluated only where the choice reads their light (``vplace.near_field_reach``:
+    those blocks, and the pixels their gather reads), which in the built-in rooms is a fraction
+    of each capture.
 
     The gather and the VPLs both carry the light of a lit surface close to a receiver: on
     Sponza's main view the curtains' hems, 13 cm above the sunlit floor, got 0.74 from the
@@ -278,20 +281,26 @@ def choose_near_field(
     lum = np.asarray(vplace.LUMINANCE, dtype=np.float64)
     sums = np.zeros(2)
     count = 0
+    block = NEAR_FIELD_BLOCK
     for view in judged:
         covered = np.asarray(view.covered)
-        target = _block_means(
-            np.asarray(view.indirect, dtype=np.float64) @ lum, covered, NEAR_FIELD_BLOCK
-        )
-        weight = _block_means(covered.astype(np.float64), covered, NEAR_FIELD_BLOCK) > 0
+        h, w = covered.shape
+        # Only the blocks where some pixel gathers differ between the two; the VPLs' light is
+        # needed on them and on the pixels their gather reads, the rest of the view not at all.
+        receivers, sources = vplace.near_field_reach(view, distance)
+        reached = _block_means(receivers.astype(np.float64), covered, block) > 0
+        weight = reached & (_block_means(covered.astype(np.float64), covered, block) > 0)
+        if not weight.any():
+            continue
         count += int(weight.sum())
+        need = np.repeat(np.repeat(reached, block, axis=0), block, axis=1)[:h, :w] | sources
+        shaded = view if need[covered].all() else view.restricted(need)
+        target = _block_means(np.asarray(view.indirect, dtype=np.float64) @ lum, covered, block)
         # One evaluation: the gather is added to it as ``evaluate(near_field=True)`` adds it.
-        plain, _ = vplace.evaluate(scene, view, vpls, near_field=False, progress=progress)
+        plain, _ = vplace.evaluate(scene, shaded, vpls, near_field=False, progress=progress)
         gathered = plain + vplace.near_field_light(scene, view, plain, distance)
         for k, image in enumerate((plain, gathered)):
-            mine = _block_means(
-                np.asarray(image, dtype=np.float64) @ lum, covered, NEAR_FIELD_BLOCK
-            )
+            mine = _block_means(np.asarray(image, dtype=np.float64) @ lum, covered, block)
             err = (mine - target)[weight]
             sums[k] += float((err**2).sum())
     without, with_gather = (math.sqrt(x / max(count, 1)) for x in sums)
