@@ -145,13 +145,34 @@ def _sphere(n: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _neighbours(dirs: np.ndarray) -> np.ndarray:
-    """(N, NEIGHBOURS) indices of each direction's nearest directions (itself left out)."""
-    near = np.empty((len(dirs), NEIGHBOURS), dtype=np.int64)
-    for start in range(0, len(dirs), 512):
-        cos = dirs[start : start + 512] @ dirs.T
+    """(N, NEIGHBOURS) indices of each direction's nearest directions (itself left out), for
+    ``dirs`` sorted by falling z (as ``fibonacci_sphere`` makes them). Each row is compared only
+    with the directions within a band of z around it: two directions differ in z by no more
+    than the chord between them, so where the band holds a row's neighbours nearer than its
+    reach, none outside it is nearer (else the row is compared with every direction). Exact
+    ties may come in another order than a search of every direction gives; their set is the
+    same."""
+    n = len(dirs)
+    near = np.empty((n, NEIGHBOURS), dtype=np.int64)
+    fall = -dirs[:, 2]
+    reach = 4.0 * math.sqrt(4.0 * math.pi / max(n, 1))
+
+    def nearest(rows: np.ndarray, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
+        cos = rows @ dirs[lo:hi].T
         top = np.argpartition(-cos, NEIGHBOURS, axis=1)[:, : NEIGHBOURS + 1]
         order = np.take_along_axis(-cos, top, axis=1).argsort(axis=1)
-        near[start : start + 512] = np.take_along_axis(top, order, axis=1)[:, 1:]
+        found = np.take_along_axis(top, order, axis=1)
+        last = np.take_along_axis(cos, found[:, -1:], axis=1)
+        return found + lo, np.sqrt(np.maximum(2.0 - 2.0 * last, 0.0))
+
+    for start in range(0, n, 512):
+        rows = dirs[start : start + 512]
+        lo = int(np.searchsorted(fall, -(float(rows[:, 2].max()) + reach)))
+        hi = int(np.searchsorted(fall, -(float(rows[:, 2].min()) - reach), side="right"))
+        found, chord = nearest(rows, lo, hi) if hi - lo > NEIGHBOURS else (None, None)
+        if found is None or not (chord < reach).all():
+            found, _ = nearest(rows, 0, n)
+        near[start : start + 512] = found[:, 1:]
     return near
 
 

@@ -360,3 +360,16 @@ def test_a_closed_room_shuts_the_world_out_of_eevee(sky_scene):
     changed = eevee_setup.set_up(scene, bake_volume=False)
     assert any("lights EEVEE again" in c for c in changed)
     assert eevee_setup.vplace_volume(scene) is not None
+
+
+def test_each_direction_finds_the_same_neighbours_as_a_search_of_every_direction():
+    for n in (portals.DIRECTIONS, 1000, 20):
+        dirs = vplace.coverage.fibonacci_sphere(n)
+        cos = dirs @ dirs.T
+        np.fill_diagonal(cos, -2.0)
+        near = portals._neighbours(dirs)
+        assert near.shape == (n, portals.NEIGHBOURS)
+        # The k-th nearest cosine of every direction, whichever of a tie each search names.
+        want = -np.sort(-cos, axis=1)[:, : portals.NEIGHBOURS]
+        got = -np.sort(-np.take_along_axis(cos, near, axis=1), axis=1)
+        assert np.array_equal(got, want), n
