@@ -143,17 +143,21 @@ fn pixel_geometry(view: &View) -> (Vec<f32>, Vec<f32>) {
     (area, footprint)
 }
 
-/// Whether a pixel gathers or gives near-field light: covered, and not straddling two
+/// Per pixel, whether it gathers or gives near-field light: covered, and not straddling two
 /// surfaces (whose averaged normal is short).
-fn whole(view: &View, i: usize) -> bool {
-    view.covered[i] && at(&view.normal, i).length() > MIN_NORMAL
+fn whole_pixels(view: &View) -> Vec<bool> {
+    (0..view.width * view.height)
+        .into_par_iter()
+        .map(|i| view.covered[i] && at(&view.normal, i).length() > MIN_NORMAL)
+        .collect()
 }
 
 /// One sample of a pixel's window that faces it within the distance: the sampled pixel `j`,
-/// the offset `d` from the gathering point to it, `r^2`, the two cosines and the number of
-/// pixels the sample stands for.
+/// its unit normal, the offset `d` from the gathering point to it, `r^2`, the two cosines and
+/// the number of pixels the sample stands for.
 struct Sample {
     j: usize,
+    ny: Vec3,
     d: Vec3,
     r2: f32,
     cx: f32,
@@ -162,9 +166,17 @@ struct Sample {
 }
 
 /// Calls `visit` for every sample of pixel `i`'s window (a whole pixel, with `footprint` its
-/// footprint) that lies within `distance` of it and faces it, as the gather takes them: every
-/// pixel of the core, then every `k`-th pixel beyond it.
-fn window(view: &View, i: usize, distance: f32, footprint: f32, mut visit: impl FnMut(Sample)) {
+/// footprint) that lies within `distance` of it, faces it and is whole (`whole`, from
+/// [`whole_pixels`]), as the gather takes them: every pixel of the core, then every `k`-th
+/// pixel beyond it.
+fn window(
+    view: &View,
+    whole: &[bool],
+    i: usize,
+    distance: f32,
+    footprint: f32,
+    mut visit: impl FnMut(Sample),
+) {
     let (w, h) = (view.width, view.height);
     let (x, y) = ((i % w) as isize, (i / w) as isize);
     let p = at(&view.position, i);
@@ -183,7 +195,7 @@ fn window(view: &View, i: usize, distance: f32, footprint: f32, mut visit: impl 
             return;
         }
         let j = yy as usize * w + xx as usize;
-        if !whole(view, j) {
+        if !whole[j] {
             return;
         }
         let d = at(&view.position, j) - p;
@@ -199,6 +211,7 @@ fn window(view: &View, i: usize, distance: f32, footprint: f32, mut visit: impl 
         }
         visit(Sample {
             j,
+            ny,
             d,
             r2,
             cx,
@@ -270,12 +283,13 @@ pub fn near_field_light(
         })
         .collect();
     let eps = scene.map_or(0.0, Scene::ray_epsilon);
+    let whole = whole_pixels(view);
     let state = || scene.map(Scene::shadow_state);
     out.par_chunks_mut(3)
         .enumerate()
         .for_each_init(state, |traversal, (i, px)| {
             // Pixels that straddle two surfaces average their normals: neither gather nor give.
-            if !whole(view, i) {
+            if !whole[i] {
                 return;
             }
             let p = at(&view.position, i);
@@ -283,10 +297,9 @@ pub fn near_field_light(
             let mut e = Vec3::ZERO;
             // The projected solid angle the samples cover: at most pi, a whole hemisphere.
             let mut solid = 0.0f32;
-            window(view, i, distance, footprint[i], |s| {
+            window(view, &whole, i, distance, footprint[i], |s| {
                 if let (Some(scene), Some(t)) = (scene, traversal.as_mut()) {
-                    let ny = at(&view.normal, s.j).normalize_or_zero();
-                    let (from, to) = (p + nx * eps, p + s.d + ny * eps);
+                    let (from, to) = (p + nx * eps, p + s.d + s.ny * eps);
                     let seg = to - from;
                     let len = seg.length();
                     if len > 0.0
@@ -329,12 +342,13 @@ pub fn near_field_reach(view: &View, distance: f32) -> Result<(Vec<bool>, Vec<bo
         return Ok((vec![false; n], vec![false; n]));
     }
     let (area, footprint) = pixel_geometry(view);
+    let whole = whole_pixels(view);
     let none = || (vec![false; n], vec![false; n]);
     let (receivers, sources) = (0..n)
         .into_par_iter()
-        .filter(|&i| whole(view, i))
+        .filter(|&i| whole[i])
         .fold(none, |(mut receivers, mut sources), i| {
-            window(view, i, distance, footprint[i], |s| {
+            window(view, &whole, i, distance, footprint[i], |s| {
                 // A source of no area gives nothing.
                 if area[s.j] > 0.0 {
                     receivers[i] = true;
