@@ -287,13 +287,13 @@ def choose_near_field(
         h, w = covered.shape
         # Only the blocks where some pixel gathers differ between the two; the VPLs' light is
         # needed on them and on the pixels their gather reads, the rest of the view not at all.
+        # (A receiver is covered, so each such block has covered pixels.)
         receivers, sources = vplace.near_field_reach(view, distance)
-        reached = _block_means(receivers.astype(np.float64), covered, block) > 0
-        weight = reached & (_block_means(covered.astype(np.float64), covered, block) > 0)
+        weight = _block_means(receivers.astype(np.float64), covered, block) > 0
         if not weight.any():
             continue
         count += int(weight.sum())
-        need = np.repeat(np.repeat(reached, block, axis=0), block, axis=1)[:h, :w] | sources
+        need = np.repeat(np.repeat(weight, block, axis=0), block, axis=1)[:h, :w] | sources
         shaded = view if need[covered].all() else view.restricted(need)
         target = _block_means(np.asarray(view.indirect, dtype=np.float64) @ lum, covered, block)
         # One evaluation: the gather is added to it as ``evaluate(near_field=True)`` adds it.
