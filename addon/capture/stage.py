@@ -19,6 +19,7 @@ import numpy as np
 from ..errors import CaptureError
 from ..native import vplace
 from ..scene.export import ExportedScene
+from . import render_key
 from .native_view import gloss_mask, spared_materials, view_of, vpl_specular
 from .passes import Capture, capture
 from .views import ViewSpec, pose_camera
@@ -56,6 +57,7 @@ class ReferenceRender:
     own_capture_ok: bool
 
 
+@render_key.meshes_unchanged()
 def capture_views(
     bl_scene: bpy.types.Scene,
     scene: vplace.Scene,
@@ -79,7 +81,8 @@ def capture_views(
     ray traced (``vplace.coverage``, no render; ``profile`` and ``radius`` those of the job's
     VPLs). A view that sees no geometry, or that
     renders exactly what an earlier view renders (the same capture key), is left out and said
-    so; only when no view is left is it an error. ``stage`` is the job timer's ``stage``."""
+    so; only when no view is left is it an error. ``stage`` is the job timer's ``stage``. Each
+    mesh is hashed for the cache keys once for all the views (``render_key.meshes_unchanged``)."""
     last = [0.0]
 
     def on_progress(line: str) -> None:

@@ -167,3 +167,23 @@ def test_a_capture_hit_touches_its_file_and_the_cache_keeps_its_limit(tmp_path, 
     assert [p for p in tmp_path.glob("capture-*.npz")] != [first]
     assert len(list(tmp_path.glob("capture-*.npz"))) == 1
     assert np.isfinite(capture.Capture.load(next(tmp_path.glob("capture-*.npz"))).combined).all()
+
+
+def test_a_job_hashes_each_mesh_once_and_the_key_is_the_same(monkeypatch):
+    """Within ``meshes_unchanged`` (a job's captures) each mesh is read once and the key is
+    the one computed outside it; a mesh edited after the scope closes changes the next key."""
+    scene = cornell()
+    outside = key(scene)
+    reads = []
+    hash_of = render_key._hash_of
+    monkeypatch.setattr(render_key, "_hash_of", lambda d, s: reads.append(d.name) or hash_of(d, s))
+    meshes = {o.data.name for o in scene.objects if o.type == "MESH" and not o.hide_render}
+    with render_key.meshes_unchanged():
+        first = key(scene)
+        reads_first = sorted(n for n in reads if n in meshes)
+        assert key(scene) == first == outside
+    assert reads_first == sorted(meshes)
+    assert sorted(n for n in reads if n in meshes) == sorted(meshes)  # the second read none
+    bpy.data.objects["tallBox"].data.vertices[0].co.z += 0.01
+    with render_key.meshes_unchanged():
+        assert key(scene) != outside
