@@ -143,12 +143,15 @@ fn pixel_geometry(view: &View) -> (Vec<f32>, Vec<f32>) {
     (area, footprint)
 }
 
-/// Per pixel, whether it gathers or gives near-field light: covered, and not straddling two
-/// surfaces (whose averaged normal is short).
-fn whole_pixels(view: &View) -> Vec<bool> {
+/// Per pixel, its unit normal where it gathers or gives near-field light (covered, and not
+/// straddling two surfaces, whose averaged normal is short); `None` where it does neither.
+fn whole_pixels(view: &View) -> Vec<Option<Vec3>> {
     (0..view.width * view.height)
         .into_par_iter()
-        .map(|i| view.covered[i] && at(&view.normal, i).length() > MIN_NORMAL)
+        .map(|i| {
+            let n = at(&view.normal, i);
+            (view.covered[i] && n.length() > MIN_NORMAL).then(|| n.normalize_or_zero())
+        })
         .collect()
 }
 
@@ -167,11 +170,11 @@ struct Sample {
 
 /// Calls `visit` for every sample of pixel `i`'s window (a whole pixel, with `footprint` its
 /// footprint) that lies within `distance` of it, faces it and is whole (`whole`, from
-/// [`whole_pixels`]), as the gather takes them: every pixel of the core, then every `k`-th
-/// pixel beyond it.
+/// [`whole_pixels`], with the unit normals), as the gather takes them: every pixel of the
+/// core, then every `k`-th pixel beyond it.
 fn window(
     view: &View,
-    whole: &[bool],
+    whole: &[Option<Vec3>],
     i: usize,
     distance: f32,
     footprint: f32,
@@ -179,8 +182,10 @@ fn window(
 ) {
     let (w, h) = (view.width, view.height);
     let (x, y) = ((i % w) as isize, (i / w) as isize);
+    let Some(nx) = whole[i] else {
+        return;
+    };
     let p = at(&view.position, i);
-    let nx = at(&view.normal, i).normalize_or_zero();
     let d2max = distance * distance;
     // The window spans twice the distance at this pixel's footprint (a surface folding away
     // from the pixel, as across a corner, puts points within the distance further away on
@@ -195,16 +200,15 @@ fn window(
             return;
         }
         let j = yy as usize * w + xx as usize;
-        if !whole[j] {
+        let Some(ny) = whole[j] else {
             return;
-        }
+        };
         let d = at(&view.position, j) - p;
         let r2 = d.length_squared();
         if r2 >= d2max || r2 <= 0.0 {
             return;
         }
         let om = d / r2.sqrt();
-        let ny = at(&view.normal, j).normalize_or_zero();
         let (cx, cy) = (nx.dot(om), -ny.dot(om));
         if cx <= 0.0 || cy <= 0.0 {
             return;
@@ -289,11 +293,10 @@ pub fn near_field_light(
         .enumerate()
         .for_each_init(state, |traversal, (i, px)| {
             // Pixels that straddle two surfaces average their normals: neither gather nor give.
-            if !whole[i] {
+            let Some(nx) = whole[i] else {
                 return;
-            }
+            };
             let p = at(&view.position, i);
-            let nx = at(&view.normal, i).normalize_or_zero();
             let mut e = Vec3::ZERO;
             // The projected solid angle the samples cover: at most pi, a whole hemisphere.
             let mut solid = 0.0f32;
@@ -346,7 +349,7 @@ pub fn near_field_reach(view: &View, distance: f32) -> Result<(Vec<bool>, Vec<bo
     let none = || (vec![false; n], vec![false; n]);
     let (receivers, sources) = (0..n)
         .into_par_iter()
-        .filter(|&i| whole[i])
+        .filter(|&i| whole[i].is_some())
         .fold(none, |(mut receivers, mut sources), i| {
             window(view, &whole, i, distance, footprint[i], |s| {
                 // A source of no area gives nothing.
