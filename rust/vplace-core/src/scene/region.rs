@@ -8,7 +8,11 @@
 //! of what rays from the cameras' eyes meet, in every direction (the region a camera in that
 //! place may see, not only the one view): per axis, the [`REGION_QUANTILE`] and
 //! `1 - REGION_QUANTILE` quantiles of the hit points and the eyes, so that a few rays that leave
-//! through a window and meet the far ground do not stretch it. The scale is the bounds'
+//! through a window and meet the far ground do not stretch it, leaving out each eye's hits beyond
+//! [`BACKDROP_FACTOR`] times the distance a quarter of them lie within, so that more of them do
+//! not either (a sky
+//! dome of 2 km round a room open on one side made every VPL a disk of 69 m, lifted 6.9 m off its
+//! surface and out of the room). The scale is the bounds'
 //! diagonal, or [`REGION_MARGIN`] times the region's where that is less: it changes only where
 //! most of the bounds lie beyond the region (a room's inner surfaces are a few per cent less
 //! than its bounds with the walls' thickness; a camera in one room of a flat sees part of it),
@@ -24,6 +28,14 @@ use crate::scene::Scene;
 pub const REGION_RAYS: usize = 4096;
 /// The share of the hit points left out at each end of each axis.
 pub const REGION_QUANTILE: f32 = 0.01;
+/// An eye's hits beyond this many times the [`BACKDROP_QUANTILE`] of its hit distances are a
+/// backdrop (a sky dome of kilometres round a room open on one side, which a fifth of the rays
+/// met), not the region.
+pub const BACKDROP_FACTOR: f32 = 20.0;
+/// The share of an eye's hits that stand for how far it sees ([`BACKDROP_FACTOR`]): a quarter,
+/// not half, so that a room's or a courtyard's sky dome stays a backdrop where more than half
+/// the rays leave through its open side or roof.
+pub const BACKDROP_QUANTILE: f32 = 0.25;
 /// The scale is at most this many times the region's diagonal (and at most the bounds'). With 2
 /// the built-in scenes keep their bounds (their fit cameras' regions: 0.68-1.0 of them).
 pub const REGION_MARGIN: f32 = 2.0;
@@ -44,18 +56,29 @@ pub fn sphere_directions(n: usize) -> Vec<Vec3> {
 }
 
 /// The box of the region seen from `eyes` (see the module docs), `(min, max)`, or `None` when
-/// no ray from them meets a surface.
+/// no ray from them meets a surface. Each eye's hits further than [`BACKDROP_FACTOR`] times
+/// the [`BACKDROP_QUANTILE`] of its hit distances are left out: a backdrop, not the place the
+/// camera works in.
 #[must_use]
 pub fn region_box(scene: &Scene, eyes: &[Vec3]) -> Option<(Vec3, Vec3)> {
     let dirs = sphere_directions(REGION_RAYS);
     let mut points: Vec<Vec3> = eyes
         .par_iter()
         .flat_map_iter(|&eye| {
-            dirs.iter().filter_map(move |&d| {
-                scene
-                    .closest_hit(eye, d, 0.0, f32::INFINITY)
-                    .map(|h| eye + d * h.t)
-            })
+            let hits: Vec<(Vec3, f32)> = dirs
+                .iter()
+                .filter_map(|&d| {
+                    scene
+                        .closest_hit(eye, d, 0.0, f32::INFINITY)
+                        .map(|h| (eye + d * h.t, h.t))
+                })
+                .collect();
+            let mut t: Vec<f32> = hits.iter().map(|h| h.1).collect();
+            t.sort_unstable_by(f32::total_cmp);
+            let far = t
+                .get(t.len() / 2)
+                .map_or(f32::INFINITY, |m| BACKDROP_FACTOR * m);
+            hits.into_iter().filter(move |h| h.1 <= far).map(|h| h.0)
         })
         .collect();
     if points.is_empty() {
@@ -232,5 +255,72 @@ mod tests {
         let scene = scene.with_eyes(&[eye]).unwrap();
         assert!(scene.scale() < 0.03 * scene.diagonal(), "{}", scene.scale());
         assert!(scene.scale() > 10.0, "{}", scene.scale());
+    }
+
+    /// A room `[-1, 1]^2 x [0, 2]` open on its `-y` side, inside a cube of half size `dome`
+    /// round the origin (a sky dome modelled as a mesh).
+    fn open_room_in_dome(dome: f32) -> Scene {
+        let p = Vec3::new;
+        let mut quads = vec![
+            [
+                p(-1., -1., 0.),
+                p(1., -1., 0.),
+                p(1., 1., 0.),
+                p(-1., 1., 0.),
+            ],
+            [
+                p(-1., -1., 2.),
+                p(-1., 1., 2.),
+                p(1., 1., 2.),
+                p(1., -1., 2.),
+            ],
+            [p(-1., 1., 0.), p(1., 1., 0.), p(1., 1., 2.), p(-1., 1., 2.)],
+            [
+                p(-1., -1., 0.),
+                p(-1., 1., 0.),
+                p(-1., 1., 2.),
+                p(-1., -1., 2.),
+            ],
+            [p(1., -1., 0.), p(1., -1., 2.), p(1., 1., 2.), p(1., 1., 0.)],
+        ];
+        let d = dome;
+        quads.extend([
+            [p(-d, -d, -d), p(-d, d, -d), p(d, d, -d), p(d, -d, -d)],
+            [p(-d, -d, d), p(d, -d, d), p(d, d, d), p(-d, d, d)],
+            [p(-d, -d, -d), p(d, -d, -d), p(d, -d, d), p(-d, -d, d)],
+            [p(-d, d, -d), p(-d, d, d), p(d, d, d), p(d, d, -d)],
+            [p(-d, -d, -d), p(-d, -d, d), p(-d, d, d), p(-d, d, -d)],
+            [p(d, -d, -d), p(d, d, -d), p(d, d, d), p(d, -d, d)],
+        ]);
+        let mut v = Vec::new();
+        let mut t = Vec::new();
+        for q in quads {
+            let base = v.len() as u32;
+            v.extend(q);
+            t.push([base, base + 1, base + 2]);
+            t.push([base, base + 2, base + 3]);
+        }
+        let ids = vec![0; t.len()];
+        Scene::build(&v, &t, &ids, &[Vec3::splat(0.5)], vec![]).unwrap()
+    }
+
+    #[test]
+    fn a_sky_dome_round_a_room_open_on_one_side_is_a_backdrop() {
+        // a fifth of the rays leave the room through its open side and meet the dome 2 km away:
+        // the region is the room (and the eye), not the dome
+        let eye = Vec3::new(0.0, -0.5, 1.0);
+        let scene = open_room_in_dome(2000.0);
+        assert!(scene.diagonal() > 6000.0);
+        let scene = scene.with_eyes(&[eye]).unwrap();
+        // (its open side holds only the edges of the floor, ceiling and walls: the quantile
+        // stops short of it)
+        let (lo, hi) = scene.region().unwrap();
+        assert!(lo.abs_diff_eq(Vec3::new(-1.0, -1.0, 0.0), 0.05), "{lo}");
+        assert!(hi.abs_diff_eq(Vec3::new(1.0, 1.0, 2.0), 1e-3), "{hi}");
+        assert!(scene.scale() < 10.0, "{}", scene.scale());
+        // a dome within the backdrop factor of the eye's near distances stays in the region
+        let near = open_room_in_dome(3.0).with_eyes(&[eye]).unwrap();
+        assert_eq!(near.region(), None);
+        assert_eq!(near.scale(), near.diagonal());
     }
 }
