@@ -495,11 +495,19 @@ UNSUPPORTED_TYPES = {"VOLUME": "a volume", "CURVES": "hair curves", "POINTCLOUD"
 
 def render_view_layer(scene: bpy.types.Scene) -> bpy.types.ViewLayer:
     """The view layer a capture renders and an export reads: the context's view layer when
-    ``scene`` is the context's scene, else the scene's first view layer enabled for rendering
-    (else its first)."""
-    if bpy.context.scene == scene and bpy.context.view_layer is not None:
-        return bpy.context.view_layer
-    return next((v for v in scene.view_layers if v.use), scene.view_layers[0])
+    ``scene`` is the context's scene and that layer renders ("Use for Rendering"), else the
+    scene's first view layer that renders. Raises :class:`ExportError` where none does (F12
+    refuses that scene too)."""
+    context = bpy.context.view_layer if bpy.context.scene == scene else None
+    if context is not None and context.use:
+        return context
+    layer = next((v for v in scene.view_layers if v.use), None)
+    if layer is None:
+        raise ExportError(
+            f"no view layer of scene {scene.name!r} renders: turn on 'Use for Rendering' for "
+            "one (View Layer properties)"
+        )
+    return layer
 
 
 class _RenderDepsgraphEngine(bpy.types.RenderEngine):
@@ -621,6 +629,23 @@ class _Exporter:
             self.materials.append(info)
         return self.mat_index[key]
 
+    def _light(self, name: str, light: bpy.types.Light, matrix: Any) -> None:
+        """Adds a lamp: not a Cycles light portal (it guides Cycles' sampling of the world and
+        emits nothing), never one of negative power."""
+        if getattr(getattr(light, "cycles", None), "is_portal", False):
+            self.warn(
+                f"lamp {name!r} is a Cycles light portal: it emits nothing in Cycles and is "
+                "left out (EEVEE renders it as an ordinary area lamp)"
+            )
+            return
+        info = light_info(name, light, matrix)
+        if min(info.power) < 0.0:
+            raise ExportError(
+                f"lamp {name!r} has a negative power ({light.energy:g} W): vplace lays out "
+                "light, not its removal; make it 0 or more, or hide it from renders"
+            )
+        self.lights.append(info)
+
     def visit(self, inst: bpy.types.DepsgraphObjectInstance) -> None:
         obj = inst.object
         original = obj.original if obj.original is not None else obj
@@ -630,7 +655,7 @@ class _Exporter:
             return  # an emitter whose particle settings hide it
         self._check_linking(original)
         if obj.type == "LIGHT":
-            self.lights.append(light_info(original.name, obj.data, inst.matrix_world))
+            self._light(original.name, obj.data, inst.matrix_world)
             return
         if obj.type in UNSUPPORTED_TYPES:
             self.warn(
@@ -648,6 +673,11 @@ class _Exporter:
             self.warn(
                 f"object {original.name!r} casts no shadows in Cycles (ray visibility) but "
                 "blocks vplace's shadow rays"
+            )
+        if getattr(original, "is_shadow_catcher", False):
+            self.warn(
+                f"object {original.name!r} is a shadow catcher: Cycles shows only the shadows "
+                "on it, vplace lights and scores it as an ordinary surface"
             )
         part = self._mesh(obj, original.name, inst.matrix_world, obj.visible_diffuse)
         if part is not None:

@@ -117,6 +117,25 @@ def test_light_power_includes_exposure_and_normalize():
     np.testing.assert_allclose(info.power, [want] * 3, rtol=1e-6)
 
 
+def test_portals_negative_lamps_and_shadow_catchers():
+    """A Cycles light portal emits nothing in Cycles: left out, said so. A lamp of negative
+    power is a one-line error naming it. A shadow catcher is said to be lit as a surface."""
+    scene = cornell()
+    portal = bpy.data.lights.new("portal", "AREA")
+    portal.energy = 1000.0
+    portal.cycles.is_portal = True
+    scene.collection.objects.link(bpy.data.objects.new("portal", portal))
+    box = bpy.data.objects["tallBox"]
+    box.is_shadow_catcher = True
+    out = export.export_scene(scene)
+    assert [light.name for light in out.lights] == ["light"]
+    assert any("'portal' is a Cycles light portal" in w for w in out.warnings)
+    assert any("'tallBox' is a shadow catcher" in w for w in out.warnings)
+    bpy.data.objects["light"].data.energy = -5.0
+    with pytest.raises(export.ExportError, match="lamp 'light' has a negative power"):
+        export.export_scene(scene)
+
+
 def test_bad_scenes_give_clear_errors():
     empty_file()
     with pytest.raises(export.ExportError, match="no visible mesh geometry"):
