@@ -46,7 +46,7 @@ from .errors import AddonError, CaptureError, output_folder, run_operator
 from .native import vplace
 from .scene import export
 from .scene.convert import export_native
-from .settings import override
+from .settings import measured_frame, override
 from .writeback import apply, match_eevee
 from .writeback import stage as writeback_stage
 from .writeback.stand_ins import StandIns, stand_ins
@@ -406,6 +406,7 @@ def render_eevee_preview(
         g.set(r, "filepath", str(path))
         g.set(r, "use_compositing", False)
         g.set(r, "use_sequencer", False)
+        measured_frame(g, bl_scene)
         g.set(bl_scene.view_settings, "view_transform", "Standard")
         g.set(bl_scene.view_settings, "look", "None")
         ims = r.image_settings

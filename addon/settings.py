@@ -73,6 +73,20 @@ def standard_view(g: SettingsGuard, scene: Any) -> None:
     g.set(vs, "gamma", 1.0)
 
 
+def measured_frame(g: SettingsGuard, scene: Any, camera: Any | None = None) -> None:
+    """What a measured render (a capture, a truth, a scored EEVEE frame) sets so that its pixels
+    line up with the captures' G-buffer: square pixels (the size keeps the render's shape with
+    its pixel aspect, ``capture.views.capture_resolution``; Blender cannot write a multilayer
+    EXR of non-square pixels), one view (no stereo pair) and, for ``camera``, no depth of
+    field (a G-buffer of blurred positions and normals belongs to no surface)."""
+    r = scene.render
+    g.set(r, "pixel_aspect_x", 1.0)
+    g.set(r, "pixel_aspect_y", 1.0)
+    g.set(r, "use_multiview", False)
+    if camera is not None and camera.type == "CAMERA":
+        g.set(camera.data.dof, "use_dof", False)
+
+
 @contextlib.contextmanager
 def at_frame(scene: Any, frame: int | None) -> Iterator[None]:
     """The scene at ``frame`` for the block (``None``: as it is); the frame it was at comes back

@@ -26,13 +26,13 @@ import OpenEXR
 from ..compat import PASS_NAMES
 from ..errors import CaptureError, run_operator
 from ..native import vplace
-from ..scene.export import VPL_MARKER
+from ..scene.export import VPL_MARKER, render_view_layer
 from ..scene.materials import LUMINANCE
-from ..settings import SettingsGuard, at_frame, override, standard_view
+from ..settings import SettingsGuard, at_frame, measured_frame, override, standard_view
 from . import render_key
 
 #: Bump when the capture's content or layout changes, to invalidate caches.
-CAPTURE_VERSION = 3
+CAPTURE_VERSION = 4
 #: Planar depth of pixels that see no geometry (Cycles writes 1e10).
 BACKGROUND_DEPTH = 1e9
 
@@ -310,14 +310,14 @@ def camera_matrices(
     scene: bpy.types.Scene, camera: bpy.types.Object, resolution: tuple[int, int]
 ) -> tuple[np.ndarray, np.ndarray]:
     """The camera's world position (3,) and world-to-clip matrix (4, 4, OpenGL conventions) for
-    an image of ``resolution``."""
+    an image of ``resolution`` with square pixels (what vplace renders:
+    ``settings.measured_frame``). The view is the camera's matrix without its scale, as Blender
+    renders it: a camera scaled (2, 1, 1) frames what it frames unscaled."""
     depsgraph = bpy.context.evaluated_depsgraph_get()
     w, h = resolution
-    r = scene.render
-    projection = camera.calc_matrix_camera(
-        depsgraph, x=w, y=h, scale_x=r.pixel_aspect_x, scale_y=r.pixel_aspect_y
-    )
-    world_to_clip = np.array(projection @ camera.matrix_world.inverted(), dtype=np.float64)
+    projection = camera.calc_matrix_camera(depsgraph, x=w, y=h, scale_x=1.0, scale_y=1.0)
+    view = camera.matrix_world.normalized().inverted()
+    world_to_clip = np.array(projection @ view, dtype=np.float64)
     return np.array(camera.matrix_world.translation, dtype=np.float64), world_to_clip
 
 
@@ -428,9 +428,7 @@ def _capture_now(
     include_vpls: bool,
 ) -> Capture:
     """:func:`capture` at the current frame."""
-    view_layer = scene.view_layers[0]
-    if bpy.context.scene == scene:
-        view_layer = bpy.context.view_layer
+    view_layer = render_view_layer(scene)
     key = capture_key(scene, camera, resolution, samples, seed, view_layer, include_vpls)
     cached = cache_dir / f"capture-{key}.npz" if cache_dir is not None else None
     if cached is not None and cached.exists():
@@ -454,6 +452,7 @@ def _capture_now(
                 if not include_vpls:
                     hide_vpls(g)
                 _configure(g, scene, view_layer, resolution, samples, seed)
+                measured_frame(g, scene, camera)
                 start = time.perf_counter()
                 _render(scene, view_layer)
                 seconds = time.perf_counter() - start

@@ -240,10 +240,11 @@ def specs(scene: bpy.types.Scene, views: ViewSet) -> Iterator[list[ViewSpec]]:
 
 
 def capture_resolution(scene: bpy.types.Scene, size: int) -> tuple[int, int]:
-    """The capture size: ``size`` pixels on the long side at the render's aspect ratio, so the
-    capture frames what the render frames (the pixel aspect is the render's too)."""
+    """The capture size: ``size`` pixels on the long side at the render's aspect ratio with its
+    pixel aspect, so the capture (square pixels: ``settings.measured_frame``) frames what the
+    render frames."""
     r = scene.render
-    w, h = r.resolution_x, r.resolution_y
+    w, h = r.resolution_x * r.pixel_aspect_x, r.resolution_y * r.pixel_aspect_y
     if w <= 0 or h <= 0:
         raise AddonError("the render size is zero; set the output resolution")
     if w >= h:

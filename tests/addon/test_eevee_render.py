@@ -127,3 +127,21 @@ def test_a_render_asked_for_its_diffuse_color_pass_returns_it_and_caches_it(tmp_
     again = go(cache_dir=tmp_path, diffuse_color=True)
     assert again.seconds == with_colour.seconds and np.array_equal(again.diffuse_color, colour)
     assert scene.view_layers[0].use_pass_diffuse_color is False  # given back
+
+
+def test_a_scored_render_of_non_square_pixels_and_a_stereo_pair_is_one_sharp_square_view():
+    """A scored render lines up with the captures whatever the user's pixel aspect (Blender
+    cannot write non-square pixels as a multilayer EXR), stereo or depth of field; the user's
+    settings come back."""
+    scene = cornell()
+    go = partial(eevee.render, scene, resolution=(16, 12), samples=1, seed=1)
+    setup = eevee.SETUPS["cycles+oidn"]
+    plain = go(setup=setup, diffuse_color=True)
+    scene.render.pixel_aspect_y = 2.0
+    scene.render.use_multiview = True
+    scene.camera.data.dof.use_dof = True
+    scene.camera.data.dof.aperture_fstop = 0.1
+    odd = go(setup=setup, diffuse_color=True)
+    np.testing.assert_array_equal(odd.image, plain.image)
+    assert scene.render.pixel_aspect_y == 2.0 and scene.render.use_multiview
+    assert scene.camera.data.dof.use_dof

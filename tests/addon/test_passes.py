@@ -108,3 +108,63 @@ def test_an_unreadable_cache_file_is_rendered_again(tmp_path):
     again = capture.capture(scene, resolution=(8, 8), samples=2, cache_dir=tmp_path)
     np.testing.assert_array_equal(again.combined, first.combined)
     assert capture.Capture.load(path).key == first.key  # replaced by a good one
+
+
+def _uv(world_to_clip, point):
+    h = world_to_clip @ np.array([*point, 1.0])
+    return (h[:2] / h[3] + 1.0) / 2.0
+
+
+def test_a_capture_frames_what_the_camera_frames_whatever_its_pixels_views_scale_or_focus():
+    """Non-square pixels (Blender cannot write them as a multilayer EXR), a stereo pair, a
+    camera scaled (2, 1, 1) and depth of field: the capture renders square pixels of one view at
+    the render's shape, sharp, and projects as Blender's own camera does; every setting of the
+    user's comes back."""
+    from bpy_extras.object_utils import world_to_camera_view
+    from mathutils import Vector
+
+    from addon.capture.views import capture_resolution
+
+    scene = cornell()
+    plain = capture.capture(scene, resolution=(24, 20), samples=2)
+    cam = scene.camera
+    r = scene.render
+    r.pixel_aspect_x = 2.0
+    r.use_multiview = True
+    cam.data.dof.use_dof = True
+    cam.data.dof.focus_distance = 0.2
+    cam.data.dof.aperture_fstop = 0.1
+    cam.scale = (2.0, 1.0, 1.0)
+    bpy.context.view_layer.update()
+    before = scene_state(scene)
+    dof_before = rna_snapshot(cam.data.dof, depth=1)
+    size = capture_resolution(scene, 24)
+    aspect = r.resolution_x * 2.0 / r.resolution_y
+    assert abs(size[0] / size[1] - aspect) < 0.05 * aspect
+    cap = capture.capture(scene, resolution=size, samples=2)
+    assert diff(before, scene_state(scene)) == []
+    assert diff(dof_before, rna_snapshot(cam.data.dof, depth=1)) == []
+    assert cap.combined.shape == (size[1], size[0], 3)
+    for point in [(0.1, 0.2, 0.3), (-0.2, 0.25, 0.1), (0.25, -0.1, 0.45)]:
+        want = np.array(world_to_camera_view(scene, cam, Vector(point))[:2])
+        np.testing.assert_allclose(_uv(cap.world_to_clip, point), want, atol=2e-3)
+    # the camera's scale and focus change nothing a capture renders
+    r.pixel_aspect_x = 1.0
+    again = capture.capture(scene, resolution=(24, 20), samples=2)
+    np.testing.assert_array_equal(again.position, plain.position)
+    np.testing.assert_array_equal(again.combined, plain.combined)
+
+
+def test_a_capture_renders_the_view_layer_that_renders():
+    """The window's view layer turned off for rendering: the capture renders the one that is on
+    (as F12 does); none on is a one-line error."""
+    from addon.errors import ExportError
+
+    scene = cornell()
+    bpy.context.view_layer.use = False
+    on = scene.view_layers.new("on")
+    cap = capture.capture(scene, resolution=(12, 10), samples=1)
+    assert cap.covered.all()
+    on.use = False
+    with pytest.raises(ExportError, match=r"no view layer of scene .* renders"):
+        capture.capture(scene, resolution=(12, 10), samples=1)
