@@ -122,6 +122,11 @@ def capture_views(
             + "; ".join(skipped.values())
             + "): aim the camera at the scene"
         )
+    if all(not (c.combined[c.covered] > 0.0).any() for c in captures):
+        log(
+            "[vplace] warning: every capture is black: no light reaches what the cameras see, "
+            "so the VPLs have nothing to carry there (is a lamp outside a closed room?)"
+        )
     masks = [gloss_mask(scene, exported, c) for c in captures]
     specular = vpl_specular(scene, exported, captures, masks)
     if not specular and exported.rough_gloss.any():

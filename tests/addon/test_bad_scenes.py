@@ -142,3 +142,25 @@ def test_a_million_triangles_works(scene):
     report = scene.vplace.report()
     assert report["triangles"] > 1_000_000
     assert len(apply.find_collection().objects) == scene.vplace.report()["lights_written"] > 0
+
+
+def test_a_lamp_outside_the_room_is_said_to_light_nothing_the_cameras_see():
+    """The lamp behind the Cornell box's back wall: every capture is black, and the job says
+    so (it still runs: the lamp is the user's)."""
+    from blender_util import cornell
+
+    from addon import job as pipeline
+    from addon.capture.views import ViewSet
+
+    scene = cornell()
+    bpy.data.objects["light"].location = (0.0, 5.0, 1.0)
+    bpy.context.view_layer.update()
+    lines = []
+    job = pipeline.Job(resolution=(16, 12), samples=2, views=ViewSet(coverage=0), n_vpls=8)
+    pipeline.prepare(scene, job, pipeline.StageTimer(lines.append))
+    assert any("every capture is black" in line for line in lines)
+    bpy.data.objects["light"].location = (0.0, 0.0, 1.9)
+    bpy.context.view_layer.update()
+    lines.clear()
+    pipeline.prepare(scene, job, pipeline.StageTimer(lines.append))
+    assert not any("black" in line for line in lines)
