@@ -403,6 +403,8 @@ BLEND_MAGICS = (b"BLENDER", b"\x1f\x8b", b"\x28\xb5\x2f\xfd")
 def check_blend(path: Path) -> Path:
     """``path`` if it is a .blend file, else an :class:`AddonError` naming it (missing, a
     folder, unreadable, or some other kind of file)."""
+    if path.is_dir():
+        raise AddonError(f"{path} is a folder, not a .blend file")
     if not path.is_file():
         raise AddonError(f"no such .blend file: {path}")
     try:

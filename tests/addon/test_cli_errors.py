@@ -67,6 +67,7 @@ CASES = [
     Case(["demo", "--scene", "{tmp}/nope.blend"], "no such .blend file: {tmp}/nope.blend"),
     Case(["demo", "--scene", "{random}"], "not a .blend file: {random}"),
     Case(["demo", "--scene", "{text}"], "not a .blend file: {text}"),
+    Case(["demo", "--scene", "{folder}"], "{folder} is a folder, not a .blend file"),
     Case(["demo", "--scene", "{tmp}"], "unknown built-in scene"),
     Case(["demo", "--scene", "atrium"], "unknown built-in scene 'atrium'"),
     # demo: the options
@@ -200,7 +201,9 @@ def inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
     (tmp / "random.blend").write_bytes(noise)
     (tmp / "notes.txt").write_bytes(noise)
     (tmp / "a_file").write_text("not a folder")
+    (tmp / "folder.blend").mkdir()
     return {
+        "folder": str(tmp / "folder.blend"),
         "blend": str(blend),
         "random": str(tmp / "random.blend"),
         "text": str(tmp / "notes.txt"),
