@@ -225,7 +225,8 @@ def _report_options(sub: argparse._SubParsersAction) -> None:
     rep.add_argument("--out", type=Path, default=Path("out/report"))
     rep.add_argument(
         "--resolution", type=int, nargs=2, default=None, metavar=("W", "H"),
-        help="override every view's size (default: each scene's preset)",
+        help="override every view's size (default: each scene's preset; a .blend's render "
+        "shape at 320 px on the long side)",
     )  # fmt: skip
     rep.add_argument("--capture-samples", type=int, default=None, help="the user's capture, spp")
     rep.add_argument(

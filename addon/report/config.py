@@ -247,7 +247,10 @@ class ReportConfig:
             except AddonError as exc:
                 raise ReportError(str(exc)) from exc
             if not self.fit_cameras:
-                raise ReportError("a report on a .blend needs --fit-cameras")
+                raise ReportError(
+                    "a report on a .blend needs --fit-cameras: the cameras to lay the lights out "
+                    "for (e.g. the scene camera's name)"
+                )
         else:
             bad = [s for s in self.scenes if s not in PRESETS]
             if bad:

@@ -54,7 +54,14 @@ from mathutils import Vector
 from .. import job as pipeline
 from ..capture import passes as capture
 from ..capture.native_view import gloss_mask, view_of
-from ..capture.views import ViewSet, ViewSpec, eye_positions, pose_matrix, remove_camera
+from ..capture.views import (
+    ViewSet,
+    ViewSpec,
+    capture_resolution,
+    eye_positions,
+    pose_matrix,
+    remove_camera,
+)
 from ..errors import ReportError, output_folder
 from ..native import vplace
 from ..scene import export
@@ -203,6 +210,18 @@ def remove_generated() -> None:
         remove_camera(obj)
 
 
+def view_size(
+    bl_scene: bpy.types.Scene, preset: ScenePreset, config: ReportConfig
+) -> tuple[int, int]:
+    """Every view's size: ``--resolution``, else the preset's; a .blend's views keep its
+    render's shape (its pixel aspect too), as the demo's do, at the preset's long side."""
+    if config.resolution is not None:
+        return config.resolution
+    if preset.blend is not None:
+        return capture_resolution(bl_scene, max(preset.resolution))
+    return preset.resolution
+
+
 def load_scene(
     bl_scene: bpy.types.Scene,
     preset: ScenePreset,
@@ -211,7 +230,7 @@ def load_scene(
     log: Callable[[str], None],
 ) -> SceneData:
     """Exports the scene once, captures the fit views, and renders every view's ground truth."""
-    resolution = config.resolution or preset.resolution
+    resolution = view_size(bl_scene, preset, config)
     truth_samples = config.truth_samples or preset.truth_samples
     job = pipeline.Job(
         resolution=resolution,
@@ -773,7 +792,7 @@ class _EeveeRun:
                     if name == "vpl":
                         self.images[view.name][method] = img.image
         finally:
-            apply.clear_vpls()
+            apply.clear_vpls(scene=self.bl_scene)
 
     def methods(self, chosen: dict[str, LaidSet]) -> None:
         """The chosen methods' lights, with the world's probe volume baked once for all."""
@@ -853,7 +872,7 @@ def eevee_rows(
     """The grid budget's lights of each of ``config.eevee_methods`` rendered by EEVEE on every
     view it renders (:func:`eevee_views`), and the alternatives; returns the run: its rows, the
     images per view and the attribution's VPL differences."""
-    if apply.find_collection() is not None:
+    if apply.find_collection(scene=bl_scene) is not None:
         raise ReportError(
             f"the scene already has a {apply.COLLECTION_NAME!r} collection; the report does "
             "not replace the user's VPLs (run it with --no-eevee, or on a copy)"

@@ -669,3 +669,25 @@ def test_match_eevee_refits_vplace_refits_powers_to_eevees_direct_light_and_says
     text = (tmp_path / "matched" / "report.md").read_text()
     assert "vplace+refit may match EEVEE's direct light (`--match-eevee`;" in text
     assert "--match-eevee" not in (tmp_path / "plain" / "report.md").read_text()
+
+
+def test_a_blends_views_keep_its_render_shape(tmp_path):
+    """``report --blend`` without ``--resolution`` scores the view the user renders: the
+    render's shape (a portrait render, non-square pixels), 320 px on the long side; a built-in
+    scene keeps its preset's size and ``--resolution`` wins over both."""
+    from blender_util import cornell
+
+    scene = cornell()
+    blend = tmp_path / "portrait.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    scene.render.resolution_x, scene.render.resolution_y = 108, 192
+    config = ReportConfig(blend=str(blend), fit_cameras=[scene.camera.name])
+    (preset,) = config.presets()
+    assert report.view_size(scene, preset, config) == (180, 320)
+    scene.render.resolution_x, scene.render.resolution_y = 200, 100
+    scene.render.pixel_aspect_x = 2.0
+    assert report.view_size(scene, preset, config) == (320, 80)
+    assert report.view_size(scene, preset, replace(config, resolution=(64, 48))) == (64, 48)
+    builtin = ReportConfig(scenes=["cornell"])
+    (cornell_preset,) = builtin.presets()
+    assert report.view_size(scene, cornell_preset, builtin) == cornell_preset.resolution
