@@ -306,7 +306,7 @@ class VPLACE_OT_clear_vpls(bpy.types.Operator):
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         try:
-            n = apply.clear_vpls()
+            n = apply.clear_vpls(scene=context.scene)
         except vplace.VplaceError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}

@@ -90,7 +90,11 @@ class VPLACE_PT_main(_Panel, bpy.types.Panel):
         if lamps:
             notes.append(f"{len(lamps)} lamp(s) with soft shadows, no jitter (e.g. {lamps[0]!r}):")
             notes.append("  noisier than Cycles; Light > Shadow > Jitter (slower)")
-        cut = eevee_setup.still_cut(context.scene, apply.stored_cut_lamps()) if written else []
+        cut = (
+            eevee_setup.still_cut(context.scene, apply.stored_cut_lamps(scene=context.scene))
+            if written
+            else []
+        )
         if cut:
             notes.append(f"{len(cut)} lamp(s) a surface's plane passes through (e.g. {cut[0]!r}):")
             notes.append("  EEVEE's soft shadow darkens that surface (0.8x Cycles)")

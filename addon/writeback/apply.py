@@ -1,7 +1,14 @@
 """Write-back: one Blender light per VPL in the ``vplace VPLs`` collection (DESIGN: Write-back).
 
-Re-running replaces that collection and the lights in it, and nothing else. The lights are the
-ones the evaluator renders (``vplace.VplSet`` carries profile and near-field radius):
+Each scene of a file has its own VPL collection: the collection vplace marked in that scene's
+hierarchy, found by its mark and role (:data:`ROLE_KEY`), not by its name, so a user may rename
+it, move it under another collection, exclude it from the view layer or hide it. Re-running
+replaces the lights in it (the collection, with the user's settings and objects, stays), and
+nothing else: not another scene's lights. Lights of vplace's left in the scene outside it (its
+collection deleted in the Outliner, which keeps the objects) go with the next run or clear.
+
+The lights are the ones the evaluator renders (``vplace.VplSet`` carries profile and near-field
+radius):
 
 - cosine profile: an AREA disk of diameter ``2 R_j`` (``R_j`` the VPL's near-field radius,
   ``VplSet.radii``: two patches of the size it stands for) facing along the surface normal,
@@ -75,6 +82,10 @@ if TYPE_CHECKING:
     from ..settings import SettingsGuard
 
 COLLECTION_NAME = "vplace VPLs"
+#: The VPL collection's custom property holding the name it was written under
+#: (:data:`COLLECTION_NAME`, or the EEVEE match's own): what :func:`find_collection` looks for
+#: in a scene, whatever the collection is called now.
+ROLE_KEY = "vplace_collection"
 #: The VPL collection's custom property holding the box of the region the cameras saw
 #: (``vplace.Scene.region``: min x, y, z, max x, y, z), where it set the working scale: the EEVEE
 #: set-up fits its probe volume and lamp reach to it (``eevee_setup.scene_bounds``).
@@ -138,43 +149,95 @@ def cutoff_loss(distance: float, cutoff: float) -> float:
     return 1.0 - max(0.0, 1.0 - x) ** 2
 
 
-def find_collection(name: str = COLLECTION_NAME) -> bpy.types.Collection | None:
-    """The VPL collection vplace wrote earlier, if any."""
-    coll = bpy.data.collections.get(name)
-    if coll is None:
-        return None
-    if not coll.get(VPL_MARKER, False):
+def _role(coll: bpy.types.Collection) -> str:
+    """The name a vplace collection was written under (:data:`ROLE_KEY`; a collection written
+    before it was kept: its name without Blender's ``.001``)."""
+    role = coll.get(ROLE_KEY)
+    if role is not None:
+        return str(role)
+    base, dot, tail = coll.name.rpartition(".")
+    return base if dot and len(tail) == 3 and tail.isdigit() and base else coll.name
+
+
+def find_collection(
+    name: str = COLLECTION_NAME, scene: bpy.types.Scene | None = None
+) -> bpy.types.Collection | None:
+    """The VPL collection vplace wrote earlier in ``scene`` (default: the context's) as
+    ``name``, if any: marked as vplace's, in the scene's hierarchy, whatever it is called now.
+    A collection of the user's named ``name`` is refused (:class:`WriteBackError`)."""
+    scene = scene if scene is not None else bpy.context.scene
+    for coll in scene.collection.children_recursive:
+        if coll.get(VPL_MARKER, False) and _role(coll) == name:
+            return coll
+    user = bpy.data.collections.get(name)
+    if user is not None and not user.get(VPL_MARKER, False):
         raise WriteBackError(
             f"a collection named {name!r} exists but was not made by vplace; "
             "rename it so vplace can write its own"
         )
-    return coll
+    return None
 
 
-def clear_vpls(name: str = COLLECTION_NAME) -> int:
-    """Removes the VPL collection, its objects and their light data. Returns how many."""
-    coll = find_collection(name)
-    if coll is None:
-        return 0
-    return remove_collection(coll)
+def _strays(scene: bpy.types.Scene) -> list[bpy.types.Object]:
+    """vplace's lights in ``scene`` that no vplace collection holds (theirs deleted in the
+    Outliner, which moves its objects to the collection above)."""
+    return [
+        o
+        for o in scene.objects
+        if o.type == "LIGHT"
+        and o.get(VPL_MARKER, False)
+        and not any(c.get(VPL_MARKER, False) for c in o.users_collection)
+    ]
 
 
-def remove_collection(coll: bpy.types.Collection) -> int:
+def clear_vpls(name: str = COLLECTION_NAME, scene: bpy.types.Scene | None = None) -> int:
+    """Removes ``scene``'s (default: the context's) VPL collection ``name``, its objects and
+    their light data, and with the main collection vplace's stray lights in the scene (see the
+    module docs). Returns how many lights."""
+    scene = scene if scene is not None else bpy.context.scene
+    coll = find_collection(name, scene)
+    count = remove_collection(coll, scene) if coll is not None else 0
+    if name == COLLECTION_NAME:
+        count += _remove_objects(_strays(scene))
+    return count
+
+
+def remove_collection(coll: bpy.types.Collection, scene: bpy.types.Scene | None = None) -> int:
     """Removes a vplace collection with the objects and lights vplace made in it, and the
-    receiver collection of its lights (:func:`exclude_receivers`; the objects in it stay)."""
+    receiver collection of its lights (:func:`exclude_receivers`; the objects in it stay). What
+    the user put into it stays, in ``scene``'s (default: the context's) collection if it was
+    their only one."""
+    count = _empty(coll, scene if scene is not None else bpy.context.scene)
+    bpy.data.collections.remove(coll)
+    return count
+
+
+def _empty(coll: bpy.types.Collection, scene: bpy.types.Scene | None = None) -> int:
+    """Removes vplace's objects from ``coll`` (with their light data and actions) and the
+    receiver collection of its lights; the user's objects leave it for ``scene``'s collection
+    (without a scene they stay in it). Returns how many were removed."""
     receivers = _receivers(coll)
-    count = 0
+    ours = []
     for obj in list(coll.objects):
-        if not obj.get(VPL_MARKER, False):
+        if obj.get(VPL_MARKER, False):
+            ours.append(obj)
+        elif scene is not None:
             # Something the user put into our collection: keep it, in the scene's collection
             # if ours was its only one (an object in no collection would be lost on save).
             if len(obj.users_collection) == 1:
-                bpy.context.scene.collection.objects.link(obj)
+                scene.collection.objects.link(obj)
             coll.objects.unlink(obj)
-            continue
+    count = _remove_objects(ours)
+    if receivers is not None:
+        bpy.data.collections.remove(receivers)
+    return count
+
+
+def _remove_objects(objects: Sequence[bpy.types.Object]) -> int:
+    """Removes vplace's ``objects`` with their light data and the keyed write-back's actions
+    (``keyed``; the object and its light may share one) once nothing else uses them."""
+    for obj in objects:
         data = obj.data
-        # The keyed write-back's actions (``keyed``; the object and its light may share one),
-        # marked as vplace's: removed with their lights once nothing else uses them.
         actions = {
             a.animation_data.action.name
             for a in (obj, data)
@@ -184,17 +247,13 @@ def remove_collection(coll: bpy.types.Collection) -> int:
             and a.animation_data.action.get(VPL_MARKER, False)
         }
         bpy.data.objects.remove(obj)
-        if data is not None and data.users == 0:
+        if isinstance(data, bpy.types.Light) and data.users == 0:
             bpy.data.lights.remove(data)
         for name in sorted(actions):
             action = bpy.data.actions.get(name)
             if action is not None and action.users == 0:
                 bpy.data.actions.remove(action)
-        count += 1
-    bpy.data.collections.remove(coll)
-    if receivers is not None:
-        bpy.data.collections.remove(receivers)
-    return count
+    return len(objects)
 
 
 _DOWN = Vector((0.0, 0.0, -1.0))
@@ -330,6 +389,7 @@ def new_collection(
     positive ``near_field`` under :data:`NEAR_FIELD_KEY`."""
     coll = bpy.data.collections.new(name + " (writing)")
     coll[VPL_MARKER] = True
+    coll[ROLE_KEY] = name
     if region is not None:
         coll[REGION_KEY] = [float(v) for corner in region for v in corner]
     if closed:
@@ -339,40 +399,53 @@ def new_collection(
     return coll
 
 
-def _stored(name: str, key: str) -> Any:
-    """The custom property ``key`` of the VPL collection ``name`` (one vplace marked), or None."""
-    coll = bpy.data.collections.get(name)
-    return coll.get(key) if coll is not None and coll.get(VPL_MARKER, False) else None
+def _stored(name: str, key: str, scene: bpy.types.Scene | None) -> Any:
+    """The custom property ``key`` of ``scene``'s (default: the context's) VPL collection
+    ``name``, or None."""
+    scene = scene if scene is not None else bpy.context.scene
+    coll = next(
+        (
+            c
+            for c in scene.collection.children_recursive
+            if c.get(VPL_MARKER, False) and _role(c) == name
+        ),
+        None,
+    )
+    return coll.get(key) if coll is not None else None
 
 
-def stored_near_field(name: str = COLLECTION_NAME) -> float:
-    """The near-field distance kept on the VPL collection ``name`` (:data:`NEAR_FIELD_KEY`), 0
-    without one."""
-    value = _stored(name, NEAR_FIELD_KEY)
+def stored_near_field(name: str = COLLECTION_NAME, scene: bpy.types.Scene | None = None) -> float:
+    """The near-field distance kept on ``scene``'s VPL collection ``name``
+    (:data:`NEAR_FIELD_KEY`), 0 without one."""
+    value = _stored(name, NEAR_FIELD_KEY, scene)
     return float(value) if value is not None else 0.0
 
 
-def stored_region(name: str = COLLECTION_NAME) -> Region | None:
-    """The region kept on the VPL collection ``name`` (:data:`REGION_KEY`), or None."""
-    values = _stored(name, REGION_KEY)
+def stored_region(
+    name: str = COLLECTION_NAME, scene: bpy.types.Scene | None = None
+) -> Region | None:
+    """The region kept on ``scene``'s VPL collection ``name`` (:data:`REGION_KEY`), or None."""
+    values = _stored(name, REGION_KEY, scene)
     if values is None or len(values) != 6:
         return None
     v = [float(x) for x in values]
     return (v[:3], v[3:])
 
 
-def stored_cut_lamps(name: str = COLLECTION_NAME) -> list[str]:
+def stored_cut_lamps(
+    name: str = COLLECTION_NAME, scene: bpy.types.Scene | None = None
+) -> list[str]:
     """The user's lamps that the planes of surfaces the cameras see pass through, as the
     write-back was given them (:data:`CUT_LAMPS_KEY`; ``Prepared.cut_lamps``): what the panel
     notes; empty without."""
-    values = _stored(name, CUT_LAMPS_KEY)
+    values = _stored(name, CUT_LAMPS_KEY, scene)
     return [str(v) for v in values] if values else []
 
 
-def stored_closed(name: str = COLLECTION_NAME) -> bool:
-    """Whether the VPL collection ``name`` says its lights light a closed room
+def stored_closed(name: str = COLLECTION_NAME, scene: bpy.types.Scene | None = None) -> bool:
+    """Whether ``scene``'s VPL collection ``name`` says its lights light a closed room
     (:data:`CLOSED_KEY`)."""
-    return bool(_stored(name, CLOSED_KEY))
+    return bool(_stored(name, CLOSED_KEY, scene))
 
 
 def write_vpls(
@@ -406,7 +479,7 @@ def write_vpls(
         raise WriteBackError(
             f"{n} VPLs is more than EEVEE can render ({MAX_VPLS}); lower the VPL budget"
         )
-    find_collection(name)  # refuses a foreign collection of that name before any change
+    find_collection(name, scene)  # refuses a foreign collection of that name before any change
     point = 0.5 * POINT_DISK_DIAGONALS * scene_diagonal
     radii = vpls.radii if vpls.radius > 0 else np.full(n, point, dtype=np.float32)
     position, normal, flux = vpls.position, vpls.normal, vpls.flux
@@ -441,7 +514,7 @@ def write_vpls(
     except BaseException:
         remove_collection(coll)
         raise
-    replace_collection(scene, coll, name)
+    coll = replace_collection(scene, coll, name)
     coll[CUT_LAMPS_KEY] = list(cut_lamps)
     return coll
 
@@ -469,8 +542,15 @@ def unlit_objects(coll: bpy.types.Collection | None = None) -> list[str]:
     """The names of the objects the VPL lights of ``coll`` (default: the VPL collection, if
     vplace wrote it) do not light (:func:`exclude_receivers`)."""
     if coll is None:
-        coll = bpy.data.collections.get(COLLECTION_NAME)
-        if coll is None or not coll.get(VPL_MARKER, False):
+        coll = next(
+            (
+                c
+                for c in bpy.context.scene.collection.children_recursive
+                if c.get(VPL_MARKER, False) and _role(c) == COLLECTION_NAME
+            ),
+            None,
+        )
+        if coll is None:
             return []
     receivers = _receivers(coll)
     return sorted(o.name for o in receivers.objects) if receivers is not None else []
@@ -486,11 +566,31 @@ def _receivers(coll: bpy.types.Collection) -> bpy.types.Collection | None:
     return None
 
 
-def replace_collection(scene: bpy.types.Scene, coll: bpy.types.Collection, name: str) -> None:
-    """Replaces the VPL collection ``name`` (and its receiver collection) with ``coll``, just
-    written unlinked, and links it to ``scene``."""
-    clear_vpls(name)
-    coll.name = name
+def replace_collection(
+    scene: bpy.types.Scene, coll: bpy.types.Collection, name: str
+) -> bpy.types.Collection:
+    """Puts the lights of ``coll``, just written unlinked, in place of those of ``scene``'s VPL
+    collection ``name`` and returns the collection that holds them: the earlier one where the
+    scene has it (so its name, its place, its view layer's exclude and hide settings and the
+    user's objects in it stay; ``coll`` is removed), else ``coll``, linked to the scene.
+    vplace's stray lights in the scene go (see the module docs)."""
+    old = find_collection(name, scene)
+    if name == COLLECTION_NAME:
+        _remove_objects(_strays(scene))
+    if old is not None:
+        _empty(old)
+        for key in [k for k in old.keys() if k.startswith("vplace_")]:
+            del old[key]
+        for key, value in coll.items():
+            old[key] = value.to_list() if hasattr(value, "to_list") else value
+        for obj in list(coll.objects):
+            old.objects.link(obj)
+            coll.objects.unlink(obj)
+        bpy.data.collections.remove(coll)
+        coll = old
+    else:
+        coll.name = name
+        scene.collection.children.link(coll)
     receivers = _receivers(coll)
     if receivers is not None:
         receivers.name = name + UNLIT_SUFFIX
@@ -500,7 +600,7 @@ def replace_collection(scene: bpy.types.Scene, coll: bpy.types.Collection, name:
         if obj.get(VPL_MARKER, False):
             for block in (obj, obj.data):
                 _own_name(block)
-    scene.collection.children.link(coll)
+    return coll
 
 
 def _own_name(block: bpy.types.ID) -> None:

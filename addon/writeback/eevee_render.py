@@ -280,7 +280,7 @@ def _key(
     if setup is not None and setup.collection != apply.COLLECTION_NAME:
         name += f" ({setup.collection})"
     if setup is not None and engine != "CYCLES":  # the lamps' reach follows the kept region
-        h.update(repr(apply.stored_region(setup.collection)).encode())
+        h.update(repr(apply.stored_region(setup.collection, scene)).encode())
     h.update(repr((resolution, samples, engine, name, seed, RENDER_VERSION, renderer)).encode())
     if diffuse_color:
         h.update(b"diffuse color")

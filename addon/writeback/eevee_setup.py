@@ -235,7 +235,7 @@ def portal_lights(scene: bpy.types.Scene) -> list[bpy.types.Object]:
 def world_shut_out(scene: bpy.types.Scene) -> bool:
     """Whether EEVEE's world must light nothing: vplace's sky portals carry its light in, or
     vplace's lights light a closed room, which none of it reaches (``apply.stored_closed``)."""
-    return bool(portal_lights(scene)) or apply.stored_closed()
+    return bool(portal_lights(scene)) or apply.stored_closed(scene=scene)
 
 
 #: The custom property that marks the world nodes :func:`camera_only` adds.
@@ -428,7 +428,7 @@ def problems(scene: bpy.types.Scene) -> list[Problem]:
             )
         )
     # Blender 4.2 has no use_fast_gi switch: its fast GI is on whenever ray tracing is.
-    near = apply.stored_near_field()
+    near = apply.stored_near_field(scene=scene)
     gathers = (
         e.use_raytracing
         and getattr(e, "use_fast_gi", True)
@@ -485,7 +485,7 @@ def problems(scene: bpy.types.Scene) -> list[Problem]:
                     "must light nothing but show to the camera",
                 )
             )
-    elif apply.stored_closed() and world_emits(scene):
+    elif apply.stored_closed(scene=scene) and world_emits(scene):
         if not is_camera_only(world):
             found.append(
                 Problem(
@@ -604,7 +604,7 @@ def scene_bounds(
     collection ``collection`` (``apply.stored_region``: where the cameras see far less than the
     scene, as a room on a kilometre of ground), else the world-space bounds of the scene's
     render-visible meshes (vplace's lights excluded)."""
-    region = region if region is not None else apply.stored_region(collection)
+    region = region if region is not None else apply.stored_region(collection, scene)
     if region is not None:
         return Vector(region[0]), Vector(region[1])
     corners = [
@@ -810,8 +810,7 @@ def fast_gi_for(
     global illumination within that distance (the light between nearby surfaces that no VPL
     carries, ``vplace.evaluate(..., near_field=True)``); without, ambient occlusion only.
     Either way no second bounce from beyond the distance, which the VPLs carry."""
-    del scene  # the VPL collection is found by name, as everywhere in the write-back
-    near = apply.stored_near_field(collection)
+    near = apply.stored_near_field(collection, scene)
     return ("GLOBAL_ILLUMINATION", near) if near > 0.0 else ("AMBIENT_OCCLUSION_ONLY", 0.0)
 
 

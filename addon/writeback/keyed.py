@@ -114,7 +114,9 @@ def write_keyed(
             f"{slots} keyed lights is more than EEVEE can render ({apply.MAX_VPLS}); lower the "
             "VPL budget or animate fewer frames"
         )
-    apply.find_collection(name)  # refuses a foreign collection of that name before any change
+    apply.find_collection(
+        name, scene
+    )  # refuses a foreign collection of that name before any change
     point = 0.5 * apply.POINT_DISK_DIAGONALS * scene_diagonal
     radii = keyed.radii if keyed.radius > 0 else np.full(keyed.radii.shape, point)
     cosine = keyed.profile == "cosine"
@@ -169,7 +171,7 @@ def write_keyed(
     finally:
         if scene.frame_current != current:
             scene.frame_set(current)
-    apply.replace_collection(scene, coll, name)
+    coll = apply.replace_collection(scene, coll, name)
     for obj in coll.objects:  # the old lights are gone: their names are free again
         if obj.get(SLOT_PROPERTY) is not None:
             obj.name = obj.data.name = slot_name(obj[SLOT_PROPERTY])

@@ -124,7 +124,7 @@ def eevee_match(
     # keeps: the second run of a file renders as the first.
     setup = dataclasses.replace(eevee.SETUPS["vpl"], collection=COLLECTION)
     with override() as g:
-        old = apply.find_collection()
+        old = apply.find_collection(scene=bl_scene)
         if old is not None:
             for obj in list(old.all_objects):  # a list: hiding one rebuilds all_objects
                 g.set(obj, "hide_render", True)
@@ -176,7 +176,7 @@ def eevee_match(
                         float((deficit @ lum).mean()) / direct if direct > 0 else 0.0
                     )
         finally:
-            apply.clear_vpls(COLLECTION)
+            apply.clear_vpls(COLLECTION, bl_scene)
     error = functools.partial(predicted_error, scene, judged)
     return vplace.job.EeveeMatch(views, plain, sorted(judged), error), matched, lamps
 

@@ -119,11 +119,14 @@ def test_failure_half_way_keeps_the_previous_vpls(monkeypatch):
 
 
 def test_user_object_put_in_the_vpl_collection_survives_a_rerun():
+    """It stays in the collection through a re-run; clearing puts it in the scene's."""
     scene = cornell()
     coll = apply.write_vpls(scene, some_vpls(2), scene_diagonal=3.4)
     mine = bpy.data.objects.new("my empty", None)
     coll.objects.link(mine)
-    apply.write_vpls(scene, some_vpls(2, seed=5), scene_diagonal=3.4)
+    again = apply.write_vpls(scene, some_vpls(2, seed=5), scene_diagonal=3.4)
+    assert again == coll and coll.objects.get("my empty") is mine
+    assert apply.clear_vpls() == 2
     assert bpy.data.objects.get("my empty") is mine
     assert scene.collection.objects.get("my empty") is mine
 
@@ -153,3 +156,60 @@ def test_the_unlit_objects_are_excluded_from_the_vpls_light_and_nothing_else():
     assert not any(c.get(VPL_MARKER) for c in bpy.data.collections)
     assert [c.name for c in box.users_collection] == own
     assert diff(before, data_snapshot()) == []
+
+
+def _vpl_lights(scene):
+    return sorted(o.name for o in scene.objects if o.type == "LIGHT" and o.get(VPL_MARKER))
+
+
+def test_each_scene_keeps_its_own_lights():
+    """Writing or clearing one scene's lights leaves another scene's alone."""
+    a = cornell()
+    b = bpy.data.scenes.new("B")
+    b.collection.objects.link(bpy.data.objects["tallBox"])
+    apply.write_vpls(a, some_vpls(3), scene_diagonal=3.4)
+    apply.write_vpls(b, some_vpls(4, seed=1), scene_diagonal=3.4)
+    assert len(_vpl_lights(a)) == 3 and len(_vpl_lights(b)) == 4
+    assert apply.find_collection(scene=a) is not apply.find_collection(scene=b)
+    apply.write_vpls(b, some_vpls(2, seed=2), scene_diagonal=3.4)
+    assert len(_vpl_lights(a)) == 3 and len(_vpl_lights(b)) == 2
+    assert apply.clear_vpls(scene=b) == 2
+    assert len(_vpl_lights(a)) == 3 and apply.find_collection(scene=b) is None
+
+
+def test_a_rerun_keeps_what_the_user_did_with_the_collection():
+    """Renamed, moved under another collection, excluded from the view layer, hidden: a re-run
+    writes its lights into the same collection, as the user left it."""
+    scene = cornell()
+    coll = apply.write_vpls(scene, some_vpls(3), scene_diagonal=3.4)
+    coll.name = "my lights"
+    parent = bpy.data.collections.new("Parent")
+    scene.collection.children.link(parent)
+    scene.collection.children.unlink(coll)
+    parent.children.link(coll)
+    coll.hide_render = True
+    layer = bpy.context.view_layer.layer_collection.children["Parent"].children["my lights"]
+    layer.exclude = True
+    again = apply.write_vpls(scene, some_vpls(5, seed=1), scene_diagonal=3.4)
+    assert again == coll and coll.name == "my lights" and list(parent.children) == [coll]
+    assert coll.hide_render
+    assert bpy.context.view_layer.layer_collection.children["Parent"].children[0].exclude
+    assert len(coll.objects) == 5 and len(_vpl_lights(scene)) == 5
+    assert [c for c in bpy.data.collections if c.get(VPL_MARKER)] == [coll]
+
+
+def test_lights_left_by_a_deleted_collection_go_with_the_next_run():
+    """The Outliner's delete of the collection keeps its objects, in the collection above: the
+    next run (or clear) takes them away, so no light shines twice."""
+    scene = cornell()
+    coll = apply.write_vpls(scene, some_vpls(3), scene_diagonal=3.4)
+    for obj in list(coll.objects):
+        scene.collection.objects.link(obj)
+    bpy.data.collections.remove(coll)
+    assert len(_vpl_lights(scene)) == 3
+    apply.write_vpls(scene, some_vpls(2, seed=1), scene_diagonal=3.4)
+    assert len(_vpl_lights(scene)) == 2
+    for obj in list(apply.find_collection().objects):
+        scene.collection.objects.link(obj)
+    bpy.data.collections.remove(apply.find_collection())
+    assert apply.clear_vpls() == 2 and _vpl_lights(scene) == []
