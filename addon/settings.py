@@ -21,7 +21,9 @@ class SettingsGuard:
     def set(self, owner: Any, attr: str, value: Any) -> None:
         """Sets ``owner.attr = value``, remembering the old value the first time."""
         old = getattr(owner, attr)
-        if not any(o is owner and a == attr for o, a, _ in self._saved):
+        # ``==``, not ``is``: each access to a Blender struct (``scene.cycles``) makes a new
+        # Python object for it; equal ones are the same struct.
+        if not any(a == attr and o == owner for o, a, _ in self._saved):
             if hasattr(old, "__len__") and not isinstance(old, str):
                 old = tuple(old)
             self._saved.append((owner, attr, old))
@@ -83,7 +85,13 @@ def measured_frame(g: SettingsGuard, scene: Any, camera: Any | None = None) -> N
     g.set(r, "pixel_aspect_x", 1.0)
     g.set(r, "pixel_aspect_y", 1.0)
     g.set(r, "use_multiview", False)
-    if camera is not None and camera.type == "CAMERA":
+    if camera is not None:
+        sharp(g, camera)
+
+
+def sharp(g: SettingsGuard, camera: Any) -> None:
+    """``camera`` without depth of field (:func:`measured_frame`)."""
+    if camera.type == "CAMERA":
         g.set(camera.data.dof, "use_dof", False)
 
 

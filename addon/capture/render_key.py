@@ -199,6 +199,11 @@ _OVERRIDDEN = {
             "use_compositing",
             "use_sequencer",
             "use_lock_interface",
+            "pixel_aspect_x",
+            "pixel_aspect_y",
+            "use_multiview",
+            "use_persistent_data",
+            "file_extension",  # the output format's, which vplace's renders set
         }
     ),
     "cycles": frozenset(

@@ -56,6 +56,18 @@ def test_a_guard_restores_once():
     assert owner.x == 5
 
 
+def test_a_blender_setting_changed_twice_comes_back_as_the_user_had_it():
+    """Each access to ``scene.cycles`` makes a new Python object for the same struct: the guard
+    knows it for the one it changed before and keeps the user's value, not its own."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.cycles.filter_width = 1.5
+    with override() as g:
+        g.set(scene.cycles, "filter_width", 1.0)
+        g.set(scene.cycles, "filter_width", 0.5)
+    assert scene.cycles.filter_width == pytest.approx(1.5)
+
+
 def test_at_frame_comes_back_when_the_block_raises():
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
