@@ -37,6 +37,10 @@ ORBIT_MARKER = "vplace_orbit_camera"
 COVERAGE_MARKER = "vplace_coverage_camera"
 
 
+#: The most views one layout captures (the panel's orbit count is capped alike).
+MAX_VIEWS = 64
+
+
 @dataclass(frozen=True)
 class ViewSet:
     """Which views a job captures (see the module docs)."""
@@ -81,6 +85,18 @@ class ViewSet:
             )
         if self.mode == "orbit" and (self.orbit_count < 1 or self.orbit_radius < 0):
             raise AddonError("an orbit needs at least one view and a radius of 0 or more")
+        if self.mode == "orbit" and not 0.0 <= self.orbit_angle <= 180.0:
+            raise AddonError(f"an orbit turns by 0 to 180 degrees, got {self.orbit_angle:g}")
+        count = {
+            "cameras": len(set(self.cameras)),
+            "frames": len(range(self.frame_start, self.frame_end + 1, max(self.frame_step, 1))),
+            "orbit": self.orbit_count,
+        }.get(self.mode, 1)
+        if count > MAX_VIEWS:
+            raise AddonError(
+                f"{count} views is more than the {MAX_VIEWS} a layout takes (each is a Cycles "
+                "capture): choose fewer"
+            )
         try:
             self.region().validate()
         except ValueError as err:

@@ -79,6 +79,11 @@ CASES = [
     Case(["demo", "--cameras", "Nope"], "no camera object named 'Nope'", quick_demo=True),
     Case(["demo", "--frames", "5", "1", "1"], "frames 5..1 step 1", quick_demo=True),
     Case(["demo", "--orbit", "0", "1", "10"], "an orbit needs at least one view", quick_demo=True),
+    Case(["demo", "--orbit", "500", "0", "30"], "500 views is more than the 64", quick_demo=True),
+    Case(
+        ["demo", "--orbit", "3", "1", "400"], "an orbit turns by 0 to 180 degrees", quick_demo=True
+    ),
+    Case(["demo", "--frames", "1", "5000", "1"], "5000 views is more than the 64", quick_demo=True),
     # demo --animate (issue 23)
     Case(["demo", "--animate", "5", "1", "1"], "the frame range 5..1 is empty", quick_demo=True),
     Case(
