@@ -103,6 +103,12 @@ class Job(vplace.job.LayoutSettings):
             )
         if self.size < 8:
             raise AddonError(f"the capture size must be at least 8 pixels, got {self.size}")
+        if self.samples < 1:
+            raise AddonError(f"samples must be at least 1, got {self.samples}")
+        if not 0.0 <= self.alpha <= 1.0:
+            raise AddonError(
+                f"alpha must be 0 (uniform) to 1 (regression-guided), got {self.alpha:g}"
+            )
         if self.iterations < 0:
             raise AddonError(f"layout iterations must be 0 (off) or more, got {self.iterations}")
         if self.radius is not None and not (self.radius >= 0 and math.isfinite(self.radius)):

@@ -123,7 +123,11 @@ CASES = [
     Case(["demo", "--cell-px", "0"], "cell_px = 0 is out of range", quick_demo=True),
     Case(["demo", "--coverage", "-1"], "coverage views must be 0 to 16", quick_demo=True),
     Case(["demo", "--region-radius", "-2"], "region radius", quick_demo=True),
-    Case(["demo", "--alpha", "2"], "alpha = 2 is out of range", quick_demo=True),
+    Case(
+        ["demo", "--alpha", "2"],
+        "alpha must be 0 (uniform) to 1 (regression-guided), got 2",
+        quick_demo=True,
+    ),
     Case(["demo", "--radius", "-1"], "the near-field radius must be 0 or more, got -1"),
     Case(["demo", "--iterations", "-1"], "layout iterations must be 0", quick_demo=True),
     Case(["demo", "--match-eevee", "--no-refit"], "--match-eevee refits a still layout's"),
