@@ -42,9 +42,10 @@ def test_capture_restores_settings_and_gives_consistent_passes(tmp_path):
 
 def test_capture_restores_settings_when_the_render_fails(monkeypatch):
     scene = cornell()
-    # A factory-empty file leaves image_settings.linear_colorspace_settings unset ('', which
-    # Blender warns "matches no enum"); Blender fills it in on first use and it cannot be set
-    # back to ''. Any saved user file has it set; touch the settings once to get there.
+    # A file whose output format was never changed (a factory file, Blender's startup file, a
+    # file saved from either) leaves image_settings.linear_colorspace_settings unset ('', which
+    # Blender warns "matches no enum"); Blender fills it in ('sRGB') the first time the format
+    # changes, a capture's included, and it cannot be set back to ''. Touch it once first.
     scene.render.image_settings.file_format = "PNG"
     before = scene_state(scene)
 
