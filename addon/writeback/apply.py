@@ -159,16 +159,27 @@ def _role(coll: bpy.types.Collection) -> str:
     return base if dot and len(tail) == 3 and tail.isdigit() and base else coll.name
 
 
+def scene_collection(
+    scene: bpy.types.Scene, name: str, marker: str = VPL_MARKER
+) -> bpy.types.Collection | None:
+    """The collection vplace marked (``marker``) and wrote as ``name`` in ``scene``'s
+    hierarchy, whatever it is called now (:data:`ROLE_KEY`), or None: each scene's own, never
+    another's."""
+    for coll in scene.collection.children_recursive:
+        if coll.get(marker, False) and _role(coll) == name:
+            return coll
+    return None
+
+
 def find_collection(
     name: str = COLLECTION_NAME, scene: bpy.types.Scene | None = None
 ) -> bpy.types.Collection | None:
     """The VPL collection vplace wrote earlier in ``scene`` (default: the context's) as
     ``name``, if any: marked as vplace's, in the scene's hierarchy, whatever it is called now.
     A collection of the user's named ``name`` is refused (:class:`WriteBackError`)."""
-    scene = scene if scene is not None else bpy.context.scene
-    for coll in scene.collection.children_recursive:
-        if coll.get(VPL_MARKER, False) and _role(coll) == name:
-            return coll
+    found = scene_collection(scene if scene is not None else bpy.context.scene, name)
+    if found is not None:
+        return found
     user = bpy.data.collections.get(name)
     if user is not None and not user.get(VPL_MARKER, False):
         raise WriteBackError(
@@ -402,15 +413,7 @@ def new_collection(
 def _stored(name: str, key: str, scene: bpy.types.Scene | None) -> Any:
     """The custom property ``key`` of ``scene``'s (default: the context's) VPL collection
     ``name``, or None."""
-    scene = scene if scene is not None else bpy.context.scene
-    coll = next(
-        (
-            c
-            for c in scene.collection.children_recursive
-            if c.get(VPL_MARKER, False) and _role(c) == name
-        ),
-        None,
-    )
+    coll = scene_collection(scene if scene is not None else bpy.context.scene, name)
     return coll.get(key) if coll is not None else None
 
 
@@ -542,14 +545,7 @@ def unlit_objects(coll: bpy.types.Collection | None = None) -> list[str]:
     """The names of the objects the VPL lights of ``coll`` (default: the VPL collection, if
     vplace wrote it) do not light (:func:`exclude_receivers`)."""
     if coll is None:
-        coll = next(
-            (
-                c
-                for c in bpy.context.scene.collection.children_recursive
-                if c.get(VPL_MARKER, False) and _role(c) == COLLECTION_NAME
-            ),
-            None,
-        )
+        coll = scene_collection(bpy.context.scene, COLLECTION_NAME)
         if coll is None:
             return []
     receivers = _receivers(coll)

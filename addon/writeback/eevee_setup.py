@@ -356,8 +356,8 @@ def remove_camera_only(world: bpy.types.World | None) -> None:
 
 def vplace_volume(scene: bpy.types.Scene) -> bpy.types.Object | None:
     """The light probe volume :func:`set_up` added, if any."""
-    coll = bpy.data.collections.get(PROBE_COLLECTION)
-    if coll is None or not coll.get(VPL_MARKER, False):
+    coll = apply.scene_collection(scene, PROBE_COLLECTION)
+    if coll is None:
         return None
     return next((o for o in coll.objects if o.type == "LIGHT_PROBE"), None)
 
@@ -772,14 +772,15 @@ def world_for_render(
 
 
 def _probe_collection(scene: bpy.types.Scene) -> bpy.types.Collection:
-    """A fresh, empty probe collection of vplace's, linked to ``scene``."""
-    old = bpy.data.collections.get(PROBE_COLLECTION)
+    """A fresh, empty probe collection of vplace's, linked to ``scene`` in place of the one
+    vplace made there before (never another scene's)."""
+    user = bpy.data.collections.get(PROBE_COLLECTION)
+    if user is not None and not user.get(VPL_MARKER, False):
+        raise AddonError(
+            f"a collection named {PROBE_COLLECTION!r} exists but was not made by vplace; rename it"
+        )
+    old = apply.scene_collection(scene, PROBE_COLLECTION)
     if old is not None:
-        if not old.get(VPL_MARKER, False):
-            raise AddonError(
-                f"a collection named {PROBE_COLLECTION!r} exists but was not made by vplace; "
-                "rename it"
-            )
         for obj in list(old.objects):
             data = obj.data
             bpy.data.objects.remove(obj)
@@ -788,6 +789,7 @@ def _probe_collection(scene: bpy.types.Scene) -> bpy.types.Collection:
         bpy.data.collections.remove(old)
     coll = bpy.data.collections.new(PROBE_COLLECTION)
     coll[VPL_MARKER] = True
+    coll[apply.ROLE_KEY] = PROBE_COLLECTION
     scene.collection.children.link(coll)
     return coll
 

@@ -19,6 +19,7 @@ import numpy as np
 from ..compat import new_material
 from ..native import vplace
 from ..scene.export import material_info, world_triangles
+from . import apply
 
 __all__ = [
     "Flat2DScene",
@@ -167,12 +168,13 @@ def bake_to_scene(
     collection, replacing the previous bake (its plane, material, mesh and image) only."""
     flat = collect_polygons(source, bpy.context.evaluated_depsgraph_get())
     pixels, bounds = bake_collection(flat, width, height, method)
-    old = bpy.data.collections.get(OUTPUT_COLLECTION)
+    user = bpy.data.collections.get(OUTPUT_COLLECTION)
+    if user is not None and not user.get(OUTPUT_MARKER, False):
+        raise vplace.InputError(
+            f"a collection named {OUTPUT_COLLECTION!r} exists but was not made by vplace"
+        )
+    old = apply.scene_collection(scene, OUTPUT_COLLECTION, OUTPUT_MARKER)
     if old is not None:
-        if not old.get(OUTPUT_MARKER, False):
-            raise vplace.InputError(
-                f"a collection named {OUTPUT_COLLECTION!r} exists but was not made by vplace"
-            )
         for obj in list(old.objects):
             if obj.get(OUTPUT_MARKER, False):
                 mesh = obj.data
@@ -185,6 +187,7 @@ def bake_to_scene(
         bpy.data.collections.remove(old)
     coll = bpy.data.collections.new(OUTPUT_COLLECTION)
     coll[OUTPUT_MARKER] = True
+    coll[apply.ROLE_KEY] = OUTPUT_COLLECTION
     scene.collection.children.link(coll)
     image = light_map_image("vplace PAR light map", pixels)
     obj = make_display_plane(image, bounds, coll, z=z)

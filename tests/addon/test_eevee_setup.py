@@ -271,3 +271,26 @@ def test_lights_with_disks_get_the_fast_gi_of_their_near_field(scene):
     assert apply.stored_near_field() == 0.0
     eevee_setup.set_up(scene, bake_volume=False)
     assert e.fast_gi_method == "AMBIENT_OCCLUSION_ONLY"
+
+
+def test_each_scene_keeps_its_own_probe_volume(scene):
+    """ "Set up EEVEE for vplace" in one scene replaces that scene's probe volume only."""
+    bg = scene.world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (0.05, 0.05, 0.05, 1)
+    bg.inputs["Strength"].default_value = 1.0
+    other = bpy.data.scenes.new("B")
+    other.world = scene.world
+    other.collection.objects.link(bpy.data.objects["tallBox"])
+    write(scene, 4)
+    write(other, 3, seed=1)
+    eevee_setup.set_up(scene, bake_volume=False)
+    mine = eevee_setup.vplace_volume(scene)
+    eevee_setup.set_up(other, bake_volume=False)
+    theirs = eevee_setup.vplace_volume(other)
+    assert mine is not None and theirs is not None and mine != theirs
+    assert eevee_setup.vplace_volume(scene) == mine and mine.name in bpy.data.objects
+    eevee_setup.set_up(scene, bake_volume=False)  # again: its own replaced, B's kept
+    assert eevee_setup.vplace_volume(other) == theirs
+    assert (
+        len([o for o in bpy.data.objects if o.type == "LIGHT_PROBE" and o.get("vplace_vpl")]) == 2
+    )

@@ -50,3 +50,19 @@ def test_bake_operator_errors(registered):
     with pytest.raises(RuntimeError, match="holds no mesh triangles"):
         bpy.ops.vplace.bake_par2d(collection="empty")
     assert issubclass(vplace.InputError, vplace.VplaceError)
+
+
+def test_a_bake_in_one_scene_keeps_another_scenes_light_map():
+    empty_file()
+    default_scene.build_par2d_demo()
+    bpy.context.view_layer.update()
+    source = bpy.data.collections["PAR scene"]
+    a = bpy.context.scene
+    b = bpy.data.scenes.new("B")
+    par2d_bake.bake_to_scene(a, source, 8, 6)
+    theirs = par2d_bake.bake_to_scene(b, source, 8, 6).name
+    par2d_bake.bake_to_scene(a, source, 8, 6)  # replaces A's light map only
+    assert theirs in bpy.data.objects and theirs in b.objects
+    outputs = [c for c in bpy.data.collections if c.get(par2d_bake.OUTPUT_MARKER)]
+    assert len(outputs) == 2
+    assert sum(len(c.objects) for c in outputs) == 2
