@@ -46,7 +46,7 @@ import numpy as np
 
 from .capture.passes import Capture, capture, hide_vpls
 from .capture.stage import Captured, render_reference
-from .capture.views import ViewSpec, eye_positions
+from .capture.views import ViewSpec, eye_views
 from .errors import AddonError, WriteBackError, output_folder, run_operator
 from .job import (
     COST_SAMPLES,
@@ -164,14 +164,17 @@ class _Frame:
     computed: vplace.job.Computed
 
 
-def frame_eyes(bl_scene: bpy.types.Scene, frames: Sequence[int]) -> np.ndarray | None:
-    """The scene camera's position at each of ``frames`` (None without a camera, which the
-    capture refuses): every frame's scene gets the working scale of the region seen from all of
-    them (``vplace.Scene.scale``), so a moving camera keeps one VPL size over the frames."""
+def frame_eyes(
+    bl_scene: bpy.types.Scene, frames: Sequence[int]
+) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
+    """The scene camera's position at each of ``frames`` and where it looks there
+    (:func:`capture.views.eye_views`; None, None without a camera, which the capture refuses):
+    every frame's scene gets the working scale of the region seen from all of them
+    (``vplace.Scene.scale``), so a moving camera keeps one VPL size over the frames."""
     cam = bl_scene.camera
     if cam is None:
-        return None
-    return eye_positions(bl_scene, [ViewSpec(cam.name, cam, f) for f in frames])
+        return None, None
+    return eye_views(bl_scene, [ViewSpec(cam.name, cam, f) for f in frames])
 
 
 def _run_frame(
@@ -181,12 +184,13 @@ def _run_frame(
     truth_samples: int | None,
     timer: StageTimer,
     eyes: np.ndarray | None = None,
+    looks: np.ndarray | None = None,
 ) -> tuple[_Frame, FrameCost]:
     """The still job at ``frame``: capture, reference, fit, layout, refit, evaluator; ``eyes``
-    (:func:`frame_eyes`) set the scene's working scale."""
+    and ``looks`` (:func:`frame_eyes`) set the scene's working scale."""
     bl_scene.frame_set(frame)
     start = time.perf_counter()
-    prepared = prepare(bl_scene, job, timer, eyes=eyes)
+    prepared = prepare(bl_scene, job, timer, eyes=eyes, looks=looks)
     prepare_seconds = time.perf_counter() - start
     n = len(prepared.captures)
     reference = render_reference(
@@ -228,12 +232,12 @@ def capture_frames(
     the working scale of all of them (:func:`frame_eyes`); the scene's frame is put back. Uses
     bpy: the main thread (the panel's first half)."""
     original = bl_scene.frame_current
-    eyes = frame_eyes(bl_scene, frames)
+    eyes, looks = frame_eyes(bl_scene, frames)
     try:
         out = []
         for f in frames:
             bl_scene.frame_set(f)
-            out.append(prepare(bl_scene, job, timer, eyes=eyes))
+            out.append(prepare(bl_scene, job, timer, eyes=eyes, looks=looks))
         return out
     finally:
         bl_scene.frame_set(original)
@@ -328,10 +332,10 @@ def run_animated_job(
     try:
         runs: dict[int, _Frame] = {}
         costs = []
-        eyes = frame_eyes(bl_scene, frames)
+        eyes, looks = frame_eyes(bl_scene, frames)
         for f in frames:
             log(f"[vplace] frame {f}")
-            runs[f], cost = _run_frame(bl_scene, f, job, truth_samples, timer, eyes)
+            runs[f], cost = _run_frame(bl_scene, f, job, truth_samples, timer, eyes, looks)
             costs.append(cost)
         first = runs[frames[0]]
         preps = [runs[f].prepared for f in frames]

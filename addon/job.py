@@ -39,7 +39,7 @@ from .capture.stage import (
     own_reference,
     render_reference,
 )
-from .capture.views import ViewSet, ViewSpec, capture_resolution, eye_positions
+from .capture.views import ViewSet, ViewSpec, capture_resolution, eye_views
 from .capture.views import specs as view_specs
 from .compat import eevee_engine
 from .errors import AddonError, CaptureError, output_folder, run_operator
@@ -239,6 +239,7 @@ def prepare(
     views: Sequence[ViewSpec] | None = None,
     reference: ReferenceRender | None = None,
     eyes: np.ndarray | None = None,
+    looks: np.ndarray | None = None,
 ) -> Prepared:
     """The Blender stages, each entered once: the scene (export, check, BVH), then a capture of
     each view (default: the job's view set), then, with ``reference``, the main job's reference.
@@ -247,8 +248,9 @@ def prepare(
     A view that sees no geometry, or that renders exactly what an earlier view renders (the same
     capture key), is left out and said so in ``Prepared.skipped`` and the log; only when no view
     is left is it an error. A view set whose captures would take more than
-    :data:`MAX_CAPTURE_BYTES` is refused before anything renders. ``eyes`` (N x 3) set the
-    scene's working scale (``vplace.Scene.scale``; default: the views' cameras)."""
+    :data:`MAX_CAPTURE_BYTES` is refused before anything renders. ``eyes`` (N x 3) and where
+    they look, ``looks`` (N x 3, or None), set the scene's working scale
+    (``vplace.Scene.scale``; default: the views' cameras, :func:`capture.views.eye_views`)."""
     job.validate()
     with contextlib.ExitStack() as stack:
         specs = (
@@ -264,9 +266,10 @@ def prepare(
                 f"{need / 2**30:.1f} GB of captures (at most {MAX_CAPTURE_BYTES / 2**30:.0f} GB): "
                 "use fewer views or a smaller capture size"
             )
-        eyes = eyes if eyes is not None else eye_positions(bl_scene, specs)
+        if eyes is None:
+            eyes, looks = eye_views(bl_scene, specs)
         region = job.views.region()
-        exported, scene = export_native(bl_scene, timer.stage, timer.log, eyes)
+        exported, scene = export_native(bl_scene, timer.stage, timer.log, eyes, looks)
         captured = capture_views(
             bl_scene,
             scene,

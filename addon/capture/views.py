@@ -269,15 +269,22 @@ def capture_resolution(scene: bpy.types.Scene, size: int) -> tuple[int, int]:
 
 
 def eye_positions(scene: bpy.types.Scene, views: Sequence[ViewSpec]) -> np.ndarray:
+    """:func:`eye_views`' eyes (N x 3 float32)."""
+    return eye_views(scene, views)[0]
+
+
+def eye_views(scene: bpy.types.Scene, views: Sequence[ViewSpec]) -> tuple[np.ndarray, np.ndarray]:
     """Where the views' cameras stand (N x 3 float32), each at its view's frame (the scene's
     frame is put back): the eyes whose region gives the scene's working scale
     (``scene.convert.build_scene``). A camera's position, or where its view begins
     (``vplace.coverage.view_eye``: its clip start along its axis) when a surface lies between
     the two: a camera outside a wall whose clip start passes the wall stands in the room it
-    sees (``vplace.coverage.camera_eye``'s rule, with Blender's ray cast)."""
+    sees (``vplace.coverage.camera_eye``'s rule, with Blender's ray cast). With them, where each
+    camera looks (N x 3 float32, unit; zero for a panoramic camera, which looks all round):
+    ``vplace.Scene``'s ``looks``."""
     original = scene.frame_current
     resolution = capture_resolution(scene, 64)
-    eyes = []
+    eyes, looks = [], []
     try:
         for spec in views:
             frame = original if spec.frame is None else spec.frame
@@ -293,7 +300,14 @@ def eye_positions(scene: bpy.types.Scene, views: Sequence[ViewSpec]) -> np.ndarr
                 and scene.ray_cast(depsgraph, origin, way.normalized(), distance=way.length)[0]
             )
             eyes.append(near if hit else position)
+            pano = spec.camera.data.type == "PANO"
+            axis = spec.camera.matrix_world.normalized().to_3x3() @ Vector((0.0, 0.0, -1.0))
+            looks.append((0.0, 0.0, 0.0) if pano else tuple(axis.normalized()))
     finally:
         if scene.frame_current != original:
             scene.frame_set(original)
-    return np.asarray(eyes, dtype=np.float32).reshape(-1, 3)
+    shape = (-1, 3)
+    return (
+        np.asarray(eyes, dtype=np.float32).reshape(shape),
+        np.asarray(looks, dtype=np.float32).reshape(shape),
+    )

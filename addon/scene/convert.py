@@ -75,14 +75,16 @@ def _alpha_test(info: AlphaInfo | None) -> vplace.AlphaTest | None:
     )
 
 
-def build_scene(exported: ExportedScene, eyes: np.ndarray | None = None) -> vplace.Scene:
+def build_scene(
+    exported: ExportedScene, eyes: np.ndarray | None = None, looks: np.ndarray | None = None
+) -> vplace.Scene:
     """A ``vplace.Scene`` (with its BVH) from an exported Blender scene: its lights, its world
     when that sends light, its materials' emission; per material its albedo, or its base-colour
     texture (``albedo_offset + texture_tint * rgb``) and alpha cut-out, read through the
     exported UVs; light paths stay within the bounces Cycles follows (``light_bounces``; at
-    least the first diffuse one). ``eyes`` (N x 3), the cameras' positions, give its working
-    scale (``vplace.Scene.scale``: the region seen from them, not a ground plane no camera
-    sees)."""
+    least the first diffuse one). ``eyes`` (N x 3), the cameras' positions, and ``looks``
+    (N x 3), where they look, give its working scale (``vplace.Scene.scale``: the region seen
+    from them, not a ground plane no camera sees, nor a sky dome)."""
     lights = [native_light(light) for light in exported.lights]
     if exported.world is not None and exported.world.emits:
         lights.append(native_world(exported.world))
@@ -102,6 +104,7 @@ def build_scene(exported: ExportedScene, eyes: np.ndarray | None = None) -> vpla
             emission=exported.emission,
             light_bounces=bounces,
             eyes=eyes,
+            looks=looks,
             **_gloss(mats, textured=False),
         )
     albedo = np.array(
@@ -121,6 +124,7 @@ def build_scene(exported: ExportedScene, eyes: np.ndarray | None = None) -> vpla
         alpha_tests=[_alpha_test(m.alpha) for m in mats],
         light_bounces=bounces,
         eyes=eyes,
+        looks=looks,
         **_gloss(mats, textured=True),
     )
 
@@ -169,18 +173,19 @@ def export_native(
     stage: Callable[[str], AbstractContextManager[None]],
     log: Callable[[str], None],
     eyes: np.ndarray | None = None,
+    looks: np.ndarray | None = None,
 ) -> tuple[ExportedScene, vplace.Scene]:
     """The scene stage: the exported scene (its warnings logged), refused when nothing emits,
     and its ``vplace.Scene`` with the BVH and the working scale of the region seen from
-    ``eyes``, the cameras' positions (:func:`build_scene`; logged where it is less than the
-    bounds'). ``stage`` is the job timer's ``stage``."""
+    ``eyes``, the cameras' positions, looking along ``looks`` (:func:`build_scene`; logged
+    where it is less than the bounds'). ``stage`` is the job timer's ``stage``."""
     with stage("export scene"):
         exported = export_scene(bl_scene)
     for warning in exported.warnings:
         log(f"[vplace] warning: {warning}")
     check_lights(exported)
     with stage("build BVH"):
-        scene = build_scene(exported, eyes)
+        scene = build_scene(exported, eyes, looks)
     if scene.scale < scene.diagonal:
         m = exported.unit_scale
         log(

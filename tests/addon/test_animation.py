@@ -501,7 +501,8 @@ def test_a_moving_camera_keeps_one_working_scale_over_the_frames(tmp_path):
             p.exported.material_ids,
             p.exported.albedo,
             [],
-            eyes=animation.frame_eyes(scene, [f]),
+            eyes=animation.frame_eyes(scene, [f])[0],
+            looks=animation.frame_eyes(scene, [f])[1],
         ).scale
         for p, f in zip(prepared, (1, 24), strict=True)
     ]

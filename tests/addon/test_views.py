@@ -197,3 +197,21 @@ def test_rendered_coverage_views_are_cycles_captures_of_the_traced_poses(scene):
         dist = np.linalg.norm(cap.position[both] - view.position[both], axis=1)
         assert np.median(dist) < 0.01 * rendered.scene.scale, np.median(dist)
         assert cap.indirect.sum() > 0.0
+
+
+def test_each_eye_comes_with_where_its_camera_looks():
+    """``eye_views``: a camera's view axis (unit, without its scale), none for a panoramic one."""
+    empty_file()
+    scene = bpy.context.scene
+    cam = bpy.data.objects.new("cam", bpy.data.cameras.new("cam"))
+    scene.collection.objects.link(cam)
+    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)  # looking along +Y
+    cam.scale = (2.0, 1.0, 3.0)
+    pano = bpy.data.objects.new("pano", bpy.data.cameras.new("pano"))
+    pano.data.type = "PANO"
+    scene.collection.objects.link(pano)
+    bpy.context.view_layer.update()
+    eyes, looks = views.eye_views(scene, [views.ViewSpec("cam", cam), views.ViewSpec("pano", pano)])
+    assert eyes.shape == looks.shape == (2, 3)
+    np.testing.assert_allclose(looks[0], [0.0, 1.0, 0.0], atol=1e-6)
+    np.testing.assert_array_equal(looks[1], [0.0, 0.0, 0.0])

@@ -354,3 +354,49 @@ def test_a_set_takes_the_near_field_where_its_captures_show_it():
     assert np.array_equal(vplace.evaluate(scene, view(g), on, near_field=False)[0], plain)
     assert np.array_equal(vplace.evaluate(scene, view(g), vpls)[0], plain)
     assert on.with_flux(np.asarray(on.flux)).near_field
+
+
+def _open_room_in_dome(dome):
+    """A room [-1, 1]^2 x [0, 2] open on its -y side inside a cube of half size ``dome``."""
+    quads = [
+        [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)],
+        [(-1, -1, 2), (-1, 1, 2), (1, 1, 2), (1, -1, 2)],
+        [(-1, 1, 0), (1, 1, 0), (1, 1, 2), (-1, 1, 2)],
+        [(-1, -1, 0), (-1, 1, 0), (-1, 1, 2), (-1, -1, 2)],
+        [(1, -1, 0), (1, -1, 2), (1, 1, 2), (1, 1, 0)],
+    ]
+    d = dome
+    quads += [
+        [(-d, -d, -d), (-d, d, -d), (d, d, -d), (d, -d, -d)],
+        [(-d, -d, d), (d, -d, d), (d, d, d), (-d, d, d)],
+        [(-d, -d, -d), (d, -d, -d), (d, -d, d), (-d, -d, d)],
+        [(-d, d, -d), (-d, d, d), (d, d, d), (d, d, -d)],
+        [(-d, -d, -d), (-d, -d, d), (-d, d, d), (-d, d, -d)],
+        [(d, -d, -d), (d, d, -d), (d, d, d), (d, -d, d)],
+    ]
+    v = np.array([p for q in quads for p in q], dtype=np.float32)
+    t = np.array(
+        [[4 * k, 4 * k + 1, 4 * k + 2] for k in range(len(quads))]
+        + [[4 * k, 4 * k + 2, 4 * k + 3] for k in range(len(quads))],
+        dtype=np.uint32,
+    )
+    return v, t
+
+
+def test_where_a_camera_looks_keeps_a_sky_dome_out_of_the_working_scale():
+    """A camera 1.5 m outside a room open towards it, inside a 2 km dome: all round it sees
+    mostly the dome, looking in it sees the room (``looks``); bad ``looks`` are refused."""
+    v, t = _open_room_in_dome(2000.0)
+    ids = np.zeros(len(t), dtype=np.uint32)
+    albedo = np.full((1, 3), 0.5, dtype=np.float32)
+    lamp = [vplace.Light.point([0.0, 0.0, 1.5], [10.0, 10.0, 10.0])]
+    eye = np.array([[0.0, -2.5, 1.0]], dtype=np.float32)
+    look = np.array([[0.0, 1.0, 0.0]], dtype=np.float32)
+    all_round = vplace.Scene(v, t, ids, albedo, lamp, eyes=eye)
+    looking = vplace.Scene(v, t, ids, albedo, lamp, eyes=eye, looks=look)
+    assert all_round.scale == all_round.diagonal
+    assert looking.scale < 12.0
+    with pytest.raises(vplace.InputError):
+        vplace.Scene(v, t, ids, albedo, lamp, eyes=eye, looks=np.vstack([look, look]))
+    with pytest.raises(vplace.InputError):
+        vplace.Scene(v, t, ids, albedo, lamp, eyes=eye, looks=np.full((1, 3), np.nan, np.float32))

@@ -268,13 +268,15 @@ impl PyScene {
     ///
     /// `eyes` float32 (N, 3), the cameras' positions (optional): the working scale (`scale`)
     /// is then that of the region seen from them, where that is much less than the bounds
-    /// (`vplace_core::scene::region`); VPL sizes and ray offsets follow it.
+    /// (`vplace_core::scene::region`); VPL sizes and ray offsets follow it. `looks` float32
+    /// (N, 3), each eye's view direction (zero for none; optional): what it looks at sets its
+    /// backdrop where that is nearer than what it sees all round.
     #[new]
     #[pyo3(signature = (
         vertices, triangles, material_ids, albedo, lights, *, emission = None,
         uvs = None, textures = None, base_textures = None, texture_tint = None, alpha_tests = None,
         gloss = None, gloss_tint = None, gloss_roughness = None, light_bounces = None,
-        eyes = None
+        eyes = None, looks = None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -295,14 +297,19 @@ impl PyScene {
         gloss_roughness: Option<&Bound<'_, PyAny>>,
         light_bounces: Option<(usize, usize, usize)>,
         eyes: Option<&Bound<'_, PyAny>>,
+        looks: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let eyes = match eyes {
-            Some(e) => {
-                let e = array::<f32>(e, "eyes", &[Dim::Any, Dim::Is(3)], "float32")?;
-                vec3s(slice(&e, "eyes")?)
+        let points = |a: Option<&Bound<'_, PyAny>>, what: &str| -> PyResult<Vec<Vec3>> {
+            match a {
+                Some(e) => {
+                    let e = array::<f32>(e, what, &[Dim::Any, Dim::Is(3)], "float32")?;
+                    Ok(vec3s(slice(&e, what)?))
+                }
+                None => Ok(Vec::new()),
             }
-            None => Vec::new(),
         };
+        let eyes = points(eyes, "eyes")?;
+        let looks = points(looks, "looks")?;
         let v = array::<f32>(vertices, "vertices", &[Dim::Any, Dim::Is(3)], "float32")?;
         let t = array::<u32>(triangles, "triangles", &[Dim::Any, Dim::Is(3)], "uint32")?;
         let m = array::<u32>(material_ids, "material_ids", &[Dim::Any], "uint32")?;
@@ -355,7 +362,7 @@ impl PyScene {
                 }),
                 None => Ok(s),
             })
-            .and_then(|s| s.with_eyes(&eyes))
+            .and_then(|s| s.with_views(&eyes, &looks))
         })?;
         Ok(Self {
             inner: Arc::new(scene),

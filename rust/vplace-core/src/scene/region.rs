@@ -36,6 +36,9 @@ pub const BACKDROP_FACTOR: f32 = 20.0;
 /// not half, so that a room's or a courtyard's sky dome stays a backdrop where more than half
 /// the rays leave through its open side or roof.
 pub const BACKDROP_QUANTILE: f32 = 0.25;
+/// The cosine of the cone about a camera's view direction whose hits say how far it looks
+/// ([`region_box_looking`]): 30 degrees.
+pub const VIEW_CONE_COS: f32 = 0.866;
 /// The scale is at most this many times the region's diagonal (and at most the bounds'). With 2
 /// the built-in scenes keep their bounds (their fit cameras' regions: 0.68-1.0 of them).
 pub const REGION_MARGIN: f32 = 2.0;
@@ -61,23 +64,29 @@ pub fn sphere_directions(n: usize) -> Vec<Vec3> {
 /// camera works in.
 #[must_use]
 pub fn region_box(scene: &Scene, eyes: &[Vec3]) -> Option<(Vec3, Vec3)> {
+    region_box_looking(scene, eyes, &[])
+}
+
+/// [`region_box`] with each eye's view direction (`looks[i]`, unit; zero, or `looks` empty,
+/// for none): where what it looks at lies nearer than its hits all round do (a camera outside
+/// a room open towards it, in a dome), the median distance of the hits within
+/// [`VIEW_CONE_COS`] of the direction sets its backdrop instead.
+#[must_use]
+pub fn region_box_looking(scene: &Scene, eyes: &[Vec3], looks: &[Vec3]) -> Option<(Vec3, Vec3)> {
     let dirs = sphere_directions(REGION_RAYS);
     let mut points: Vec<Vec3> = eyes
         .par_iter()
-        .flat_map_iter(|&eye| {
-            let hits: Vec<(Vec3, f32)> = dirs
+        .enumerate()
+        .flat_map_iter(|(i, &eye)| {
+            let hits: Vec<(Vec3, f32, Vec3)> = dirs
                 .iter()
                 .filter_map(|&d| {
                     scene
                         .closest_hit(eye, d, 0.0, f32::INFINITY)
-                        .map(|h| (eye + d * h.t, h.t))
+                        .map(|h| (eye + d * h.t, h.t, d))
                 })
                 .collect();
-            let mut t: Vec<f32> = hits.iter().map(|h| h.1).collect();
-            t.sort_unstable_by(f32::total_cmp);
-            let far = t
-                .get(t.len() / 2)
-                .map_or(f32::INFINITY, |m| BACKDROP_FACTOR * m);
+            let far = BACKDROP_FACTOR * near_distance(&hits, looks.get(i).copied());
             hits.into_iter().filter(move |h| h.1 <= far).map(|h| h.0)
         })
         .collect();
@@ -86,6 +95,30 @@ pub fn region_box(scene: &Scene, eyes: &[Vec3]) -> Option<(Vec3, Vec3)> {
     }
     points.extend_from_slice(eyes);
     Some(quantile_box(&points))
+}
+
+/// How far an eye sees, from its hits `(point, distance, direction)`: the
+/// [`BACKDROP_QUANTILE`] of their distances, or with a view direction `look` the median of
+/// those within [`VIEW_CONE_COS`] of it where that is less; infinite without hits.
+fn near_distance(hits: &[(Vec3, f32, Vec3)], look: Option<Vec3>) -> f32 {
+    let quantile = |mut t: Vec<f32>, q: f32| {
+        t.sort_unstable_by(f32::total_cmp);
+        t.get((q * t.len() as f32) as usize)
+            .copied()
+            .unwrap_or(f32::INFINITY)
+    };
+    let all = quantile(hits.iter().map(|h| h.1).collect(), BACKDROP_QUANTILE);
+    let viewed = match look {
+        Some(l) if l != Vec3::ZERO => quantile(
+            hits.iter()
+                .filter(|h| h.2.dot(l) >= VIEW_CONE_COS)
+                .map(|h| h.1)
+                .collect(),
+            0.5,
+        ),
+        _ => f32::INFINITY,
+    };
+    all.min(viewed)
 }
 
 /// The diagonal of [`region_box`].
@@ -120,11 +153,30 @@ impl Scene {
     /// eyes from which no ray meets a surface, keep the bounds' diagonal and sphere.
     ///
     /// Errors: a non-finite eye.
-    pub fn with_eyes(mut self, eyes: &[Vec3]) -> Result<Self> {
+    pub fn with_eyes(self, eyes: &[Vec3]) -> Result<Self> {
+        self.with_views(eyes, &[])
+    }
+
+    /// [`Scene::with_eyes`] with each eye's view direction, `looks[i]` (unit, or zero for
+    /// none, as for a panoramic camera; or `looks` empty): see [`region_box_looking`].
+    ///
+    /// Errors: a non-finite eye or look, or `looks` neither empty nor one per eye.
+    pub fn with_views(mut self, eyes: &[Vec3], looks: &[Vec3]) -> Result<Self> {
         for eye in eyes {
             check_finite("eyes", &eye.to_array())?;
         }
-        if let Some((lo, hi)) = region_box(&self, eyes) {
+        for look in looks {
+            check_finite("looks", &look.to_array())?;
+        }
+        if !looks.is_empty() && looks.len() != eyes.len() {
+            return Err(crate::error::VplaceError::Shape {
+                what: "looks".into(),
+                expected: format!("({}, 3), one per eye", eyes.len()),
+                got: format!("({}, 3)", looks.len()),
+            });
+        }
+        let looks: Vec<Vec3> = looks.iter().map(|l| l.normalize_or_zero()).collect();
+        if let Some((lo, hi)) = region_box_looking(&self, eyes, &looks) {
             let scale = (REGION_MARGIN * (hi - lo).length()).clamp(1e-6, self.diagonal());
             if scale < self.diagonal() {
                 self.scale = scale;
@@ -322,5 +374,27 @@ mod tests {
         let near = open_room_in_dome(3.0).with_eyes(&[eye]).unwrap();
         assert_eq!(near.region(), None);
         assert_eq!(near.scale(), near.diagonal());
+    }
+
+    #[test]
+    fn a_camera_outside_the_room_looking_in_takes_the_room_not_the_dome() {
+        // from 1.5 m outside the open side, fewer than a quarter of the rays meet the room; the
+        // camera looks into it, and the hits it looks at set its backdrop
+        let eye = Vec3::new(0.0, -2.5, 1.0);
+        let dome = || open_room_in_dome(2000.0);
+        let all_round = dome().with_eyes(&[eye]).unwrap();
+        assert_eq!(all_round.scale(), all_round.diagonal());
+        let looking = dome().with_views(&[eye], &[Vec3::Y]).unwrap();
+        assert!(looking.scale() < 12.0, "{}", looking.scale());
+        let (lo, hi) = looking.region().unwrap();
+        assert!(lo.cmpge(Vec3::new(-1.01, -2.51, -0.01)).all(), "{lo}");
+        assert!(hi.cmple(Vec3::new(1.01, 1.01, 2.01)).all(), "{hi}");
+        // looking away from the room (or no direction) keeps the rule all round
+        let away = dome().with_views(&[eye], &[Vec3::NEG_Y]).unwrap();
+        assert_eq!(away.scale(), away.diagonal());
+        let none = dome().with_views(&[eye], &[Vec3::ZERO]).unwrap();
+        assert_eq!(none.scale(), none.diagonal());
+        assert!(dome().with_views(&[eye], &[Vec3::Y, Vec3::Y]).is_err());
+        assert!(dome().with_views(&[eye], &[Vec3::splat(f32::NAN)]).is_err());
     }
 }

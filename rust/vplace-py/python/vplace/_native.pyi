@@ -131,6 +131,7 @@ class Scene:
         gloss_roughness: _F32 | None = None,
         light_bounces: tuple[int, int, int] | None = None,
         eyes: _F32 | None = None,
+        looks: _F32 | None = None,
     ) -> Scene: ...
     def intersect(
         self, origins: _F32, directions: _F32, tmin: float = 0.0
