@@ -192,12 +192,11 @@ def find_collection(
 def _strays(scene: bpy.types.Scene) -> list[bpy.types.Object]:
     """vplace's lights in ``scene`` that no vplace collection holds (theirs deleted in the
     Outliner, which moves its objects to the collection above)."""
+    held = {o.as_pointer() for c in bpy.data.collections if c.get(VPL_MARKER) for o in c.objects}
     return [
         o
         for o in scene.objects
-        if o.type == "LIGHT"
-        and o.get(VPL_MARKER, False)
-        and not any(c.get(VPL_MARKER, False) for c in o.users_collection)
+        if o.type == "LIGHT" and o.get(VPL_MARKER, False) and o.as_pointer() not in held
     ]
 
 
@@ -246,25 +245,21 @@ def _empty(coll: bpy.types.Collection, scene: bpy.types.Scene | None = None) -> 
 
 def _remove_objects(objects: Sequence[bpy.types.Object]) -> int:
     """Removes vplace's ``objects`` with their light data and the keyed write-back's actions
-    (``keyed``; the object and its light may share one) once nothing else uses them."""
+    (``keyed``; the object and its light may share one) once nothing else uses them, each kind
+    in one batch (one at a time, 8,000 lights took 82 s: each removal walks the file)."""
+    lights, actions = [], []
     for obj in objects:
-        data = obj.data
-        actions = {
-            a.animation_data.action.name
-            for a in (obj, data)
-            if a is not None
-            and a.animation_data is not None
-            and a.animation_data.action is not None
-            and a.animation_data.action.get(VPL_MARKER, False)
-        }
-        bpy.data.objects.remove(obj)
-        if isinstance(data, bpy.types.Light) and data.users == 0:
-            bpy.data.lights.remove(data)
-        for name in sorted(actions):
-            action = bpy.data.actions.get(name)
-            if action is not None and action.users == 0:
-                bpy.data.actions.remove(action)
-    return len(objects)
+        for owner in (obj, obj.data):
+            anim = getattr(owner, "animation_data", None) if owner is not None else None
+            if anim is not None and anim.action is not None and anim.action.get(VPL_MARKER):
+                actions.append(anim.action)
+        if isinstance(obj.data, bpy.types.Light):
+            lights.append(obj.data)
+    count = len(objects)
+    bpy.data.batch_remove(list(objects))
+    bpy.data.batch_remove(list({d.name: d for d in lights if d.users == 0}.values()))
+    bpy.data.batch_remove(list({a.name: a for a in actions if a.users == 0}.values()))
+    return count
 
 
 _DOWN = Vector((0.0, 0.0, -1.0))
