@@ -114,41 +114,56 @@ class VPLACE_PT_main(_Panel, bpy.types.Panel):
             box.label(text="  reflecting the room through EEVEE's ray tracing")
         layout.operator("vplace.report", icon="TEXT")
         layout.operator("vplace.bake_par2d", icon="IMAGE_DATA")
-        report = vplace.job.PanelReport.from_json(settings.last_report)
-        if report is None:
-            return
-        box = layout.box()
-        m = report.metrics
-        box.label(text=f"{report.n_vpls} VPLs, {report.profile} profile")
-        if m:
-            box.label(
-                text=f"RMSE vs Cycles GI: {m['rmse']:.4f} (direct only {m['rmse_direct_only']:.4f})"
-            )
-        for name, share in report.eevee_matched.items():
-            box.label(
-                text=f"Matched EEVEE's direct light: {name} "
-                f"{vplace.markdown.percent(share, signed=True)}"
-            )
-        choice = report.eevee_match
-        if choice is not None and not choice["kept"]:
-            box.label(text="Match EEVEE's direct light left out: it would not help here")
-            box.label(
-                text=f"  EEVEE's RMSE {choice['with_match']:.4g} with it, "
-                f"{choice['without']:.4g} without"
-            )
-        for line in report.eevee_lines():
-            box.label(text=line)
-        fit = report.fit
-        if fit:
-            box.label(text=f"R² {fit.r2:.3f}, kept {len(fit.kept)} features")
-            grid = box.grid_flow(columns=2, even_columns=True)
-            for name, weight in sorted(fit.weights.items(), key=lambda kv: -kv[1]):
-                grid.label(text=name)
-                grid.label(text=f"{weight:.3f}")
-            if fit.dropped:
-                box.label(text="dropped: " + ", ".join(sorted(fit.dropped)))
-        for stage, seconds in report.stage_seconds.items():
-            box.label(text=f"{stage}: {seconds:.2f} s")
+        try:
+            report = vplace.job.PanelReport.from_json(settings.last_report)
+        except (ValueError, TypeError, KeyError, AttributeError):
+            report, stored = None, True
+        else:
+            stored = report is not None
+        if report is not None:
+            box = layout.box()
+            try:
+                _draw_report(box, report)
+                return
+            except (ValueError, TypeError, KeyError, AttributeError):
+                pass
+        if stored:  # written by another version of vplace: said once, never raised each redraw
+            layout.label(text="The last run's report is of another vplace: run again", icon="INFO")
+
+
+def _draw_report(box: bpy.types.UILayout, report: vplace.job.PanelReport) -> None:
+    """The last run's report in the main panel."""
+    m = report.metrics
+    box.label(text=f"{report.n_vpls} VPLs, {report.profile} profile")
+    if m:
+        box.label(
+            text=f"RMSE vs Cycles GI: {m['rmse']:.4f} (direct only {m['rmse_direct_only']:.4f})"
+        )
+    for name, share in report.eevee_matched.items():
+        box.label(
+            text=f"Matched EEVEE's direct light: {name} "
+            f"{vplace.markdown.percent(share, signed=True)}"
+        )
+    choice = report.eevee_match
+    if choice is not None and not choice["kept"]:
+        box.label(text="Match EEVEE's direct light left out: it would not help here")
+        box.label(
+            text=f"  EEVEE's RMSE {choice['with_match']:.4g} with it, "
+            f"{choice['without']:.4g} without"
+        )
+    for line in report.eevee_lines():
+        box.label(text=line)
+    fit = report.fit
+    if fit:
+        box.label(text=f"R² {fit.r2:.3f}, kept {len(fit.kept)} features")
+        grid = box.grid_flow(columns=2, even_columns=True)
+        for name, weight in sorted(fit.weights.items(), key=lambda kv: -kv[1]):
+            grid.label(text=name)
+            grid.label(text=f"{weight:.3f}")
+        if fit.dropped:
+            box.label(text="dropped: " + ", ".join(sorted(fit.dropped)))
+    for stage, seconds in report.stage_seconds.items():
+        box.label(text=f"{stage}: {seconds:.2f} s")
 
 
 class VPLACE_PT_views(_Panel, bpy.types.Panel):

@@ -186,3 +186,23 @@ def test_panel_names_the_objects_the_vpls_do_not_light(scene):
     labels = [t for kind, t in draw(scene) if kind == "label"]
     assert "Not lit by the VPLs (Light Linking):" in labels
     assert "  'shortBox' and 1 more: sharp metal or glass," in labels
+
+
+@pytest.mark.parametrize(
+    "stored",
+    [
+        {"n_vpls": 4, "profile": "cosine", "fit": {"r2": 0.5, "kept": []}},  # an older fit
+        {"n_vpls": 4, "fit": {"r2": 0.5, "cv_rmse": 1.0}},  # a newer one
+        {"n_vpls": 4, "metrics": {"rmse": 0.1}},  # a metric missing
+        {"n_vpls": 4, "eevee_match": {"kept": False}},
+        {"n_vpls": 4, "stage_seconds": {"capture": None}},
+        [1, 2],
+    ],
+)
+def test_a_report_of_another_vplace_is_said_not_raised_at_each_redraw(scene, stored):
+    scene.vplace.last_report = json.dumps(stored)
+    labels = [text for kind, text in draw(scene) if kind == "label"]
+    assert "The last run's report is of another vplace: run again" in labels
+    scene.vplace.last_report = "not json"
+    labels = [text for kind, text in draw(scene) if kind == "label"]
+    assert "The last run's report is of another vplace: run again" in labels
