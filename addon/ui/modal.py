@@ -15,6 +15,7 @@ from typing import Any
 
 import bpy
 
+from ..errors import AddonError
 from ..native import vplace
 
 
@@ -51,13 +52,25 @@ class BackgroundOperator:
 
     def _finish(self, context: bpy.types.Context, result: Any) -> set[str]:
         try:
+            started = getattr(self, "_scene_name", None)
+            if started is not None and _scene_name(context) != started:
+                # Written into another scene, the lights would light what was not captured.
+                raise AddonError(
+                    f"the scene changed from {started!r} while vplace worked: nothing is "
+                    "written; run it again in the scene to light"
+                )
             return self.finish(context, result)
         except vplace.VplaceError as exc:
             return self._fail(exc)
 
+    def _start(self, context: bpy.types.Context) -> None:
+        """:meth:`start`, remembering the scene it ran in (:meth:`_finish` writes nowhere else)."""
+        self._scene_name = _scene_name(context)
+        self.start(context)
+
     def execute(self, context: bpy.types.Context) -> set[str]:
         try:
-            self.start(context)
+            self._start(context)
             result = self.work(None)
         except vplace.VplaceError as exc:
             return self._fail(exc)
@@ -67,7 +80,7 @@ class BackgroundOperator:
         if context.window is None:  # headless: nothing to be modal in
             return self.execute(context)
         try:
-            self.start(context)
+            self._start(context)
         except vplace.VplaceError as exc:
             return self._fail(exc)
         self.progress = vplace.Progress()
@@ -113,3 +126,9 @@ class BackgroundOperator:
         wm.progress_end()
         if context.workspace is not None:
             context.workspace.status_text_set(None)
+
+
+def _scene_name(context: bpy.types.Context) -> str | None:
+    """The name of ``context``'s scene, or None without one."""
+    scene = getattr(context, "scene", None)
+    return scene.name if scene is not None else None

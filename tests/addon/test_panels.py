@@ -206,3 +206,33 @@ def test_a_report_of_another_vplace_is_said_not_raised_at_each_redraw(scene, sto
     scene.vplace.last_report = "not json"
     labels = [text for kind, text in draw(scene) if kind == "label"]
     assert "The last run's report is of another vplace: run again" in labels
+
+
+def test_a_run_writes_nothing_when_the_scene_changed_while_it_worked(scene):
+    """The lights go to the scene that was captured, or nowhere (a script switched scenes)."""
+    from addon.ui import modal
+
+    class Job(modal.BackgroundOperator):
+        def __init__(self):
+            self.said, self.written = [], None
+
+        def report(self, _kind, message):
+            self.said.append(message)
+
+        def start(self, context):
+            pass
+
+        def work(self, _progress):
+            return 1
+
+        def finish(self, context, _result):
+            self.written = context.scene
+            return {"FINISHED"}
+
+    other = bpy.data.scenes.new("Other")
+    job = Job()
+    job._start(type("Ctx", (), {"scene": scene})())
+    assert job._finish(type("Ctx", (), {"scene": other})(), 1) == {"CANCELLED"}
+    assert job.written is None and "the scene changed from" in job.said[0]
+    assert job._finish(type("Ctx", (), {"scene": scene})(), 1) == {"FINISHED"}
+    assert job.written == scene
