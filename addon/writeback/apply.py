@@ -37,8 +37,9 @@ radius):
   finer than the coarsest level EEVEE makes (one page per cube face: about
   :data:`SHADOW_PAGES` pages per light; on Sponza 0.2 m and 2 m gave the same image), and the
   jitter is off (the evaluator's shadow ray leaves the light's centre; jitter re-renders the
-  maps at every sample). Only the :data:`MAX_SHADOWED_VPLS` brightest VPLs are shadowed: the
-  largest pool holds no more.
+  maps at every sample). Only the :data:`MAX_SHADOWED_VPLS` brightest VPLs are shadowed, fewer
+  where their pages and the other lights' would fill more than :data:`POOL_SHARE` of the
+  largest pool (:func:`shadowed_vpls`: 736 AREA or 613 POINT lights beside one AREA lamp).
 - Emissive meshes: EEVEE does not light with them, so the lights of
   :mod:`.emitter_lights` (one AREA light per open side of each emissive polygon) are written
   into the same collection, shadowed with jittered soft shadows
@@ -137,8 +138,26 @@ MAX_POOL_PAGES = 4096
 #: The name of the VPL lights' receiver collection is the VPL collection's plus this.
 UNLIT_SUFFIX = " (not lit by VPLs)"
 #: The most VPL lights written with a shadow (the brightest): what the largest pool holds, with
-#: room for the user's own lights.
+#: room for the user's own lights (fewer where they take more: :func:`shadowed_vpls`).
 MAX_SHADOWED_VPLS = 768
+#: Of the largest pool's pages, the share vplace plans to fill (the user's lights take pages
+#: too): what "Set up EEVEE for vplace" sizes the pool by (``eevee_setup``).
+POOL_SHARE = 0.9
+
+
+def shadowed_vpls(profile: str, other_pages: int) -> int:
+    """How many VPL lights of ``profile`` cast a shadow: :data:`MAX_SHADOWED_VPLS`, or fewer
+    where their pages (:data:`SHADOW_PAGES`) and ``other_pages`` (the scene's other shadowed
+    lights: the user's, vplace's stand-ins) would not fit in :data:`POOL_SHARE` of the largest
+    pool. 768 POINT lights take 4,608 pages of 4,096: "Set up EEVEE" could not make room."""
+    per = SHADOW_PAGES["AREA" if profile == "cosine" else "POINT"]
+    room = POOL_SHARE * MAX_POOL_PAGES - other_pages
+    return max(0, min(MAX_SHADOWED_VPLS, int(room // per)))
+
+
+def light_pages(light: bpy.types.Light) -> int:
+    """Shadow pool pages a shadowed light takes at its coarsest level (an estimate)."""
+    return 16 if light.type == "SUN" else SHADOW_PAGES.get(light.type, 6)
 
 
 def cutoff_loss(distance: float, cutoff: float) -> float:
@@ -487,7 +506,11 @@ def write_vpls(
     coll = new_collection(name, region, closed, near)
     lum = power @ np.asarray(vplace.LUMINANCE, dtype=np.float64)
     lit = np.flatnonzero(power.max(axis=1) > 0)
-    shadowed = set(lit[np.argsort(-lum[lit], kind="stable")[:MAX_SHADOWED_VPLS]].tolist())
+    others = (
+        user_shadow_pages(scene) + SHADOW_PAGES["AREA"] * len(emitters) + 16 * (sun is not None)
+    )
+    cap = shadowed_vpls(vpls.profile, others)
+    shadowed = set(lit[np.argsort(-lum[lit], kind="stable")[:cap]].tolist())
     try:
         for i in lit:
             _new_vpl_object(
@@ -515,6 +538,18 @@ def write_vpls(
     coll = replace_collection(scene, coll, name)
     coll[CUT_LAMPS_KEY] = list(cut_lamps)
     return coll
+
+
+def user_shadow_pages(scene: bpy.types.Scene) -> int:
+    """Shadow pool pages the scene's own shadowed lamps take (not vplace's lights)."""
+    return sum(
+        light_pages(o.data)
+        for o in scene.objects
+        if o.type == "LIGHT"
+        and not o.hide_render
+        and o.data.use_shadow
+        and not o.get(VPL_MARKER, False)
+    )
 
 
 def exclude_receivers(coll: bpy.types.Collection, unlit: Sequence[str]) -> None:

@@ -94,8 +94,8 @@ SHADOW_RAYS = 4
 MAX_LIGHTS = 65536
 #: Pool sizes (MB) EEVEE offers, smallest first.
 POOL_SIZES = (16, 32, 64, 128, 256, 512, 1024)
-#: Of the pool's pages, the share vplace plans to fill (the user's lights take pages too).
-POOL_SHARE = 0.9
+#: Of the pool's pages, the share vplace plans to fill (``apply.POOL_SHARE``).
+POOL_SHARE = apply.POOL_SHARE
 #: The light probe volume encloses the scene's bounds times this (its walls inside it).
 VOLUME_MARGIN = 1.15
 #: Probes along the volume's longest side (the others in proportion, at least 2).
@@ -191,8 +191,7 @@ def shadow_pages(scene: bpy.types.Scene) -> int:
     for obj in scene.objects:
         if obj.type != "LIGHT" or obj.hide_render or not obj.data.use_shadow:
             continue
-        kind = obj.data.type
-        pages += apply.SHADOW_PAGES.get(kind, 6) if kind != "SUN" else 16
+        pages += apply.light_pages(obj.data)
     return pages
 
 
@@ -398,7 +397,11 @@ def problems(scene: bpy.types.Scene) -> list[Problem]:
                 )
             )
     unshadowed = [o.name for o in vpls if not o.data.use_shadow]
-    if len(unshadowed) > max(0, len(vpls) - apply.MAX_SHADOWED_VPLS):
+    # The VPL lights' own (their stand-ins' and the user's lamps' pages come first).
+    own = [o for o in vpls if o.get("vplace_index") is not None]
+    others = shadow_pages(scene) - sum(apply.light_pages(o.data) for o in own if o.data.use_shadow)
+    profile = "cosine" if all(o.data.type == "AREA" for o in own) else "omni"
+    if len(unshadowed) > max(0, len(vpls) - apply.shadowed_vpls(profile, others)):
         found.append(
             Problem(
                 "Light.use_shadow",

@@ -294,3 +294,25 @@ def test_each_scene_keeps_its_own_probe_volume(scene):
     assert (
         len([o for o in bpy.data.objects if o.type == "LIGHT_PROBE" and o.get("vplace_vpl")]) == 2
     )
+
+
+@pytest.mark.parametrize("profile", ["cosine", "omni"])
+def test_set_up_makes_room_for_every_shadow_a_large_budget_writes(scene, profile):
+    """1,000 VPLs: the shadowed ones fit the largest pool beside the user's lamp (768 POINT
+    lights alone would take 4,608 of its 4,096 pages), so "Set up EEVEE" clears the problem."""
+    n = 1000
+    rng = np.random.default_rng(0)
+    pos = rng.uniform(-0.8, 0.8, (n, 3)).astype(np.float32) + np.float32([0, 0, 1])
+    up = np.tile(np.float32([0, 0, 1]), (n, 1))
+    flux = rng.uniform(0.1, 1.0, (n, 3)).astype(np.float32)
+    vpls = vplace.VplSet(pos, up, flux, profile=profile)
+    coll = apply.write_vpls(scene, vpls, scene_diagonal=3.5)
+    shadowed = sum(o.data.use_shadow for o in coll.objects)
+    per = apply.SHADOW_PAGES["AREA" if profile == "cosine" else "POINT"]
+    user = apply.user_shadow_pages(scene)  # the box's AREA lamp: 5
+    assert shadowed == (613 if profile == "omni" else 736) and user == 5
+    assert shadowed * per + user <= 0.9 * apply.MAX_POOL_PAGES
+    eevee_setup.set_up(scene, bake_volume=False)
+    assert not {"scene.eevee.shadow_pool_size", "Light.use_shadow"} & settings(
+        eevee_setup.problems(scene)
+    )
