@@ -826,6 +826,15 @@ def set_up(scene: bpy.types.Scene, *, bake_volume: bool = True) -> list[str]:
     what it changed, in words. The user's own objects are not touched."""
     e = scene.eevee
     changed: list[str] = []
+    # What would stop it half-way, found before anything changes: a collection of the user's
+    # with the probes' name; an emitting world with no mesh to fit a probe volume to.
+    user = bpy.data.collections.get(PROBE_COLLECTION)
+    if user is not None and not user.get(VPL_MARKER, False):
+        raise AddonError(
+            f"a collection named {PROBE_COLLECTION!r} exists but was not made by vplace; rename it"
+        )
+    if world_emits(scene):
+        scene_bounds(scene)
 
     def put(struct: object, attr: str, value: object, label: str) -> None:
         if getattr(struct, attr) != value:

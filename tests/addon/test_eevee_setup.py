@@ -316,3 +316,17 @@ def test_set_up_makes_room_for_every_shadow_a_large_budget_writes(scene, profile
     assert not {"scene.eevee.shadow_pool_size", "Light.use_shadow"} & settings(
         eevee_setup.problems(scene)
     )
+
+
+def test_set_up_refuses_before_it_changes_anything(scene):
+    """A collection of the user's named like vplace's probes: refused with the scene as it was."""
+    write(scene, 4)
+    bg = scene.world.node_tree.nodes["Background"]
+    bg.inputs["Strength"].default_value = 1.0
+    bg.inputs["Color"].default_value = (0.05, 0.05, 0.05, 1)
+    scene.collection.children.link(bpy.data.collections.new(eevee_setup.PROBE_COLLECTION))
+    scene.eevee.use_raytracing = False
+    before = data_snapshot()
+    with pytest.raises(vplace.VplaceError, match="was not made by vplace"):
+        eevee_setup.set_up(scene, bake_volume=False)
+    assert diff(before, data_snapshot()) == []
