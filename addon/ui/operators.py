@@ -310,6 +310,9 @@ class VPLACE_OT_clear_vpls(bpy.types.Operator):
         except vplace.VplaceError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
+        # The last run's report was of the lights just removed.
+        if hasattr(context.scene, "vplace"):
+            context.scene.vplace.last_report = ""
         # Without the sky portals the world must light EEVEE again.
         world = context.scene.world
         if eevee_setup.is_camera_only(world):
@@ -350,6 +353,9 @@ class VPLACE_OT_camera_remove(bpy.types.Operator):
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         settings = context.scene.vplace
+        if not 0 <= settings.camera_index < len(settings.cameras):
+            self.report({"ERROR"}, "select a camera row to remove")
+            return {"CANCELLED"}
         settings.cameras.remove(settings.camera_index)
         settings.camera_index = max(0, min(settings.camera_index, len(settings.cameras) - 1))
         return {"FINISHED"}

@@ -84,17 +84,20 @@ def test_bad_vpl_sets_are_refused():
 
 
 def test_clear_operator_is_undoable_and_reports():
-    from addon.ui import operators
+    """Clear removes the lights and the last run's report of them."""
+    import addon
 
-    operators.register()
+    addon.register()
     try:
         scene = cornell()
         apply.write_vpls(scene, some_vpls(4), scene_diagonal=3.4)
-        assert "UNDO" in operators.VPLACE_OT_clear_vpls.bl_options
+        scene.vplace.last_report = '{"n_vpls": 4}'
+        assert "UNDO" in addon.ui.operators.VPLACE_OT_clear_vpls.bl_options
         assert bpy.ops.vplace.clear_vpls() == {"FINISHED"}
         assert bpy.data.collections.get(apply.COLLECTION_NAME) is None
+        assert scene.vplace.last_report == ""
     finally:
-        operators.unregister()
+        addon.unregister()
 
 
 def test_failure_half_way_keeps_the_previous_vpls(monkeypatch):

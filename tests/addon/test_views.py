@@ -48,6 +48,10 @@ def test_two_chosen_cameras_give_one_set_of_lights(scene, tmp_path):
     assert set(report["fit"]["view_r2"]) == set(report["views"] + report["region_views"])
     assert len(apply.find_collection().objects) <= 8
     assert bpy.ops.vplace.camera_remove() == {"FINISHED"} and len(s.cameras) == 1
+    s.camera_index = 5  # no such row: said, nothing removed
+    with pytest.raises(RuntimeError, match="select a camera row"):
+        bpy.ops.vplace.camera_remove()
+    assert len(s.cameras) == 1
 
 
 def test_frames_of_an_animated_camera(scene):
