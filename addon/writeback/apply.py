@@ -131,6 +131,8 @@ SHADOW_TEXEL_DIAGONALS = 0.01
 #: Shadow pool pages one VPL light takes at the coarsest level (measured on Sponza: 1,195 pages
 #: for 256 AREA lights, about 4.7; a POINT light has 6 cube faces).
 SHADOW_PAGES = {"AREA": 5, "POINT": 6}
+#: ... and a SUN light's (its cascade).
+SUN_PAGES = 16
 #: Pages per MB of ``scene.eevee.shadow_pool_size``, and the largest pool (EEVEE's
 #: ``SHADOW_MAX_PAGE``: 4,096 pages).
 POOL_PAGES_PER_MB = 4
@@ -157,7 +159,14 @@ def shadowed_vpls(profile: str, other_pages: int) -> int:
 
 def light_pages(light: bpy.types.Light) -> int:
     """Shadow pool pages a shadowed light takes at its coarsest level (an estimate)."""
-    return 16 if light.type == "SUN" else SHADOW_PAGES.get(light.type, 6)
+    return SUN_PAGES if light.type == "SUN" else SHADOW_PAGES.get(light.type, 6)
+
+
+def shadow_cap(scene: bpy.types.Scene, profile: str, emitters: int, sun: bool) -> int:
+    """:func:`shadowed_vpls` for VPL lights of ``profile`` written into ``scene`` beside
+    ``emitters`` AREA stand-ins and, with ``sun``, a SUN light for the world's sun."""
+    others = user_shadow_pages(scene) + SHADOW_PAGES["AREA"] * emitters + SUN_PAGES * sun
+    return shadowed_vpls(profile, others)
 
 
 def cutoff_loss(distance: float, cutoff: float) -> float:
@@ -172,10 +181,13 @@ def _role(coll: bpy.types.Collection) -> str:
     """The name a vplace collection was written under (:data:`ROLE_KEY`; a collection written
     before it was kept: its name without Blender's ``.001``)."""
     role = coll.get(ROLE_KEY)
-    if role is not None:
-        return str(role)
-    base, dot, tail = coll.name.rpartition(".")
-    return base if dot and len(tail) == 3 and tail.isdigit() and base else coll.name
+    return str(role) if role is not None else _base_name(coll.name)
+
+
+def _base_name(name: str) -> str:
+    """``name`` without the ``.001`` Blender adds to a name already taken."""
+    base, dot, tail = name.rpartition(".")
+    return base if dot and len(tail) == 3 and tail.isdigit() and base else name
 
 
 def scene_collection(
@@ -506,10 +518,7 @@ def write_vpls(
     coll = new_collection(name, region, closed, near)
     lum = power @ np.asarray(vplace.LUMINANCE, dtype=np.float64)
     lit = np.flatnonzero(power.max(axis=1) > 0)
-    others = (
-        user_shadow_pages(scene) + SHADOW_PAGES["AREA"] * len(emitters) + 16 * (sun is not None)
-    )
-    cap = shadowed_vpls(vpls.profile, others)
+    cap = shadow_cap(scene, vpls.profile, len(emitters), sun is not None)
     shadowed = set(lit[np.argsort(-lum[lit], kind="stable")[:cap]].tolist())
     try:
         for i in lit:
@@ -631,8 +640,7 @@ def replace_collection(
 
 def _own_name(block: bpy.types.ID) -> None:
     """Renames ``block`` from Blender's "name.001" to "name" where that name is free."""
-    base, dot, tail = block.name.rpartition(".")
-    if dot and len(tail) == 3 and tail.isdigit() and base:
-        kind = bpy.data.objects if isinstance(block, bpy.types.Object) else bpy.data.lights
-        if base not in kind:
-            block.name = base
+    base = _base_name(block.name)
+    kind = bpy.data.objects if isinstance(block, bpy.types.Object) else bpy.data.lights
+    if base != block.name and base not in kind:
+        block.name = base

@@ -776,12 +776,8 @@ def world_for_render(
 
 def _probe_collection(scene: bpy.types.Scene) -> bpy.types.Collection:
     """A fresh, empty probe collection of vplace's, linked to ``scene`` in place of the one
-    vplace made there before (never another scene's)."""
-    user = bpy.data.collections.get(PROBE_COLLECTION)
-    if user is not None and not user.get(VPL_MARKER, False):
-        raise AddonError(
-            f"a collection named {PROBE_COLLECTION!r} exists but was not made by vplace; rename it"
-        )
+    vplace made there before (never another scene's). Its caller, :func:`set_up`, has refused a
+    collection of the user's of that name before changing anything."""
     old = apply.scene_collection(scene, PROBE_COLLECTION)
     if old is not None:
         for obj in list(old.objects):

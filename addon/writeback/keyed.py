@@ -122,12 +122,8 @@ def write_keyed(
     cosine = keyed.profile == "cosine"
     lum = keyed.power @ np.asarray(vplace.LUMINANCE, dtype=np.float64)  # (F, S)
     brightest = lum.max(axis=0, initial=0.0)
-    others = (
-        apply.user_shadow_pages(scene)
-        + apply.SHADOW_PAGES["AREA"] * (len(emitters) + max(map(len, portals), default=0))
-        + 16 * any(s is not None for s in suns)
-    )
-    cap = apply.shadowed_vpls(keyed.profile, others)
+    stand_ins = len(emitters) + max(map(len, portals), default=0)
+    cap = apply.shadow_cap(scene, keyed.profile, stand_ins, any(s is not None for s in suns))
     shadowed = set(np.argsort(-brightest, kind="stable")[:cap].tolist())
     energy, color = keyed.energy, keyed.color
     current = scene.frame_current
