@@ -5,7 +5,9 @@ part on the main thread (:meth:`start`), the native part on a worker thread (:me
 must not touch ``bpy``) while the status bar and the window's progress indicator show how far it
 is, Esc cancels it through a ``vplace.Progress``, and :meth:`finish` runs back on the main thread
 with the result. A cancelled or failed run leaves the scene as it was: only :meth:`finish`
-changes it. Headless (no window), ``execute`` runs the three steps in a row.
+changes it, and Esc pressed at any time before it runs cancels the run, even where the worker
+has already finished. One run at a time: while a worker runs, another start is refused
+(:func:`running`). Headless (no window), ``execute`` runs the three steps in a row.
 """
 
 from __future__ import annotations
@@ -17,6 +19,19 @@ import bpy
 
 from ..errors import AddonError
 from ..native import vplace
+
+#: The run whose worker was started last: its operator's label and its thread.
+_current: tuple[str, threading.Thread] | None = None
+
+
+def running() -> str | None:
+    """The label of the vplace operator whose worker thread runs now, or None. A second run
+    started meanwhile would write its lights first and see them replaced by the older run's
+    when that one finishes (or replace them the other way round): the last to finish would
+    win, not the last asked for."""
+    if _current is not None and _current[1].is_alive():
+        return _current[0]
+    return None
 
 
 class BackgroundOperator:
@@ -64,7 +79,14 @@ class BackgroundOperator:
             return self._fail(exc)
 
     def _start(self, context: bpy.types.Context) -> None:
-        """:meth:`start`, remembering the scene it ran in (:meth:`_finish` writes nowhere else)."""
+        """:meth:`start`, remembering the scene it ran in (:meth:`_finish` writes nowhere else);
+        refused while another run's worker works (:func:`running`)."""
+        busy = running()
+        if busy is not None:
+            raise AddonError(
+                f"vplace is still running {busy!r}: wait for it to finish (Esc cancels it) "
+                "and run this again"
+            )
         self._scene_name = _scene_name(context)
         self.start(context)
 
@@ -92,8 +114,10 @@ class BackgroundOperator:
             except Exception as exc:  # handed to the main thread, reported or re-raised there
                 self.result.append(exc)
 
+        global _current
         self._thread = threading.Thread(target=run, daemon=True)
         self._thread.start()
+        _current = (getattr(self, "bl_label", type(self).__name__), self._thread)
         wm = context.window_manager
         wm.progress_begin(0, 100)
         self._timer = wm.event_timer_add(0.1, window=context.window)
@@ -102,6 +126,9 @@ class BackgroundOperator:
 
     def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
         if event.type == "ESC":
+            # Asked for, the cancel holds even where the worker has just finished: nothing is
+            # written after the user pressed Esc.
+            self._cancel_asked = True
             self.progress.cancel()
         if event.type != "TIMER":
             return {"RUNNING_MODAL"}
@@ -116,11 +143,17 @@ class BackgroundOperator:
             return {"RUNNING_MODAL"}
         self._cleanup(context)
         outcome = self.result[0]
+        bug = isinstance(outcome, BaseException) and not isinstance(outcome, vplace.VplaceError)
+        if getattr(self, "_cancel_asked", False) and not bug:
+            return self._fail(vplace.CancelledError("cancelled"))
         if isinstance(outcome, BaseException):
             return self._fail(outcome)
         return self._finish(context, outcome)
 
     def _cleanup(self, context: bpy.types.Context) -> None:
+        global _current
+        if _current is not None and _current[1] is self._thread:
+            _current = None
         wm = context.window_manager
         wm.event_timer_remove(self._timer)
         wm.progress_end()

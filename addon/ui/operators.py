@@ -22,7 +22,7 @@ from .. import job as pipeline
 from ..native import vplace
 from ..writeback import apply, eevee_setup, par2d_bake
 from ..writeback import stage as writeback_stage
-from .modal import BackgroundOperator
+from .modal import BackgroundOperator, running
 
 
 def cache_dir() -> Path:
@@ -165,6 +165,10 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
+        busy = running()
+        if busy is not None:
+            cls.poll_message_set(f"vplace is still running {busy!r} (Esc cancels it)")
+            return False
         return _has_camera(context)
 
     def start(self, context: bpy.types.Context) -> None:
@@ -220,11 +224,18 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
             closed=self.prepared.stand_ins.closed,
             cut_lamps=self.prepared.cut_lamps,
         )
-        summary = pipeline.summary(scene, self.job, self.prepared, computed, self.timer)
-        summary.set_match(self.matched, computed.laid.match)
-        if scene.vplace.check_eevee:
-            summary.eevee = self._check_eevee(scene, computed)
-        scene.vplace.last_report = json.dumps(summary.to_dict())
+        try:
+            summary = pipeline.summary(scene, self.job, self.prepared, computed, self.timer)
+            summary.set_match(self.matched, computed.laid.match)
+            if scene.vplace.check_eevee:
+                summary.eevee = self._check_eevee(scene, computed)
+            scene.vplace.last_report = json.dumps(summary.to_dict())
+        except vplace.VplaceError as exc:
+            # The lights are written, and undoable as one step: the run is done, its report is
+            # not, and the panel shows no report rather than the last run's.
+            scene.vplace.last_report = ""
+            self.report({"WARNING"}, f"the lights are written; their report failed: {exc}")
+            return {"FINISHED"}
         if computed.fit is not None:
             _store_fit(scene, computed.fit, self.key)
         emitters, portals = summary.emitter_lights_written, summary.portals_written

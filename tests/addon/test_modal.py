@@ -9,6 +9,7 @@ from types import SimpleNamespace
 import pytest
 
 from addon.native import vplace
+from addon.ui import modal
 from addon.ui.modal import BackgroundOperator
 
 
@@ -106,3 +107,80 @@ def test_esc_cancels_the_progress_the_worker_polls():
     op.progress = vplace.Progress()
     assert op.modal(_modal_context([]), SimpleNamespace(type="ESC")) == {"RUNNING_MODAL"}
     assert op.progress.cancelled
+
+
+def _window_context(calls):
+    """A context with a window: ``invoke`` runs the worker on a thread and goes modal."""
+    wm = SimpleNamespace(
+        progress_begin=lambda a, b: calls.append(("begin", b)),
+        progress_update=lambda v: calls.append(("progress", v)),
+        event_timer_add=lambda dt, window=None: "t",
+        event_timer_remove=lambda t: calls.append(("timer removed", t)),
+        modal_handler_add=lambda op: calls.append(("modal", op)),
+        progress_end=lambda: calls.append(("end", None)),
+    )
+    return SimpleNamespace(window=object(), window_manager=wm, workspace=None)
+
+
+class Gated(Fake):
+    """A :class:`Fake` whose worker waits for ``gate``."""
+
+    bl_label = "Gated run"
+
+    def __init__(self, gate: threading.Event) -> None:
+        super().__init__()
+        self.gate = gate
+
+    def work(self, progress):
+        self.gate.wait(10)
+        return super().work(progress)
+
+
+def _drive(op, context, *events):
+    """Sends ``events`` to ``op``'s modal, then TIMER events until it returns."""
+    for event in events:
+        op.modal(context, SimpleNamespace(type=event))
+    op._thread.join(10)
+    return op.modal(context, SimpleNamespace(type="TIMER"))
+
+
+def test_a_second_run_is_refused_while_a_worker_runs():
+    gate = threading.Event()
+    first = Gated(gate)
+    context = _window_context([])
+    assert first.invoke(context, None) == {"RUNNING_MODAL"}
+    try:
+        assert modal.running() == "Gated run"
+        second = Fake()
+        assert second.invoke(context, None) == {"CANCELLED"}
+        assert second.ran == []  # refused before its start: nothing captured, nothing written
+        assert "still running 'Gated run'" in second.reports[0][1]
+        assert second.execute(headless()) == {"CANCELLED"}  # a script's call too
+    finally:
+        gate.set()
+    assert _drive(first, context) == {"FINISHED"} and first.ran == ["start", "work", "finish"]
+    assert modal.running() is None
+    third = Fake()
+    assert third.execute(headless()) == {"FINISHED"}
+
+
+def test_esc_after_the_worker_finished_still_cancels():
+    gate = threading.Event()
+    gate.set()  # the worker finishes before the Esc is seen
+    op = Gated(gate)
+    context = _window_context([])
+    assert op.invoke(context, None) == {"RUNNING_MODAL"}
+    op._thread.join(10)
+    assert op.result == [42]
+    assert _drive(op, context, "ESC") == {"CANCELLED"}
+    assert op.ran == ["start", "work"]  # finish, which writes, never ran
+    assert op.reports[0][0] == {"WARNING"} and "unchanged" in op.reports[0][1]
+
+
+def test_esc_does_not_hide_a_bug_in_the_worker():
+    op = Fake()
+    op.progress, op._thread, op._timer = vplace.Progress(), None, "t"
+    op.result = [ZeroDivisionError()]
+    op.modal(_modal_context([]), SimpleNamespace(type="ESC"))
+    with pytest.raises(ZeroDivisionError):
+        op.modal(_modal_context([]), SimpleNamespace(type="TIMER"))

@@ -70,6 +70,40 @@ def test_failed_apply_reports_and_changes_nothing(registered):
     assert not bpy.ops.vplace.apply.poll()
 
 
+def test_a_report_that_fails_after_the_write_keeps_the_lights_as_one_undo_step(
+    registered, monkeypatch
+):
+    scene = small_cornell()
+    scene.vplace.last_report = '{"n_vpls": 99}'  # an older run's
+
+    def fails(*_args, **_kwargs):
+        raise vplace.InputError("the summary broke")
+
+    monkeypatch.setattr(addon.job, "summary", fails)
+    # FINISHED, not CANCELLED: Blender pushes an undo step for the lights just written.
+    assert bpy.ops.vplace.apply() == {"FINISHED"}
+    assert len(apply.find_collection().objects) > 8
+    assert scene.vplace.last_report == ""  # not the older run's report of other lights
+
+
+def test_apply_is_greyed_out_while_a_run_works(registered, monkeypatch):
+    import threading
+
+    from addon.ui import modal
+
+    small_cornell()
+    gate = threading.Event()
+    worker = threading.Thread(target=gate.wait, args=(10,), daemon=True)
+    worker.start()
+    monkeypatch.setattr(modal, "_current", ("Lay out and apply", worker))
+    try:
+        assert not bpy.ops.vplace.apply.poll()
+    finally:
+        gate.set()
+        worker.join()
+    assert bpy.ops.vplace.apply.poll()
+
+
 @pytest.mark.parametrize("method", ["vplace", "rsm"])
 def test_apply_with_each_layout_method(registered, method):
     scene = small_cornell()
