@@ -634,7 +634,16 @@ def replace_collection(
     for obj in coll.objects:
         if obj.get(VPL_MARKER, False):
             for block in (obj, obj.data):
+                was = block.name
                 _own_name(block)
+                # The keyed write-back's action, named by Blender after its light as it was
+                # ("vplace VPL slot 0000.001Action"), follows it.
+                anim = block.animation_data
+                action = None if anim is None else anim.action
+                if action is not None and action.get(VPL_MARKER) and action.name.startswith(was):
+                    mine = block.name + action.name[len(was) :]
+                    if mine != action.name and mine not in bpy.data.actions:
+                        action.name = mine
     return coll
 
 

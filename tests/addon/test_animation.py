@@ -248,6 +248,23 @@ def test_a_keyed_sun_is_dark_where_the_frame_has_none():
     assert energy == [(1.0, 2.0), (5.0, 0.0)]
 
 
+def test_a_rerun_keys_its_lights_with_actions_of_their_own_names():
+    scene, tracked = _one_vpl_on_two_frames()
+    names = []
+    for _ in range(3):
+        coll = keyed.write_keyed(scene, [1, 5], tracked)
+        names.append(
+            sorted(
+                block.animation_data.action.name
+                for obj in coll.objects
+                for block in (obj, obj.data)
+                if block.animation_data is not None
+            )
+        )
+    assert names[0] and names[1] == names[0] and names[2] == names[0]  # no ".001" on re-runs
+    assert not any(".001Action" in a.name for a in bpy.data.actions)
+
+
 def test_the_keyed_lights_leave_the_unlit_objects_out_as_the_still_ones_do():
     scene, tracked = _one_vpl_on_two_frames()
     mesh = bpy.data.meshes.new("chrome")
