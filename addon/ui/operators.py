@@ -248,7 +248,7 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
         note = f" ({missing} of {summary.n_vpls} carry no power)" if missing else ""
         self.report({"INFO"}, f"wrote {summary.lights_written} VPL lights{note}{extra}")
         for problem in eevee_setup.problems(scene):
-            self.report({"WARNING"}, f"EEVEE: {problem} (Set up EEVEE for vplace fixes it)")
+            self.report({"WARNING"}, f"EEVEE: {problem.advice()}")
         return {"FINISHED"}
 
     def _check_eevee(
@@ -304,7 +304,7 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
             f"wrote {tracked.position.shape[1]} VPL lights keyed over frames {frames}",
         )
         for problem in eevee_setup.problems(scene):
-            self.report({"WARNING"}, f"EEVEE: {problem} (Set up EEVEE for vplace fixes it)")
+            self.report({"WARNING"}, f"EEVEE: {problem.advice()}")
         return {"FINISHED"}
 
 

@@ -84,6 +84,8 @@ class VPLACE_PT_main(_Panel, bpy.types.Panel):
             for problem in found:
                 box.label(text=problem.setting)
                 box.label(text=f"  {problem.message}")
+                if problem.remedy:
+                    box.label(text=f"  {problem.remedy}")
         written = eevee_setup.vpl_lights(context.scene)
         notes = []  # eevee_setup.lamp_notes, in lines the panel does not cut
         lamps = eevee_setup.unjittered_lamps(context.scene) if written else []

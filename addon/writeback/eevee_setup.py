@@ -119,6 +119,22 @@ class Problem:
     def __str__(self) -> str:
         return f"{self.setting}: {self.message}"
 
+    @property
+    def remedy(self) -> str:
+        """What fixes it where the message does not say: "Set up EEVEE for vplace" for the
+        EEVEE and world settings it applies, a new write for VPL lights that lost their
+        shadow; empty where only the user can (the light count, their own probe volume: the
+        message says how)."""
+        if self.setting.startswith(("scene.eevee.", "world")):
+            return "Set up EEVEE for vplace fixes it"
+        if self.setting.startswith("Light."):
+            return "Lay out and apply again writes them as vplace sets them"
+        return ""
+
+    def advice(self) -> str:
+        """The problem with its :attr:`remedy`, one line."""
+        return f"{self} ({self.remedy})" if self.remedy else str(self)
+
 
 def vpl_lights(scene: bpy.types.Scene) -> list[bpy.types.Object]:
     """The light objects vplace wrote into ``scene``."""
@@ -413,7 +429,7 @@ def problems(scene: bpy.types.Scene) -> list[Problem]:
     if uncut and e.light_threshold > 0:
         found.append(
             Problem(
-                "scene.eevee.light_threshold",
+                "Light.use_custom_distance",
                 f"{len(uncut)} VPL lights have no custom distance (e.g. {uncut[0]!r}): EEVEE cuts "
                 f"them where they fall below the light threshold {e.light_threshold:g}",
             )

@@ -80,9 +80,10 @@ def write_back(
                 filepath=str(blend_path),
                 copy=True,
             )
-    problems = [str(p) for p in eevee_setup.problems(bl_scene)]
-    for problem in problems:
-        log(f"[vplace] warning: EEVEE: {problem} (Set up EEVEE for vplace fixes it)")
+    found = eevee_setup.problems(bl_scene)
+    problems = [str(p) for p in found]
+    for problem in found:
+        log(f"[vplace] warning: EEVEE: {problem.advice()}")
     notes = eevee_setup.lamp_notes(bl_scene, cut_lamps)
     for note in notes:
         log(f"[vplace] note: {note}")

@@ -53,7 +53,7 @@ def test_every_problem_is_named_and_set_up_fixes_it(scene):
     found = eevee_setup.problems(scene)
     assert settings(found) == {
         "scene.eevee.shadow_pool_size",
-        "scene.eevee.light_threshold",
+        "Light.use_custom_distance",
         "scene.eevee.fast_gi_method",
         "users volume.capture_indirect",
         "world",
@@ -70,11 +70,20 @@ def test_every_problem_is_named_and_set_up_fixes_it(scene):
     assert volume is not None and not volume.data.capture_indirect
     lo, hi = eevee_setup.scene_bounds(scene)
     assert all(2 * s >= 1.14 * (b - a) for s, a, b in zip(volume.scale, lo, hi, strict=True))
-    # What is left is the user's own: their edited light and their own probe volume.
-    assert settings(eevee_setup.problems(scene)) == {
-        "scene.eevee.light_threshold",
-        "users volume.capture_indirect",
-    }
+    # What is left is the user's own: their edited light and their own probe volume; the
+    # warnings send the user to what fixes them, not to the set-up again.
+    left = eevee_setup.problems(scene)
+    assert settings(left) == {"Light.use_custom_distance", "users volume.capture_indirect"}
+    assert [p.remedy for p in left] == [
+        "Lay out and apply again writes them as vplace sets them",
+        "",
+    ]
+    assert all("Set up" not in p.advice() for p in left)
+    assert all(
+        "Set up EEVEE for vplace fixes it" in p.advice()
+        for p in found
+        if p.setting[:6] in ("scene.", "world")
+    )
     # Only scene settings and vplace's own collection changed, never the user's objects.
     changes = diff(before, data_snapshot())
     assert changes and all(d.startswith("/scenes/Scene/eevee/") for d in changes), changes
