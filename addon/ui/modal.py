@@ -20,7 +20,8 @@ import bpy
 from ..errors import AddonError
 from ..native import vplace
 
-#: The run whose worker was started last: its operator's label and its thread.
+#: The run whose worker was started last: its operator's label and its thread (running while
+#: the thread is alive: :func:`running`).
 _current: tuple[str, threading.Thread] | None = None
 
 
@@ -151,9 +152,6 @@ class BackgroundOperator:
         return self._finish(context, outcome)
 
     def _cleanup(self, context: bpy.types.Context) -> None:
-        global _current
-        if _current is not None and _current[1] is self._thread:
-            _current = None
         wm = context.window_manager
         wm.event_timer_remove(self._timer)
         wm.progress_end()

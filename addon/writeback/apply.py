@@ -274,16 +274,21 @@ def _empty(coll: bpy.types.Collection, scene: bpy.types.Scene | None = None) -> 
     return count
 
 
+def _vpl_action(block: bpy.types.ID | None) -> bpy.types.Action | None:
+    """The action the keyed write-back (``keyed``) gave ``block``, marked as vplace's, or
+    None."""
+    anim = getattr(block, "animation_data", None) if block is not None else None
+    action = anim.action if anim is not None else None
+    return action if action is not None and action.get(VPL_MARKER) else None
+
+
 def _remove_objects(objects: Sequence[bpy.types.Object]) -> int:
     """Removes vplace's ``objects`` with their light data and the keyed write-back's actions
     (``keyed``; the object and its light may share one) once nothing else uses them, each kind
     in one batch (one at a time, 8,000 lights took 82 s: each removal walks the file)."""
     lights, actions = [], []
     for obj in objects:
-        for owner in (obj, obj.data):
-            anim = getattr(owner, "animation_data", None) if owner is not None else None
-            if anim is not None and anim.action is not None and anim.action.get(VPL_MARKER):
-                actions.append(anim.action)
+        actions += [a for a in (_vpl_action(obj), _vpl_action(obj.data)) if a is not None]
         if isinstance(obj.data, bpy.types.Light):
             lights.append(obj.data)
     count = len(objects)
@@ -638,9 +643,8 @@ def replace_collection(
                 _own_name(block)
                 # The keyed write-back's action, named by Blender after its light as it was
                 # ("vplace VPL slot 0000.001Action"), follows it.
-                anim = block.animation_data
-                action = None if anim is None else anim.action
-                if action is not None and action.get(VPL_MARKER) and action.name.startswith(was):
+                action = _vpl_action(block)
+                if action is not None and action.name.startswith(was):
                     mine = block.name + action.name[len(was) :]
                     if mine != action.name and mine not in bpy.data.actions:
                         action.name = mine
