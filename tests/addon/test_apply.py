@@ -53,6 +53,25 @@ def test_rerun_replaces_only_the_vpl_collection(profile):
     assert diff(before, data_snapshot()) == []
 
 
+def test_a_rerun_leaves_a_users_block_its_name():
+    """A name the user's own object or light holds stays theirs through re-runs; every other
+    light takes its own name back."""
+    scene = cornell()
+    mine = bpy.data.objects.new("vplace VPL 0001", bpy.data.lights.new("vplace VPL 0003", "SPOT"))
+    scene.collection.objects.link(mine)
+    for seed in (0, 1, 2):
+        apply.write_vpls(scene, some_vpls(5, seed=seed), scene_diagonal=3.4)
+        objects = sorted(o.name for o in apply.find_collection().objects)
+        lights = sorted(o.data.name for o in apply.find_collection().objects)
+        assert objects[0] == "vplace VPL 0000" and objects[2:] == [
+            f"vplace VPL {i:04d}" for i in (2, 3, 4)
+        ]
+        assert objects[1].startswith("vplace VPL 0001.")
+        assert lights[3].startswith("vplace VPL 0003.")
+        assert [n for n in lights if "." not in n] == [f"vplace VPL {i:04d}" for i in (0, 1, 2, 4)]
+        assert mine.name == "vplace VPL 0001" and mine.data.name == "vplace VPL 0003"
+
+
 def test_vpls_are_not_exported_as_scene_lights():
     scene = cornell()
     apply.write_vpls(scene, some_vpls(5), scene_diagonal=3.4)
