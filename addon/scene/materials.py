@@ -71,6 +71,8 @@ from typing import Any
 import bpy
 import numpy as np
 
+from ..native import vplace
+
 __all__ = [
     "ImageCache",
     "ImageData",
@@ -190,7 +192,6 @@ class ImageCache:
         channels = image.channels
         flat = np.empty(w * h * channels, dtype=np.float32)
         image.pixels.foreach_get(flat)
-        px = flat.reshape(h, w, channels)[::-1]  # bpy rows are bottom-first
         space = image.colorspace_settings
         decode = (
             not image.is_float
@@ -201,21 +202,15 @@ class ImageCache:
             self.warnings.append(
                 f"image {image.name!r} is in colour space {space.name!r}: read as sRGB"
             )
-        out = np.empty((h, w, 4), dtype=np.float32)
-        if channels >= 3:
-            rgb = px[..., :3]
-        else:
-            rgb = np.repeat(px[..., :1], 3, axis=-1)
-        if decode:
-            out[..., :3] = SRGB_TO_LINEAR[np.rint(rgb * 255.0).astype(np.uint8)]
-        else:
-            out[..., :3] = rgb
-        if channels in (2, 4) and image.alpha_mode != "NONE":
-            out[..., 3] = px[..., -1]
-        else:
-            out[..., 3] = 1.0
-        mean = out.reshape(-1, 4).mean(axis=0, dtype=np.float64)
-        return ImageData(out, mean)
+        # Flipped (bpy rows are bottom-first), decoded through the table and averaged natively:
+        # numpy took 0.34 s for Sponza's 24 textures.
+        out, mean = vplace.linear_image(
+            flat.reshape(h, w, channels),
+            table=SRGB_TO_LINEAR if decode else None,
+            alpha=image.alpha_mode != "NONE",
+            name=f"image {image.name!r}",
+        )
+        return ImageData(out, np.asarray(mean, dtype=np.float64))
 
 
 @dataclass

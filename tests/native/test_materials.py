@@ -162,3 +162,34 @@ def test_normal_at_is_the_triangles_winding_side():
     np.testing.assert_allclose(normals, [[0, 0, 0], [0, 0, -1]])
     with pytest.raises(vplace.InputError, match="index 4 is out of bounds for 4 triangles"):
         scene.normal_at(np.array([4], np.uint32), np.zeros((1, 2), np.float32))
+
+
+def test_linear_image_flips_decodes_and_averages():
+    """Blender's bottom-first pixels come back top-first, RGB through the code table (round
+    half to even), alpha kept only where asked; the mean is every texel's."""
+    rng = np.random.default_rng(3)
+    codes = rng.integers(0, 256, size=(3, 5, 4))
+    pixels = (codes / 255.0).astype(np.float32)
+    table = np.linspace(0.0, 2.0, 256, dtype=np.float32) ** 2
+    out, mean = vplace.linear_image(pixels, table=table, alpha=True, name="t")
+    assert out.shape == (3, 5, 4) and out.dtype == np.float32
+    np.testing.assert_array_equal(out[..., :3], table[codes[::-1, :, :3]])
+    np.testing.assert_array_equal(out[..., 3], pixels[::-1, :, 3])
+    np.testing.assert_allclose(mean, out.reshape(-1, 4).mean(axis=0, dtype=np.float64), 1e-12)
+    plain, _ = vplace.linear_image(pixels[..., :1].copy())
+    np.testing.assert_array_equal(plain[..., :3], np.repeat(pixels[::-1, :, :1], 3, axis=-1))
+    assert (plain[..., 3] == 1.0).all()
+
+
+@pytest.mark.parametrize(
+    ("pixels", "kwargs", "message"),
+    [
+        (np.zeros((2, 2, 4), np.float64), {}, "dtype float32"),
+        (np.zeros((2, 2), np.float32), {}, "shape"),
+        (np.zeros((0, 2, 4), np.float32), {}, "at least one texel"),
+        (np.zeros((2, 2, 4), np.float32), {"table": np.zeros(255, np.float32)}, "table"),
+    ],
+)
+def test_linear_image_bad_input(pixels, kwargs, message):
+    with pytest.raises(vplace.InputError, match=message):
+        vplace.linear_image(pixels, **kwargs)

@@ -2,15 +2,15 @@
 //! textures, per-material maps) for `Scene`.
 
 use glam::{Vec2, Vec3};
-use numpy::PyUntypedArrayMethods;
+use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use vplace_core::{
-    scene::texture::{AlphaSource, AlphaTest, Texture, TextureRef, Wrap},
+    scene::texture::{linear_rgba, AlphaSource, AlphaTest, CodeTable, Texture, TextureRef, Wrap},
     scene::{Gloss, Material},
 };
 
 use crate::arrays::{array, slice, Dim};
-use crate::errors::input_error;
+use crate::errors::{input_error, run};
 
 /// How a material reads one of the scene's textures: `uv' = uv * uv_scale + uv_offset`, then a
 /// bilinear lookup with `wrap` ("repeat" or "extend") past the edges.
@@ -310,8 +310,55 @@ pub fn materials(
 }
 
 /// Registers this file's classes.
+/// An image as Blender's `Image.pixels` holds it, float32 `(height, width, channels)` with row
+/// 0 at the bottom, as linear RGBA float32 `(height, width, 4)` with row 0 at the top, and the
+/// mean of its texels (RGBA, float64 sums). `table`: float32 `(256,)`, the linear value of each
+/// 8-bit code, for a byte image in a non-linear space (each RGB value `v` reads
+/// `table[round(v * 255)]`); None keeps RGB. Alpha is the last channel where `alpha` and there
+/// are 2 or 4 channels, else 1. `name` names the image in errors.
+#[pyfunction]
+#[pyo3(signature = (pixels, *, table=None, alpha=false, name="image"))]
+fn linear_image<'py>(
+    py: Python<'py>,
+    pixels: &Bound<'py, PyAny>,
+    table: Option<&Bound<'py, PyAny>>,
+    alpha: bool,
+    name: &str,
+) -> PyResult<(Bound<'py, PyAny>, [f64; 4])> {
+    let px = array::<f32>(pixels, "pixels", &[Dim::Any, Dim::Any, Dim::Any], "float32")?;
+    let (height, width, channels) = {
+        let s = px.shape();
+        (s[0], s[1], s[2])
+    };
+    let values = slice(&px, "pixels")?.to_vec();
+    let codes: Option<CodeTable> = match table {
+        Some(t) => {
+            let t = array::<f32>(t, "table", &[Dim::Is(256)], "float32")?;
+            let mut codes = [0.0f32; 256];
+            codes.copy_from_slice(slice(&t, "table")?);
+            Some(codes)
+        }
+        None => None,
+    };
+    let what = name.to_owned();
+    let (out, mean) = run(py, move || {
+        linear_rgba(
+            &what,
+            width,
+            height,
+            channels,
+            &values,
+            codes.as_ref(),
+            alpha,
+        )
+    })?;
+    let image = PyArray1::from_vec(py, out).reshape([height, width, 4])?;
+    Ok((image.into_any(), mean))
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyTextureMap>()?;
+    m.add_function(wrap_pyfunction!(linear_image, m)?)?;
     m.add_class::<PyAlphaTest>()?;
     Ok(())
 }

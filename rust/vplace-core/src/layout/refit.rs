@@ -119,7 +119,7 @@ use crate::color::LUMINANCE_F64;
 use crate::error::{Result, VplaceError};
 use crate::layout::iterate::targets;
 use crate::progress::Progress;
-use crate::scene::Scene;
+use crate::scene::{Scene, NO_HINT};
 use crate::shade::evaluator::{check_radius, validate_vpls};
 use crate::shade::shading::{Batch, Receiver, VplSoa};
 use crate::view::{GBuffer, View};
@@ -340,13 +340,13 @@ const PIXELS_PER_TASK: usize = 16;
 
 /// Fills the three rows of `A` of receiver `recv` (`rows`: R, G then B, `n` values each, `n`
 /// the VPLs of `soa`): `brdf * Phi_j * scale_j` where VPL `j`'s shadow ray is not blocked, 0
-/// elsewhere. `occluded` answers a shadow ray. Returns the rays traced.
+/// elsewhere. `occluded` answers VPL `j`'s shadow ray. Returns the rays traced.
 fn pixel_rows(
     recv: &Receiver,
     soa: &VplSoa,
     profile: Profile,
     batch: &mut Batch,
-    mut occluded: impl FnMut(&Ray) -> bool,
+    mut occluded: impl FnMut(&Ray, usize) -> bool,
     rows: &mut [f64],
 ) -> u64 {
     let n = soa.len();
@@ -357,7 +357,7 @@ fn pixel_rows(
     let mut rays = 0u64;
     for (j, c) in batch.unshadowed(soa) {
         rays += 1;
-        let lit = !batch.occluded(j, &mut occluded);
+        let lit = !batch.occluded(j, |ray| occluded(ray, j));
         let a = recv.brdf * if lit { c } else { Vec3::ZERO };
         red[j] = f64::from(a.x);
         green[j] = f64::from(a.y);
@@ -603,12 +603,16 @@ fn group_equations(
             .map(|(task_rows, task_pixels)| {
                 let mut state = scene.shadow_state();
                 let mut batch = Batch::new(n);
+                // Per VPL, the triangle that last blocked its ray in this task's pixels.
+                let mut hints = vec![NO_HINT; n];
                 task_rows
                     .chunks_mut(3 * n)
                     .zip(task_pixels)
                     .map(|(px_rows, &(v, p))| {
                         let recv = Receiver::of_pixel(&gbuffers[v], p, eps);
-                        let occluded = |ray: &_| scene.occluded_ray(&mut state, ray);
+                        let occluded = |ray: &_, j: usize| {
+                            scene.occluded_ray_hinted(&mut state, ray, &mut hints[j])
+                        };
                         pixel_rows(&recv, soa, params.profile, &mut batch, occluded, px_rows)
                     })
                     .sum::<u64>()
@@ -1115,12 +1119,14 @@ fn unseen_weights(
             let mut batch = Batch::new(n);
             let mut rows = vec![0.0f64; 3 * n];
             let mut sum = vec![0.0f64; n];
+            let mut hints = vec![NO_HINT; n];
             if cancelled() {
                 return sum;
             }
             for &(v, p) in task {
                 let recv = Receiver::of_pixel(&gbuffers[v], p, eps);
-                let occluded = |ray: &_| scene.occluded_ray(&mut state, ray);
+                let occluded =
+                    |ray: &_, j: usize| scene.occluded_ray_hinted(&mut state, ray, &mut hints[j]);
                 pixel_rows(&recv, soa, params.profile, &mut batch, occluded, &mut rows);
                 for channel in rows.chunks(n) {
                     sum.iter_mut().zip(channel).for_each(|(s, a)| *s += a * a);
@@ -2050,7 +2056,7 @@ mod tests {
                         &soa,
                         profile,
                         &mut batch,
-                        |ray| scene.occluded_ray(&mut state, ray),
+                        |ray, _| scene.occluded_ray(&mut state, ray),
                         &mut rows,
                     );
                     assert_eq!(rays, pixel_rays, "pixel {p}");

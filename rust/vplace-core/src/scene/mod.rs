@@ -56,6 +56,9 @@ pub use light::{Light, LightKind};
 pub use material::{Gloss, Material};
 use shadow_bvh::ShadowBvh;
 
+/// No triangle named by a [`Scene::occluded_ray_hinted`] hint.
+pub(crate) const NO_HINT: u32 = u32::MAX;
+
 /// A surface hit: distance along the ray and the original triangle index.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hit {
@@ -564,23 +567,63 @@ impl Scene {
     /// segment's length), with a reused traversal state: the same answer as `occluded`.
     #[inline]
     pub(crate) fn occluded_ray(&self, state: &mut Traversal, ray: &Ray) -> bool {
+        self.blocker(state, ray).is_some()
+    }
+
+    /// [`Scene::occluded_ray`] that first tests the triangle `hint` names (the blocker of an
+    /// earlier ray close to this one; [`NO_HINT`]: none) and, where the traversal finds a
+    /// blocker, stores it in `hint`. The same answer as `occluded_ray`: the hinted triangle
+    /// counts only where the traversal would meet it, a hit at or past the node tests' entry
+    /// clamp and before `tmax`, where it is not cut. A shadow ray from a pixel toward a VPL is
+    /// mostly blocked by what blocked the previous pixel's ray toward the same VPL.
+    #[inline]
+    pub(crate) fn occluded_ray_hinted(
+        &self,
+        state: &mut Traversal,
+        ray: &Ray,
+        hint: &mut u32,
+    ) -> bool {
+        if *hint != NO_HINT {
+            let i = *hint as usize;
+            let t = self.bvh_triangles[i].intersect(ray);
+            if (shadow_bvh::NODE_TMIN..ray.tmax).contains(&t)
+                && !self
+                    .alpha_surfaces()
+                    .is_some_and(|s| self.cut(s, i, &Ray { tmax: t, ..*ray }))
+            {
+                return true;
+            }
+        }
+        match self.blocker(state, ray) {
+            Some(i) => {
+                *hint = i;
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// The BVH-order index of a triangle that blocks the shadow ray `ray`, the first the
+    /// traversal meets; None when it reaches `tmax`.
+    #[inline]
+    fn blocker(&self, state: &mut Traversal, ray: &Ray) -> Option<u32> {
         match self.alpha_surfaces() {
             None => self.occluded_ray_with::<false>(state, ray, None),
             Some(s) => self.occluded_ray_with::<true>(state, ray, Some(s)),
         }
     }
 
-    /// [`Scene::occluded_ray`] with (`ALPHA`) or without the alpha-test filter at each hit.
+    /// [`Scene::blocker`] with (`ALPHA`) or without the alpha-test filter at each hit.
     #[inline(always)]
     fn occluded_ray_with<const ALPHA: bool>(
         &self,
         state: &mut Traversal,
         ray: &Ray,
         surfaces: Option<&Surfaces>,
-    ) -> bool {
+    ) -> Option<u32> {
         state.reinit(ray.direction);
         let mut node;
-        let mut hit = false;
+        let mut hit = None;
         'any: {
             obvhs::traverse!(
                 self.shadow,
@@ -594,7 +637,7 @@ impl Scene {
                         let cut = ALPHA
                             && surfaces.is_some_and(|s| self.cut(s, i, &Ray { tmax: t, ..*ray }));
                         if !cut {
-                            hit = true;
+                            hit = Some(state.primitive_id);
                             break 'any;
                         }
                     }
@@ -975,6 +1018,8 @@ mod tests {
         }
         let s = box_with(vec![], &extra);
         let (mut blocked, mut open) = (0, 0);
+        let mut state = s.shadow_state();
+        let mut hint = NO_HINT;
         for _ in 0..4000 {
             let mut point = || Vec3::new(2.2 * r() - 1.1, 2.2 * r() - 1.1, 2.2 * r() - 0.1);
             let (a, b) = (point(), point());
@@ -986,6 +1031,21 @@ mod tests {
                 .bvh
                 .ray_traverse_miss(ray, |r, id| s.bvh_triangles[id].intersect(r));
             assert_eq!(got, obvhs_hit, "{a} {b}");
+            // No hint, the last blocked ray's, any triangle: the same answer; a blocked ray
+            // leaves a hint.
+            let any = (7919 * blocked % s.bvh_triangles.len()) as u32;
+            for start in [NO_HINT, hint, any] {
+                let mut h = start;
+                assert_eq!(
+                    s.occluded_ray_hinted(&mut state, &ray, &mut h),
+                    got,
+                    "{a} {b}"
+                );
+                assert!(!got || h != NO_HINT);
+                if got && start == hint {
+                    hint = h;
+                }
+            }
             if got {
                 blocked += 1;
             } else {
@@ -1143,6 +1203,22 @@ mod tests {
         for x in [0.05, 0.3, 0.45] {
             assert!(s.occluded(below(x), above(x)), "{x}");
             assert!(s.occluded_brute_force(below(x), above(x)), "{x}");
+        }
+        // The card's triangle, remembered from its opaque half, blocks nothing through the
+        // cut half.
+        let ray = |x: f32| Ray::new(Vec3A::new(x, 0.0, 0.2), Vec3A::Z, 0.0, 1.6);
+        let mut state = s.shadow_state();
+        for x in [0.05, 0.3, 0.45] {
+            let mut hint = NO_HINT;
+            assert!(s.occluded_ray_hinted(&mut state, &ray(x), &mut hint));
+            for cut in [-0.45, -0.3] {
+                let mut stale = hint;
+                assert!(
+                    !s.occluded_ray_hinted(&mut state, &ray(cut), &mut stale),
+                    "{cut}"
+                );
+                assert_eq!(stale, hint);
+            }
         }
         // Closest hits go through the cut half to the floor and stop at the opaque half.
         let down = |x: f32| s.closest_hit(above(x), Vec3::NEG_Z, 0.0, f32::INFINITY);

@@ -146,6 +146,79 @@ impl Texture {
     }
 }
 
+/// The 8-bit codes of an image in its colour space, as linear values: entry `c` is code `c`'s.
+pub type CodeTable = [f32; 256];
+
+/// An image's pixels as Blender's `Image.pixels` holds them, `height x width x channels` floats
+/// with row 0 at the *bottom*, as the crate's linear RGBA (`height x width x 4`, row 0 at the
+/// top, [`Texture::new`]'s values) and the mean of every texel, RGBA.
+///
+/// RGB is the first three channels (one or two channels: the first, grey). With `table` (an
+/// 8-bit image in a non-linear space, whose floats are its codes over 255), each RGB value
+/// `v` reads `table[round(v * 255)]`, the rounding half to even (`v * 255` in `f32`); without,
+/// RGB is kept. Alpha is the last channel where `alpha` and there are 2 or 4 channels, else 1.
+/// The mean is summed in `f64` texel by texel from the top row, then divided by the texels.
+///
+/// Errors: a zero size or channel count, a length that does not match.
+pub fn linear_rgba(
+    what: &str,
+    width: usize,
+    height: usize,
+    channels: usize,
+    values: &[f32],
+    table: Option<&CodeTable>,
+    alpha: bool,
+) -> Result<(Vec<f32>, [f64; 4])> {
+    use rayon::prelude::*;
+    if width == 0 || height == 0 || channels == 0 {
+        return Err(VplaceError::Empty {
+            what: what.to_owned(),
+            hint: format!(
+                "an image needs at least one texel and one channel, got {height} x {width} x \
+                 {channels}"
+            ),
+        });
+    }
+    if values.len() != width * height * channels {
+        return Err(VplaceError::Shape {
+            what: what.to_owned(),
+            expected: format!("{height} x {width} x {channels} values"),
+            got: format!("{} values", values.len()),
+        });
+    }
+    let use_alpha = alpha && (channels == 2 || channels == 4);
+    let decode = |v: f32| match table {
+        // `as u8` saturates: a byte image's values lie in [0, 1], their codes in [0, 255].
+        Some(t) => t[usize::from((v * 255.0).round_ties_even() as u8)],
+        None => v,
+    };
+    let mut out = vec![0.0f32; width * height * 4];
+    out.par_chunks_mut(width * 4)
+        .enumerate()
+        .for_each(|(y, row)| {
+            let src = &values[(height - 1 - y) * width * channels..][..width * channels];
+            for (texel, px) in row.chunks_exact_mut(4).zip(src.chunks_exact(channels)) {
+                let rgb = if channels >= 3 {
+                    [px[0], px[1], px[2]]
+                } else {
+                    [px[0]; 3]
+                };
+                for (o, v) in texel.iter_mut().zip(rgb) {
+                    *o = decode(v);
+                }
+                texel[3] = if use_alpha { px[channels - 1] } else { 1.0 };
+            }
+        });
+    let mut sum = [0.0f64; 4];
+    for texel in out.chunks_exact(4) {
+        for (s, &v) in sum.iter_mut().zip(texel) {
+            *s += f64::from(v);
+        }
+    }
+    let n = (width * height) as f64;
+    Ok((out, sum.map(|s| s / n)))
+}
+
 /// A texel coordinate kept where `i64` arithmetic and the wrap are exact.
 #[inline]
 fn clamp_coord(c: f64) -> i64 {
@@ -290,6 +363,59 @@ mod tests {
             0., 0., 1., 1.,   1., 1., 1., 0.,
         ];
         Texture::new("t", 2, 2, 4, &v).unwrap()
+    }
+
+    #[test]
+    fn blender_pixels_flip_decode_and_average() {
+        // 2 x 1 RGBA, Blender's bottom row first: codes 0 and 255, 51 and 102, alpha 0.2/0.6.
+        let v = [
+            0.0,
+            51.0 / 255.0,
+            1.0,
+            0.2, //
+            1.0,
+            102.0 / 255.0,
+            0.0,
+            0.6,
+        ];
+        let mut table = [0.0f32; 256];
+        for (c, t) in table.iter_mut().enumerate() {
+            *t = c as f32 * 2.0; // a table whose entries name their codes
+        }
+        let (out, mean) = linear_rgba("t", 1, 2, 4, &v, Some(&table), true).unwrap();
+        // Row 0 is the top: Blender's last row.
+        assert_eq!(out, [510.0, 204.0, 0.0, 0.6, 0.0, 102.0, 510.0, 0.2]);
+        assert_eq!(
+            mean,
+            [255.0, 153.0, 255.0, (0.6f32 as f64 + 0.2f32 as f64) / 2.0]
+        );
+        // Without the table RGB is kept; without alpha it is 1.
+        let (plain, _) = linear_rgba("t", 1, 2, 4, &v, None, false).unwrap();
+        assert_eq!(&plain[..4], &[1.0, 102.0 / 255.0, 0.0, 1.0]);
+        // One channel is grey; halfway codes round to even.
+        let (grey, _) = linear_rgba(
+            "t",
+            2,
+            1,
+            1,
+            &[0.5 / 255.0, 1.5 / 255.0],
+            Some(&table),
+            true,
+        )
+        .unwrap();
+        assert_eq!(grey, [0.0, 0.0, 0.0, 1.0, 4.0, 4.0, 4.0, 1.0]);
+    }
+
+    #[test]
+    fn blender_pixels_errors() {
+        assert!(matches!(
+            linear_rgba("t", 0, 1, 4, &[], None, true),
+            Err(VplaceError::Empty { .. })
+        ));
+        assert!(matches!(
+            linear_rgba("t", 2, 2, 4, &[0.0; 15], None, true),
+            Err(VplaceError::Shape { .. })
+        ));
     }
 
     #[test]

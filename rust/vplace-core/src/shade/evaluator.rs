@@ -15,7 +15,7 @@ use std::time::Instant;
 
 use crate::error::{check_finite, Result, VplaceError};
 use crate::progress::Progress;
-use crate::scene::Scene;
+use crate::scene::{Scene, NO_HINT};
 use crate::shade::shading::{Batch, Receiver, VplSoa};
 use crate::shade::shadow_cache::{self, ShadowCache};
 use crate::view::GBuffer;
@@ -144,7 +144,7 @@ pub fn evaluate(
         params,
         progress,
         None,
-        |state, ray| scene.occluded_ray(state, ray),
+        |state, ray, hint| scene.occluded_ray_hinted(state, ray, hint),
     )
 }
 
@@ -171,11 +171,11 @@ pub fn evaluate_with_radii(
         params,
         progress,
         None,
-        |state, ray| {
+        |state, ray, hint| {
             if brute_force {
                 scene.occluded_ray_brute_force(ray)
             } else {
-                scene.occluded_ray(state, ray)
+                scene.occluded_ray_hinted(state, ray, hint)
             }
         },
     )
@@ -198,7 +198,7 @@ pub fn evaluate_brute_force(
         params,
         progress,
         None,
-        |_, ray| scene.occluded_ray_brute_force(ray),
+        |_, ray, _| scene.occluded_ray_brute_force(ray),
     )
 }
 
@@ -221,7 +221,7 @@ pub(crate) fn evaluate_cached(
         params,
         progress,
         Some(cache),
-        |state, ray| scene.occluded_ray(state, ray),
+        |state, ray, hint| scene.occluded_ray_hinted(state, ray, hint),
     )
 }
 
@@ -286,7 +286,7 @@ fn evaluate_with(
     params: &EvalParams,
     progress: Option<&Progress>,
     cache: Option<&mut ShadowCache>,
-    occluded: impl Fn(&mut Traversal, &Ray) -> bool + Sync,
+    occluded: impl Fn(&mut Traversal, &Ray, &mut u32) -> bool + Sync,
 ) -> Result<(Vec<f32>, EvalStats)> {
     check_eval_input(gbuffer, vpls, radii, params)?;
     let start = Instant::now();
@@ -327,6 +327,8 @@ fn evaluate_with(
             let mut tile_reused = 0u64;
             let mut state = scene.shadow_state();
             let mut batch = Batch::new(soa.len());
+            // Per VPL, the triangle that last blocked its ray in this tile.
+            let mut hints = vec![NO_HINT; soa.len()];
             for y in y0..(y0 + t).min(h) {
                 for x in x0..(x0 + t).min(w) {
                     let p = y * w + x;
@@ -345,7 +347,7 @@ fn evaluate_with(
                             lit
                         } else {
                             tile_rays += 1;
-                            !batch.occluded(j, |ray| occluded(&mut state, ray))
+                            !batch.occluded(j, |ray| occluded(&mut state, ray, &mut hints[j]))
                         };
                         if words > 0 {
                             shadow_cache::record(known, visible, j, lit);

@@ -69,6 +69,14 @@ class Light:
     @property
     def power(self) -> list[float]: ...
 
+def linear_image(
+    pixels: _F32,
+    *,
+    table: _F32 | None = None,
+    alpha: bool = False,
+    name: str = "image",
+) -> tuple[_F32, tuple[float, float, float, float]]: ...
+
 @final
 class TextureMap:
     def __new__(
