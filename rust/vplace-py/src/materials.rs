@@ -309,7 +309,6 @@ pub fn materials(
         .collect())
 }
 
-/// Registers this file's classes.
 /// An image as Blender's `Image.pixels` holds it, float32 `(height, width, channels)` with row
 /// 0 at the bottom, as linear RGBA float32 `(height, width, 4)` with row 0 at the top, and the
 /// mean of its texels (RGBA, float64 sums). `table`: float32 `(256,)`, the linear value of each
@@ -356,9 +355,10 @@ fn linear_image<'py>(
     Ok((image.into_any(), mean))
 }
 
+/// Registers this file's classes and functions.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyTextureMap>()?;
-    m.add_function(wrap_pyfunction!(linear_image, m)?)?;
     m.add_class::<PyAlphaTest>()?;
+    m.add_function(wrap_pyfunction!(linear_image, m)?)?;
     Ok(())
 }

@@ -12,6 +12,7 @@
 //! colour (`albedo + tint * rgb`) or the alpha of an [`AlphaTest`].
 
 use glam::{Vec2, Vec4};
+use rayon::prelude::*;
 
 use crate::color::luminance;
 use crate::error::{Result, VplaceError};
@@ -169,7 +170,6 @@ pub fn linear_rgba(
     table: Option<&CodeTable>,
     alpha: bool,
 ) -> Result<(Vec<f32>, [f64; 4])> {
-    use rayon::prelude::*;
     if width == 0 || height == 0 || channels == 0 {
         return Err(VplaceError::Empty {
             what: what.to_owned(),
@@ -368,15 +368,10 @@ mod tests {
     #[test]
     fn blender_pixels_flip_decode_and_average() {
         // 2 x 1 RGBA, Blender's bottom row first: codes 0 and 255, 51 and 102, alpha 0.2/0.6.
+        #[rustfmt::skip]
         let v = [
-            0.0,
-            51.0 / 255.0,
-            1.0,
-            0.2, //
-            1.0,
-            102.0 / 255.0,
-            0.0,
-            0.6,
+            0.0, 51.0 / 255.0, 1.0, 0.2,
+            1.0, 102.0 / 255.0, 0.0, 0.6,
         ];
         let mut table = [0.0f32; 256];
         for (c, t) in table.iter_mut().enumerate() {
