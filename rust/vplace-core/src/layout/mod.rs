@@ -22,7 +22,8 @@
 //! their light reaches what the camera sees (in Sponza most of the sun's reflected flux leaves
 //! the roofs toward the sky), so they are grouped by their *view efficiency* `eta_e`: the mean
 //! unshadowed irradiance-times-albedo they give a sparse grid of the views' covered pixels per
-//! unit flux ([`view_efficiency`]). Emitters with `eta_e = 0` form a dark stratum (the last);
+//! unit flux ([`view_efficiency`]; about [`VIEW_SAMPLES`] pixels of each view, each view
+//! weighing the same). Emitters with `eta_e = 0` form a dark stratum (the last);
 //! the others [`OFFSCREEN_BINS`] strata of equal view contribution `lum(Phi_e) * eta_e`, by
 //! increasing `eta_e`. Each
 //! off-screen stratum gets the view weight `v_k = mean eta / mean eta of the on-screen
@@ -61,7 +62,8 @@ use crate::vpl::{light_path_hits, Profile, Vpl, MAX_BOUNCES};
 
 /// Off-screen strata with a non-zero view efficiency (plus the dark one).
 pub const OFFSCREEN_BINS: usize = 8;
-/// About this many covered pixels sample the view for [`view_efficiency`].
+/// About this many covered pixels of each view sample it for [`view_efficiency`]
+/// (`strata::sample_stride`), every view weighing the same.
 pub const VIEW_SAMPLES: usize = 1024;
 
 /// Smallest `|cos|` between a pixel's normal and its view ray used for its footprint: bounds
@@ -549,6 +551,51 @@ mod tests {
         // A disk of radius 1 at distance 1 on the axis: 1 / (h^2 + R^2) halves the point's.
         let disk = view_efficiency(&[&down1], &samples, 1.0);
         assert!((disk[0] / eta[0] - 0.5).abs() < 1e-5, "{disk:?}");
+    }
+
+    /// The sample grid holds about [`VIEW_SAMPLES`] pixels of any view: never fewer (unless
+    /// the view has fewer), never more than twice as many; the strides of the captures' usual
+    /// sizes stay those of `floor(sqrt(covered / VIEW_SAMPLES))`.
+    #[test]
+    fn view_samples_hold_about_view_samples_pixels() {
+        for covered in 1..200_000usize {
+            let s = strata::sample_stride(covered);
+            let count = covered as f64 / (s * s) as f64;
+            assert!(
+                count <= 2.0 * VIEW_SAMPLES as f64 || s == 1,
+                "{covered}: {s}"
+            );
+            assert!(
+                count >= 0.5 * VIEW_SAMPLES as f64 || s == 1,
+                "{covered}: {s}"
+            );
+        }
+        // 192 x 108, 160 x 160, 320 x 180 full: 4, 5, 7 as before; 48 x 48: 2, not 1.
+        for (covered, stride) in [(20_736, 4), (25_600, 5), (57_600, 7), (2_304, 2), (900, 1)] {
+            assert_eq!(strata::sample_stride(covered), stride, "{covered}");
+        }
+    }
+
+    /// Each view weighs the same in the view efficiency, whatever its count of samples: the
+    /// efficiency over two views' weighted samples is the mean of the two views' own.
+    #[test]
+    fn every_view_weighs_the_same_in_the_view_efficiency() {
+        let emitter = Emitter {
+            position: Vec3::new(0.0, 0.0, 1.0),
+            normal: Vec3::NEG_Z,
+            flux: Vec3::ONE,
+        };
+        let near = vec![(Vec3::ZERO, Vec3::Z, 0.5); 7];
+        let far = vec![(Vec3::new(0.0, 0.0, -1.0), Vec3::Z, 0.25); 40];
+        let alone = |s: &[(Vec3, Vec3, f32)]| view_efficiency(&[&emitter], s, 0.0)[0];
+        let (a, b) = (alone(&near), alone(&far));
+        let both = strata::equally_weighted(vec![near.clone(), Vec::new(), far.clone()]);
+        assert_eq!(both.len(), 47);
+        let mixed = alone(&both);
+        assert!((mixed - 0.5 * (a + b)).abs() < 1e-6 * a, "{mixed} {a} {b}");
+        // The plain concatenation would weigh the far view's 40 samples 40:7.
+        let plain = alone(&[near, far].concat());
+        assert!((plain - (7.0 * a + 40.0 * b) / 47.0).abs() < 1e-6 * a);
     }
 
     /// The view efficiency is the brute-force reference's (a plain scalar loop over emitters x

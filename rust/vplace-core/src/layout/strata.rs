@@ -351,7 +351,7 @@ pub fn build_strata(
     let cells = per.len();
     let (off, seen) = offscreen_emitters(scene, views, params)?;
     let pixel_flux_scale = pixel_flux_scale(&seen, pixels_received);
-    let samples: Vec<(Vec3, Vec3, f32)> = views.iter().flat_map(|v| view_samples(v)).collect();
+    let samples = equally_weighted(views.iter().map(|v| view_samples(v)).collect());
     let radius = scene.near_field_radius();
     let on_screen: Vec<&Emitter> = per.iter().flatten().collect();
     let step = on_screen.len().div_ceil(VIEW_SAMPLES).max(1);
@@ -595,12 +595,22 @@ pub(super) fn offscreen_emitters(
     Ok((off, seen))
 }
 
-/// About [`VIEW_SAMPLES`] covered pixels of the view on a regular grid: (position, unit
-/// normal facing the camera, albedo luminance).
+/// The grid stride that samples about [`VIEW_SAMPLES`] of `covered` pixels: the widest whose
+/// grid still holds [`VIEW_SAMPLES`] (`floor(sqrt(covered / VIEW_SAMPLES))`), made wider
+/// where that grid would hold more than twice as many (a small view, whose stride of 1 would
+/// take every pixel: 2,304 of a 48 x 48 coverage view), never below 1.
+pub(super) fn sample_stride(covered: usize) -> usize {
+    let per = covered as f64 / VIEW_SAMPLES as f64;
+    let most = per.sqrt().floor() as usize;
+    let least = (per / 2.0).sqrt().ceil() as usize;
+    most.max(least).max(1)
+}
+
+/// About [`VIEW_SAMPLES`] covered pixels of the view on a regular grid ([`sample_stride`]):
+/// (position, unit normal facing the camera, albedo luminance).
 pub(super) fn view_samples(view: &View) -> Vec<(Vec3, Vec3, f32)> {
     let g = view.gbuffer();
-    let covered = view.covered_count();
-    let stride = ((covered as f64 / VIEW_SAMPLES as f64).sqrt().floor() as usize).max(1);
+    let stride = sample_stride(view.covered_count());
     let mut out = Vec::new();
     for y in (stride / 2..g.height).step_by(stride) {
         for x in (stride / 2..g.width).step_by(stride) {
@@ -619,6 +629,21 @@ pub(super) fn view_samples(view: &View) -> Vec<(Vec3, Vec3, f32)> {
             }
             out.push((pos, n, albedo.max(0.0)));
         }
+    }
+    out
+}
+
+/// The samples of every view ([`view_samples`]) as one list in which each view weighs the same
+/// whatever its size or count: each sample's albedo scaled by `total / (views * count)`, so that
+/// the plain mean over the list ([`view_efficiency`]) is the mean over the views of each view's
+/// mean. Views without a sample are left out.
+pub(super) fn equally_weighted(per_view: Vec<Vec<(Vec3, Vec3, f32)>>) -> Vec<(Vec3, Vec3, f32)> {
+    let total: usize = per_view.iter().map(Vec::len).sum();
+    let views = per_view.iter().filter(|s| !s.is_empty()).count();
+    let mut out = Vec::with_capacity(total);
+    for samples in per_view.into_iter().filter(|s| !s.is_empty()) {
+        let k = (total as f64 / (views * samples.len()) as f64) as f32;
+        out.extend(samples.into_iter().map(|(p, n, albedo)| (p, n, albedo * k)));
     }
     out
 }
