@@ -22,8 +22,8 @@
 //! their light reaches what the camera sees (in Sponza most of the sun's reflected flux leaves
 //! the roofs toward the sky), so they are grouped by their *view efficiency* `eta_e`: the mean
 //! unshadowed irradiance-times-albedo they give a sparse grid of the views' covered pixels per
-//! unit flux ([`view_efficiency`]; about [`VIEW_SAMPLES`] pixels of each view, each view
-//! weighing the same). Emitters with `eta_e = 0` form a dark stratum (the last);
+//! unit flux ([`view_efficiency`]; about [`VIEW_SAMPLES`] pixels of each view, a view thinned
+//! further weighing what its grid of `floor(sqrt(covered / VIEW_SAMPLES))` would). Emitters with `eta_e = 0` form a dark stratum (the last);
 //! the others [`OFFSCREEN_BINS`] strata of equal view contribution `lum(Phi_e) * eta_e`, by
 //! increasing `eta_e`. Each
 //! off-screen stratum gets the view weight `v_k = mean eta / mean eta of the on-screen
@@ -63,7 +63,7 @@ use crate::vpl::{light_path_hits, Profile, Vpl, MAX_BOUNCES};
 /// Off-screen strata with a non-zero view efficiency (plus the dark one).
 pub const OFFSCREEN_BINS: usize = 8;
 /// About this many covered pixels of each view sample it for [`view_efficiency`]
-/// (`strata::sample_stride`), every view weighing the same.
+/// (`strata::sample_stride`, `strata::weight_stride`).
 pub const VIEW_SAMPLES: usize = 1024;
 
 /// Smallest `|cos|` between a pixel's normal and its view ray used for its footprint: bounds
@@ -555,11 +555,12 @@ mod tests {
 
     /// The sample grid holds about [`VIEW_SAMPLES`] pixels of any view: never fewer (unless
     /// the view has fewer), never more than twice as many; the strides of the captures' usual
-    /// sizes stay those of `floor(sqrt(covered / VIEW_SAMPLES))`.
+    /// sizes stay those of the weight's grid.
     #[test]
     fn view_samples_hold_about_view_samples_pixels() {
         for covered in 1..200_000usize {
             let s = strata::sample_stride(covered);
+            assert!(s >= strata::weight_stride(covered));
             let count = covered as f64 / (s * s) as f64;
             assert!(
                 count <= 2.0 * VIEW_SAMPLES as f64 || s == 1,
@@ -570,32 +571,46 @@ mod tests {
                 "{covered}: {s}"
             );
         }
-        // 192 x 108, 160 x 160, 320 x 180 full: 4, 5, 7 as before; 48 x 48: 2, not 1.
+        // 192 x 108, 160 x 160, 320 x 180 full: 4, 5, 7 as the weight's; 48 x 48: 2, not 1.
         for (covered, stride) in [(20_736, 4), (25_600, 5), (57_600, 7), (2_304, 2), (900, 1)] {
             assert_eq!(strata::sample_stride(covered), stride, "{covered}");
         }
+        assert_eq!(strata::weight_stride(2_304), 1);
     }
 
-    /// Each view weighs the same in the view efficiency, whatever its count of samples: the
-    /// efficiency over two views' weighted samples is the mean of the two views' own.
+    /// A 48 x 48 view is sampled 1 pixel in 4 but weighs what its every pixel did beside
+    /// another view: its 576 samples carry 4 times their albedo, and the view efficiency over
+    /// both views' samples is the mean over all 2,304 + 1,024 pixels, within the thinning's
+    /// error (a smooth kernel: .5 %).
     #[test]
-    fn every_view_weighs_the_same_in_the_view_efficiency() {
+    fn a_thinned_view_weighs_what_its_every_pixel_did() {
+        let small = FloorView::new(48, LIGHT, 20.0).view();
+        let other = FloorView::new(32, LIGHT, 20.0).view();
+        let thin = strata::view_samples(&small);
+        assert_eq!(thin.len(), 576);
+        let full = strata::view_samples(&other);
+        assert_eq!(full.len(), 1024);
         let emitter = Emitter {
-            position: Vec3::new(0.0, 0.0, 1.0),
+            position: Vec3::new(0.3, -0.2, 1.2),
             normal: Vec3::NEG_Z,
             flux: Vec3::ONE,
         };
-        let near = vec![(Vec3::ZERO, Vec3::Z, 0.5); 7];
-        let far = vec![(Vec3::new(0.0, 0.0, -1.0), Vec3::Z, 0.25); 40];
-        let alone = |s: &[(Vec3, Vec3, f32)]| view_efficiency(&[&emitter], s, 0.0)[0];
-        let (a, b) = (alone(&near), alone(&far));
-        let both = strata::equally_weighted(vec![near.clone(), Vec::new(), far.clone()]);
-        assert_eq!(both.len(), 47);
-        let mixed = alone(&both);
-        assert!((mixed - 0.5 * (a + b)).abs() < 1e-6 * a, "{mixed} {a} {b}");
-        // The plain concatenation would weigh the far view's 40 samples 40:7.
-        let plain = alone(&[near, far].concat());
-        assert!((plain - (7.0 * a + 40.0 * b) / 47.0).abs() < 1e-6 * a);
+        let eta = |s: &[(Vec3, Vec3, f32)]| view_efficiency(&[&emitter], s, 0.0)[0];
+        // Every pixel of the small view, weight 1 (the floor faces the camera: normal +Z).
+        let g = small.gbuffer();
+        let every: Vec<(Vec3, Vec3, f32)> = (0..48 * 48)
+            .map(|p| {
+                let v = |a: &[f32]| Vec3::from_slice(&a[3 * p..3 * p + 3]);
+                (v(g.position), v(g.normal), luminance(v(g.albedo)))
+            })
+            .collect();
+        let before = eta(&[every.clone(), full.clone()].concat()) * (2304.0 + 1024.0);
+        let after = eta(&[thin.clone(), full.clone()].concat()) * (576.0 + 1024.0);
+        assert!((after / before - 1.0).abs() < 0.005, "{after} {before}");
+        // Unweighted, the small view would count 576 : 1024 instead of 2,304 : 1,024.
+        let plain: Vec<_> = thin.iter().map(|&(p, n, a)| (p, n, a / 4.0)).collect();
+        let light = eta(&[plain, full].concat()) * (576.0 + 1024.0);
+        assert!((light / before - 1.0).abs() > 0.05, "{light} {before}");
     }
 
     /// The view efficiency is the brute-force reference's (a plain scalar loop over emitters x

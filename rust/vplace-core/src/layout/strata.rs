@@ -351,7 +351,7 @@ pub fn build_strata(
     let cells = per.len();
     let (off, seen) = offscreen_emitters(scene, views, params)?;
     let pixel_flux_scale = pixel_flux_scale(&seen, pixels_received);
-    let samples = equally_weighted(views.iter().map(|v| view_samples(v)).collect());
+    let samples: Vec<(Vec3, Vec3, f32)> = views.iter().flat_map(|v| view_samples(v)).collect();
     let radius = scene.near_field_radius();
     let on_screen: Vec<&Emitter> = per.iter().flatten().collect();
     let step = on_screen.len().div_ceil(VIEW_SAMPLES).max(1);
@@ -595,22 +595,32 @@ pub(super) fn offscreen_emitters(
     Ok((off, seen))
 }
 
-/// The grid stride that samples about [`VIEW_SAMPLES`] of `covered` pixels: the widest whose
-/// grid still holds [`VIEW_SAMPLES`] (`floor(sqrt(covered / VIEW_SAMPLES))`), made wider
-/// where that grid would hold more than twice as many (a small view, whose stride of 1 would
-/// take every pixel: 2,304 of a 48 x 48 coverage view), never below 1.
-pub(super) fn sample_stride(covered: usize) -> usize {
-    let per = covered as f64 / VIEW_SAMPLES as f64;
-    let most = per.sqrt().floor() as usize;
-    let least = (per / 2.0).sqrt().ceil() as usize;
-    most.max(least).max(1)
+/// The stride whose grid sets a view's weight in the view efficiency:
+/// `floor(sqrt(covered / VIEW_SAMPLES))`, at least 1. Its grid holds [`VIEW_SAMPLES`] to 4x as
+/// many pixels (all 2,304 of a 48 x 48 coverage view).
+pub(super) fn weight_stride(covered: usize) -> usize {
+    ((covered as f64 / VIEW_SAMPLES as f64).sqrt().floor() as usize).max(1)
 }
 
-/// About [`VIEW_SAMPLES`] covered pixels of the view on a regular grid ([`sample_stride`]):
-/// (position, unit normal facing the camera, albedo luminance).
+/// The stride the view is sampled with: [`weight_stride`], made wider where its grid would
+/// hold more than twice [`VIEW_SAMPLES`] pixels (stride 2 and 576 samples for a 48 x 48
+/// view), never below 1. The captures' strides at 192x108, 160x160 and 320x180 (4, 5, 7) are
+/// [`weight_stride`]'s.
+pub(super) fn sample_stride(covered: usize) -> usize {
+    let least = (covered as f64 / (2 * VIEW_SAMPLES) as f64).sqrt().ceil() as usize;
+    weight_stride(covered).max(least).max(1)
+}
+
+/// About [`VIEW_SAMPLES`] covered pixels of the view on the grid of [`sample_stride`]:
+/// (position, unit normal facing the camera, albedo luminance times the sample's weight). The
+/// weight, `(sample_stride / weight_stride)^2`, makes the view weigh as the grid of
+/// [`weight_stride`] would in [`view_efficiency`]'s mean over every view's samples: a
+/// coverage view sampled 1 in 4 weighs what its every pixel did.
 pub(super) fn view_samples(view: &View) -> Vec<(Vec3, Vec3, f32)> {
     let g = view.gbuffer();
-    let stride = sample_stride(view.covered_count());
+    let covered = view.covered_count();
+    let stride = sample_stride(covered);
+    let weight = ((stride * stride) as f64 / weight_stride(covered).pow(2) as f64) as f32;
     let mut out = Vec::new();
     for y in (stride / 2..g.height).step_by(stride) {
         for x in (stride / 2..g.width).step_by(stride) {
@@ -627,23 +637,8 @@ pub(super) fn view_samples(view: &View) -> Vec<(Vec3, Vec3, f32)> {
             if n.dot(view.camera.position - pos) < 0.0 {
                 n = -n;
             }
-            out.push((pos, n, albedo.max(0.0)));
+            out.push((pos, n, albedo.max(0.0) * weight));
         }
-    }
-    out
-}
-
-/// The samples of every view ([`view_samples`]) as one list in which each view weighs the same
-/// whatever its size or count: each sample's albedo scaled by `total / (views * count)`, so that
-/// the plain mean over the list ([`view_efficiency`]) is the mean over the views of each view's
-/// mean. Views without a sample are left out.
-pub(super) fn equally_weighted(per_view: Vec<Vec<(Vec3, Vec3, f32)>>) -> Vec<(Vec3, Vec3, f32)> {
-    let total: usize = per_view.iter().map(Vec::len).sum();
-    let views = per_view.iter().filter(|s| !s.is_empty()).count();
-    let mut out = Vec::with_capacity(total);
-    for samples in per_view.into_iter().filter(|s| !s.is_empty()) {
-        let k = (total as f64 / (views * samples.len()) as f64) as f32;
-        out.extend(samples.into_iter().map(|(p, n, albedo)| (p, n, albedo * k)));
     }
     out
 }
@@ -652,7 +647,8 @@ pub(super) fn equally_weighted(per_view: Vec<Vec<(Vec3, Vec3, f32)>>) -> Vec<(Ve
 pub(super) const EMITTER_CHUNK: usize = 256;
 
 /// The view efficiency `eta_e` of each emitter: the mean over `samples` (position, unit normal,
-/// albedo) of `albedo / pi * I(cos_e) * max(0, n_p . l) * F(r)`, the shading term of
+/// albedo times the sample's weight, [`view_samples`]; only ratios and signs of `eta` are read,
+/// so the weights need not average 1) of `albedo / pi * I(cos_e) * max(0, n_p . l) * F(r)`, the shading term of
 /// [`crate::shade::shading`] for the cosine profile without shadow rays (the radiance an emitter of
 /// unit flux sends back from each sample pixel; `F` the near-field term with radius `radius`).
 /// Parallel over chunks of emitters; each sample shades a chunk in one batch.
