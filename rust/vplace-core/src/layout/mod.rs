@@ -23,8 +23,8 @@
 //! the roofs toward the sky), so they are grouped by their *view efficiency* `eta_e`: the mean
 //! unshadowed irradiance-times-albedo they give a sparse grid of the views' covered pixels per
 //! unit flux ([`view_efficiency`]; about [`VIEW_SAMPLES`] pixels of each view, a view thinned
-//! further weighing what its grid of `floor(sqrt(covered / VIEW_SAMPLES))` would). Emitters with `eta_e = 0` form a dark stratum (the last);
-//! the others [`OFFSCREEN_BINS`] strata of equal view contribution `lum(Phi_e) * eta_e`, by
+//! further weighing what its grid of `floor(sqrt(covered / VIEW_SAMPLES))` would). Emitters
+//! with `eta_e = 0` form a dark stratum (the last); the others [`OFFSCREEN_BINS`] strata of equal view contribution `lum(Phi_e) * eta_e`, by
 //! increasing `eta_e`. Each
 //! off-screen stratum gets the view weight `v_k = mean eta / mean eta of the on-screen
 //! emitters` (flux-weighted means; cells have `v_k = 1`). Stratum `k` holds the flux `F_k`. The
@@ -604,7 +604,7 @@ mod tests {
                 (v(g.position), v(g.normal), luminance(v(g.albedo)))
             })
             .collect();
-        let before = eta(&[every.clone(), full.clone()].concat()) * (2304.0 + 1024.0);
+        let before = eta(&[every, full.clone()].concat()) * (2304.0 + 1024.0);
         let after = eta(&[thin.clone(), full.clone()].concat()) * (576.0 + 1024.0);
         assert!((after / before - 1.0).abs() < 0.005, "{after} {before}");
         // Unweighted, the small view would count 576 : 1024 instead of 2,304 : 1,024.

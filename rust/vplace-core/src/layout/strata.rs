@@ -604,11 +604,11 @@ pub(super) fn weight_stride(covered: usize) -> usize {
 
 /// The stride the view is sampled with: [`weight_stride`], made wider where its grid would
 /// hold more than twice [`VIEW_SAMPLES`] pixels (stride 2 and 576 samples for a 48 x 48
-/// view), never below 1. The captures' strides at 192x108, 160x160 and 320x180 (4, 5, 7) are
+/// view; at least 1, as [`weight_stride`] is). The captures' strides at 192x108, 160x160 and 320x180 (4, 5, 7) are
 /// [`weight_stride`]'s.
 pub(super) fn sample_stride(covered: usize) -> usize {
     let least = (covered as f64 / (2 * VIEW_SAMPLES) as f64).sqrt().ceil() as usize;
-    weight_stride(covered).max(least).max(1)
+    weight_stride(covered).max(least)
 }
 
 /// About [`VIEW_SAMPLES`] covered pixels of the view on the grid of [`sample_stride`]:
@@ -648,9 +648,10 @@ pub(super) const EMITTER_CHUNK: usize = 256;
 
 /// The view efficiency `eta_e` of each emitter: the mean over `samples` (position, unit normal,
 /// albedo times the sample's weight, [`view_samples`]; only ratios and signs of `eta` are read,
-/// so the weights need not average 1) of `albedo / pi * I(cos_e) * max(0, n_p . l) * F(r)`, the shading term of
-/// [`crate::shade::shading`] for the cosine profile without shadow rays (the radiance an emitter of
-/// unit flux sends back from each sample pixel; `F` the near-field term with radius `radius`).
+/// so the weights need not average 1) of `albedo / pi * I(cos_e) * max(0, n_p . l) * F(r)`, the
+/// shading term of [`crate::shade::shading`] for the cosine profile without shadow rays (the
+/// radiance an emitter of unit flux sends back from each sample pixel; `F` the near-field term
+/// with radius `radius`).
 /// Parallel over chunks of emitters; each sample shades a chunk in one batch.
 #[must_use]
 pub fn view_efficiency(
