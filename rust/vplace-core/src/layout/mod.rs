@@ -24,21 +24,21 @@
 //! unshadowed irradiance-times-albedo they give a sparse grid of the views' covered pixels per
 //! unit flux ([`view_efficiency`]; about [`VIEW_SAMPLES`] pixels of each view, a view thinned
 //! further weighing what its grid of `floor(sqrt(covered / VIEW_SAMPLES))` would). Emitters
-//! with `eta_e = 0` form a dark stratum (the last); the others [`OFFSCREEN_BINS`] strata of equal view contribution `lum(Phi_e) * eta_e`, by
-//! increasing `eta_e`. Each
-//! off-screen stratum gets the view weight `v_k = mean eta / mean eta of the on-screen
-//! emitters` (flux-weighted means; cells have `v_k = 1`). Stratum `k` holds the flux `F_k`. The
+//! with `eta_e = 0` form a dark stratum (the last); the others [`OFFSCREEN_BINS`] strata of
+//! equal view contribution `lum(Phi_e) * eta_e`, by increasing `eta_e`. Each off-screen stratum
+//! gets the view weight `v_k = mean eta / mean eta of the on-screen emitters` (flux-weighted
+//! means; cells have `v_k = 1`). Stratum `k` holds the flux `F_k`. The
 //! budget `N` is split `n_k = N * lerp(u_k, m_k, alpha)` by largest remainder, with
 //! `u_k = lum(F_k) / sum lum(F)` and `m_k` proportional to `lum(F_k) * max(0, predicted dL_k) *
 //! v_k` (off-screen strata take the flux-weighted mean prediction of the cells). A dark stratum
-//! with flux always keeps one VPL of its own, so its flux never joins another stratum's draw. Strata that hold flux but
-//! receive no VPL are pooled into one group drawn jointly (so no flux is ever lost). Inside a
-//! group, `n` emitters are drawn by luminance flux with systematic sampling (an off-screen
-//! stratum's emitters taken along a space-filling curve through their position and view
-//! efficiency, `strata::order_along_curve`, so that its VPLs spread over space as its flux
-//! lies); each VPL carries the luminance `lum(F_group) / n` with its emitter's chromaticity, so
-//! the total reflected luminance flux is the same for every allocation: the layout moves
-//! accuracy, not energy.
+//! with flux always keeps one VPL of its own, so its flux never joins another stratum's draw.
+//! Strata that hold flux but receive no VPL are pooled into one group drawn jointly (so no flux is
+//! ever lost). Inside a group, `n` emitters are drawn by luminance flux with systematic sampling
+//! (an off-screen stratum's emitters taken along a space-filling curve through their position and
+//! view efficiency, `strata::order_along_curve`, so that its VPLs spread over space as its flux
+//! lies); each VPL carries the luminance `lum(F_group) / n` with its emitter's chromaticity, so the
+//! total reflected luminance flux is the same for every allocation: the layout moves accuracy, not
+//! energy.
 //!
 //! The iteration that moves budget toward cells with a high residual is [`crate::layout::iterate`].
 
@@ -604,12 +604,12 @@ mod tests {
                 (v(g.position), v(g.normal), luminance(v(g.albedo)))
             })
             .collect();
-        let before = eta(&[every, full.clone()].concat()) * (2304.0 + 1024.0);
-        let after = eta(&[thin.clone(), full.clone()].concat()) * (576.0 + 1024.0);
+        let before = eta(&[&every[..], &full[..]].concat()) * (2304.0 + 1024.0);
+        let after = eta(&[&thin[..], &full[..]].concat()) * (576.0 + 1024.0);
         assert!((after / before - 1.0).abs() < 0.005, "{after} {before}");
         // Unweighted, the small view would count 576 : 1024 instead of 2,304 : 1,024.
         let plain: Vec<_> = thin.iter().map(|&(p, n, a)| (p, n, a / 4.0)).collect();
-        let light = eta(&[plain, full].concat()) * (576.0 + 1024.0);
+        let light = eta(&[&plain[..], &full[..]].concat()) * (576.0 + 1024.0);
         assert!((light / before - 1.0).abs() > 0.05, "{light} {before}");
     }
 

@@ -604,8 +604,8 @@ pub(super) fn weight_stride(covered: usize) -> usize {
 
 /// The stride the view is sampled with: [`weight_stride`], made wider where its grid would
 /// hold more than twice [`VIEW_SAMPLES`] pixels (stride 2 and 576 samples for a 48 x 48
-/// view; at least 1, as [`weight_stride`] is). The captures' strides at 192x108, 160x160 and 320x180 (4, 5, 7) are
-/// [`weight_stride`]'s.
+/// view; at least 1, as [`weight_stride`] is). The captures' strides at 192x108, 160x160 and
+/// 320x180 (4, 5, 7) are [`weight_stride`]'s.
 pub(super) fn sample_stride(covered: usize) -> usize {
     let least = (covered as f64 / (2 * VIEW_SAMPLES) as f64).sqrt().ceil() as usize;
     weight_stride(covered).max(least)
