@@ -44,7 +44,7 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from .capture.passes import Capture, capture, hide_vpls
+from .capture.passes import Capture, capture, cycles_session, hide_vpls
 from .capture.stage import Captured, render_reference
 from .capture.views import ViewSpec, eye_views
 from .errors import AddonError, WriteBackError, output_folder, run_operator
@@ -229,15 +229,17 @@ def capture_frames(
     bl_scene: bpy.types.Scene, frames: Sequence[int], job: Job, timer: StageTimer
 ) -> list[Prepared]:
     """:func:`job.prepare` (export and capture, cached) at each of ``frames``, each scene with
-    the working scale of all of them (:func:`frame_eyes`); the scene's frame is put back. Uses
-    bpy: the main thread (the panel's first half)."""
+    the working scale of all of them (:func:`frame_eyes`); the scene's frame is put back. Cycles
+    keeps its scene from frame to frame (``passes.cycles_session``): each frame's captures sync
+    what moved. Uses bpy: the main thread (the panel's first half)."""
     original = bl_scene.frame_current
     eyes, looks = frame_eyes(bl_scene, frames)
     try:
         out = []
-        for f in frames:
-            bl_scene.frame_set(f)
-            out.append(prepare(bl_scene, job, timer, eyes=eyes, looks=looks))
+        with cycles_session(bl_scene):
+            for f in frames:
+                bl_scene.frame_set(f)
+                out.append(prepare(bl_scene, job, timer, eyes=eyes, looks=looks))
         return out
     finally:
         bl_scene.frame_set(original)

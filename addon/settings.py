@@ -12,6 +12,21 @@ from collections.abc import Iterator
 from typing import Any
 
 
+def _plain(value: Any) -> Any:
+    """``value`` as it is remembered: a Blender array (a colour, a vector) as a tuple."""
+    if hasattr(value, "__len__") and not isinstance(value, str):
+        return tuple(value)
+    return value
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Whether setting ``b`` where ``a`` is would change nothing (arrays by their items)."""
+    try:
+        return bool(_plain(a) == _plain(b))
+    except (TypeError, ValueError):  # pragma: no cover - values that do not compare
+        return False
+
+
 class SettingsGuard:
     """Records attribute changes on Blender structs and undoes them."""
 
@@ -19,15 +34,17 @@ class SettingsGuard:
         self._saved: list[tuple[Any, str, Any]] = []
 
     def set(self, owner: Any, attr: str, value: Any) -> None:
-        """Sets ``owner.attr = value``, remembering the old value the first time."""
+        """Sets ``owner.attr = value``, remembering the old value the first time. A value equal
+        to the current one is not set again: Blender runs a setting's update on every
+        assignment, and assigning the render engine it already has makes Cycles drop the scene
+        it keeps between renders (``render.use_persistent_data``) and build it again."""
         old = getattr(owner, attr)
         # ``==``, not ``is``: each access to a Blender struct (``scene.cycles``) makes a new
         # Python object for it; equal ones are the same struct.
         if not any(a == attr and o == owner for o, a, _ in self._saved):
-            if hasattr(old, "__len__") and not isinstance(old, str):
-                old = tuple(old)
-            self._saved.append((owner, attr, old))
-        setattr(owner, attr, value)
+            self._saved.append((owner, attr, _plain(old)))
+        if not _same(old, value):
+            setattr(owner, attr, value)
 
     def remember(self, owner: Any, attrs: tuple[str, ...]) -> None:
         """Records the current values of ``attrs`` without changing them, in this order.
@@ -57,7 +74,8 @@ class SettingsGuard:
         errors = []
         for owner, attr, old in self._saved:
             try:
-                setattr(owner, attr, old)
+                if not _same(getattr(owner, attr), old):
+                    setattr(owner, attr, old)
             except (AttributeError, TypeError, ValueError) as exc:  # pragma: no cover
                 errors.append(f"{attr}: {exc}")
         self._saved.clear()

@@ -11,11 +11,12 @@ samples and the seed); the cache keeps under
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, fields
 from pathlib import Path
 
@@ -233,6 +234,20 @@ class Capture:
         kw["camera"] = str(kw["camera"])
         kw["view"] = str(kw["view"])
         return cls(**kw)
+
+
+@contextlib.contextmanager
+def cycles_session(scene: bpy.types.Scene) -> Iterator[None]:
+    """Cycles keeps its scene between the captures made in the block: the render engine is
+    Cycles for the whole block, with ``render.use_persistent_data``, both put back after
+    (which frees what Cycles kept). Each capture then syncs what changed since the last (the
+    camera, the size), where on its own it syncs the whole scene: a capture sets the engine
+    and restores it, and a new engine, or the same one assigned again, makes Cycles start
+    over. The passes are the same, bit for bit (``tests/addon/test_passes.py``)."""
+    with override() as g:
+        g.set(scene.render, "engine", "CYCLES")
+        g.set(scene.render, "use_persistent_data", True)
+        yield
 
 
 def _render(scene: bpy.types.Scene, view_layer: bpy.types.ViewLayer) -> None:

@@ -21,7 +21,7 @@ from ..native import vplace
 from ..scene.export import ExportedScene
 from . import render_key
 from .native_view import gloss_mask, spared_materials, view_of, vpl_specular
-from .passes import Capture, capture
+from .passes import Capture, capture, cycles_session
 from .views import ViewSpec, pose_camera
 
 
@@ -82,99 +82,104 @@ def capture_views(
     VPLs). A view that sees no geometry, or that
     renders exactly what an earlier view renders (the same capture key), is left out and said
     so; only when no view is left is it an error. ``stage`` is the job timer's ``stage``. Each
-    mesh is hashed for the cache keys once for all the views (``render_key.meshes_unchanged``)."""
-    last = [0.0]
+    mesh is hashed for the cache keys once for all the views (``render_key.meshes_unchanged``),
+    and Cycles keeps its scene from one capture to the next (``passes.cycles_session``)."""
+    with cycles_session(bl_scene):
+        last = [0.0]
 
-    def on_progress(line: str) -> None:
-        now = time.perf_counter()
-        if now - last[0] > 2.0:
-            last[0] = now
-            log(f"[vplace]   {line}")
+        def on_progress(line: str) -> None:
+            now = time.perf_counter()
+            if now - last[0] > 2.0:
+                last[0] = now
+                log(f"[vplace]   {line}")
 
-    captures: list[Capture] = []
-    skipped: dict[str, str] = {}
-    for spec in specs:
-        with stage(f"capture {spec.name} (Cycles)"):
-            cap = capture(
+        captures: list[Capture] = []
+        skipped: dict[str, str] = {}
+        for spec in specs:
+            with stage(f"capture {spec.name} (Cycles)"):
+                cap = capture(
+                    bl_scene,
+                    camera=spec.camera,
+                    frame=spec.frame,
+                    name=spec.name,
+                    resolution=resolution,
+                    samples=samples,
+                    seed=seed,
+                    cache_dir=cache_dir,
+                    on_progress=on_progress,
+                )
+            same = next((c.view for c in captures if c.key == cap.key), None)
+            if same is not None:
+                skipped[spec.name] = f"the same view as {same!r}"
+            elif not cap.covered.any():
+                skipped[spec.name] = "the camera sees no geometry (only background)"
+            else:
+                captures.append(cap)
+                continue
+            log(f"[vplace] view {spec.name!r} left out: {skipped[spec.name]}")
+        if not captures:
+            names = ", ".join(repr(n) for n in skipped)
+            raise CaptureError(
+                f"no view is left to lay out VPLs for ({names}: "
+                + "; ".join(skipped.values())
+                + "): aim the camera at the scene"
+            )
+        if all(not (c.combined[c.covered] > 0.0).any() for c in captures):
+            log(
+                "[vplace] warning: every capture is black: no light reaches what the cameras see, "
+                "so the VPLs have nothing to carry there (is a lamp outside a closed room?)"
+            )
+        masks = [gloss_mask(scene, exported, c) for c in captures]
+        specular = vpl_specular(scene, exported, captures, masks)
+        if not specular and exported.rough_gloss.any():
+            lit = exported.sharp_gloss & ~spared_materials(exported)
+            sharp = [m.name for m, s in zip(exported.materials, lit, strict=True) if s]
+            log(
+                "[vplace] note: the written VPLs have no specular: the sharp glossy layers (e.g. "
+                f"{sharp[0]!r}) show more glossy light in the captures than the rough ones, and "
+                "EEVEE would mirror each VPL in them as a spot (their reflections are EEVEE's ray "
+                "tracing's)"
+            )
+        gloss = masks if specular else [None] * len(captures)
+        views = [view_of(c, gloss=g, scene=scene) for c, g in zip(captures, gloss, strict=True)]
+        cover = None
+        if region is not None and region.count > 0 and render_coverage:
+            cover, rendered = rendered_coverage(
                 bl_scene,
-                camera=spec.camera,
-                frame=spec.frame,
-                name=spec.name,
-                resolution=resolution,
+                scene,
+                exported,
+                views,
+                region,
+                frame=specs[0].frame,
                 samples=samples,
                 seed=seed,
                 cache_dir=cache_dir,
+                stage=stage,
                 on_progress=on_progress,
             )
-        same = next((c.view for c in captures if c.key == cap.key), None)
-        if same is not None:
-            skipped[spec.name] = f"the same view as {same!r}"
-        elif not cap.covered.any():
-            skipped[spec.name] = "the camera sees no geometry (only background)"
-        else:
-            captures.append(cap)
-            continue
-        log(f"[vplace] view {spec.name!r} left out: {skipped[spec.name]}")
-    if not captures:
-        names = ", ".join(repr(n) for n in skipped)
-        raise CaptureError(
-            f"no view is left to lay out VPLs for ({names}: "
-            + "; ".join(skipped.values())
-            + "): aim the camera at the scene"
-        )
-    if all(not (c.combined[c.covered] > 0.0).any() for c in captures):
-        log(
-            "[vplace] warning: every capture is black: no light reaches what the cameras see, "
-            "so the VPLs have nothing to carry there (is a lamp outside a closed room?)"
-        )
-    masks = [gloss_mask(scene, exported, c) for c in captures]
-    specular = vpl_specular(scene, exported, captures, masks)
-    if not specular and exported.rough_gloss.any():
-        lit = exported.sharp_gloss & ~spared_materials(exported)
-        sharp = [m.name for m, s in zip(exported.materials, lit, strict=True) if s]
-        log(
-            "[vplace] note: the written VPLs have no specular: the sharp glossy layers (e.g. "
-            f"{sharp[0]!r}) show more glossy light in the captures than the rough ones, and "
-            "EEVEE would mirror each VPL in them as a spot (their reflections are EEVEE's ray "
-            "tracing's)"
-        )
-    gloss = masks if specular else [None] * len(captures)
-    views = [view_of(c, gloss=g, scene=scene) for c, g in zip(captures, gloss, strict=True)]
-    cover = None
-    if region is not None and region.count > 0 and render_coverage:
-        cover, rendered = rendered_coverage(
-            bl_scene,
-            scene,
-            exported,
-            views,
-            region,
-            frame=specs[0].frame,
-            samples=samples,
-            seed=seed,
-            cache_dir=cache_dir,
-            stage=stage,
-            on_progress=on_progress,
-        )
-        rendered_gloss = [gloss_mask(scene, exported, c) if specular else None for c in rendered]
-        captures += rendered
-        gloss = gloss + rendered_gloss
-        views += [
-            view_of(c, gloss=g, scene=scene) for c, g in zip(rendered, rendered_gloss, strict=True)
-        ]
-        log(f"[vplace] {cover.describe(exported.unit_scale)}, rendered by Cycles")
-    elif region is not None and region.count > 0:
-        with stage("coverage views (ray traced)"):
-            cover = vplace.coverage.cover(
-                scene,
-                exported.vertices[exported.triangles],
-                views,
-                region,
-                seed=seed,
-                profile=profile,
-                radius=radius,
-            )
-        log(f"[vplace] {cover.describe(exported.unit_scale)}")
-    return Captured(captures, views, gloss, skipped, cover)
+            rendered_gloss = [
+                gloss_mask(scene, exported, c) if specular else None for c in rendered
+            ]
+            captures += rendered
+            gloss = gloss + rendered_gloss
+            views += [
+                view_of(c, gloss=g, scene=scene)
+                for c, g in zip(rendered, rendered_gloss, strict=True)
+            ]
+            log(f"[vplace] {cover.describe(exported.unit_scale)}, rendered by Cycles")
+        elif region is not None and region.count > 0:
+            with stage("coverage views (ray traced)"):
+                cover = vplace.coverage.cover(
+                    scene,
+                    exported.vertices[exported.triangles],
+                    views,
+                    region,
+                    seed=seed,
+                    profile=profile,
+                    radius=radius,
+                )
+            log(f"[vplace] {cover.describe(exported.unit_scale)}")
+        return Captured(captures, views, gloss, skipped, cover)
 
 
 def rendered_coverage(

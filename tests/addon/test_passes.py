@@ -72,6 +72,33 @@ def test_capture_cache_hits_and_misses(tmp_path, monkeypatch):
     assert calls == [1]
 
 
+def test_captures_in_one_cycles_session_are_the_same_and_the_session_leaves_no_trace():
+    """Cycles keeps its scene between the captures of a session (``cycles_session``): the passes
+    are the same bit for bit as captures made one by one, from two cameras and two sizes, and
+    the engine and ``use_persistent_data`` come back as the user had them, also when a capture
+    fails."""
+    scene = cornell()
+    scene.render.engine = "BLENDER_WORKBENCH"  # not Cycles (EEVEE's name differs by version)
+    high = bpy.data.objects.new("high", scene.camera.data)
+    high.matrix_world = scene.camera.matrix_world
+    high.location.z += 0.3
+    scene.collection.objects.link(high)
+    shots = [(scene.camera, (16, 12)), (high, (16, 12)), (scene.camera, (8, 8))]
+    alone = [capture.capture(scene, camera=c, resolution=r, samples=4) for c, r in shots]
+    before = scene_state(scene)
+    with capture.cycles_session(scene):
+        assert scene.render.engine == "CYCLES" and scene.render.use_persistent_data
+        together = [capture.capture(scene, camera=c, resolution=r, samples=4) for c, r in shots]
+    assert diff(before, scene_state(scene)) == []
+    for a, b in zip(alone, together, strict=True):
+        for name in ("combined", "depth", "position", "normal", "diffuse_direct"):
+            assert np.array_equal(getattr(a, name), getattr(b, name)), name
+        assert np.array_equal(a.diffuse_indirect, b.diffuse_indirect)
+    with pytest.raises(RuntimeError, match="boom"), capture.cycles_session(scene):
+        raise RuntimeError("boom")
+    assert scene.render.engine == "BLENDER_WORKBENCH" and not scene.render.use_persistent_data
+
+
 def test_capture_errors():
     scene = cornell()
     with pytest.raises(capture.CaptureError, match="samples"):

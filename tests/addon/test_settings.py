@@ -46,6 +46,30 @@ def test_remember_records_values_that_a_change_would_reset():
     assert (owner.media_type, owner.file_format) == ("IMAGE", "PNG")
 
 
+def test_a_value_the_setting_already_has_is_not_assigned_again():
+    """Blender runs a setting's update on every assignment: the render engine assigned the
+    engine it already has makes Cycles drop the scene it keeps between renders. So neither the
+    change nor the restore assigns a value equal to the current one (an array by its items)."""
+    owner = Recorder(engine="CYCLES", samples=16, colour=(1.0, 0.5, 0.0))
+    with override() as g:
+        g.set(owner, "engine", "CYCLES")
+        g.set(owner, "colour", [1.0, 0.5, 0.0])
+        g.set(owner, "samples", 8)
+        assert owner.log == [("samples", 8)]
+    assert owner.log == [("samples", 8), ("samples", 16)]
+    assert (owner.engine, owner.samples, owner.colour) == ("CYCLES", 16, (1.0, 0.5, 0.0))
+
+
+def test_a_setting_set_to_what_it_has_is_still_restored_when_something_else_changes_it():
+    """The value the block found is remembered even where the guard assigned nothing, so a
+    setting that another change resets behind the guard's back comes back."""
+    owner = Recorder(media_type="IMAGE", file_format="PNG")
+    with override() as g:
+        g.set(owner, "file_format", "PNG")
+        object.__setattr__(owner, "file_format", "JPEG")  # reset by another change
+    assert owner.file_format == "PNG"
+
+
 def test_a_guard_restores_once():
     owner = Recorder(x=1)
     g = SettingsGuard()

@@ -55,6 +55,32 @@ def test_coverage_views_see_what_the_camera_does_not(scene):
     assert coverage.region_radius(scene, eye, 0.3) == pytest.approx(0.3)
 
 
+def test_the_poses_traced_together_see_what_each_sees_alone(scene):
+    """``pick`` traces every candidate's probe in one call: each pose's hits, positions,
+    normals, triangles and depths are the ones its own trace gives, bit for bit, and
+    ``Scene.intersect`` (parallel) answers as ray-by-ray calls do."""
+    poses = [
+        coverage.Pose(np.array(eye), np.array(f), np.array(u))
+        for eye in ([0.0, 0.0, 1.0], [0.5, -0.3, 0.7])
+        for f, u in coverage.FACES
+    ]
+    together = coverage._hits_of(scene, BOX_V[BOX_T], poses, 12)
+    assert len(together) == len(poses)
+    for pose, got in zip(poses, together, strict=True):
+        alone = coverage._hits(scene, BOX_V[BOX_T], pose, 12)
+        assert got[0].any()
+        for a, b in zip(alone, got, strict=True):
+            np.testing.assert_array_equal(a, b)
+    dirs, _ = poses[3].rays(12)
+    origins = np.ascontiguousarray(np.broadcast_to(poses[3].eye.astype(np.float32), dirs.shape))
+    t, tri, bary = scene.intersect(origins, dirs)
+    for k in (0, 17, 143):
+        t1, tri1, bary1 = scene.intersect(origins[k : k + 1], dirs[k : k + 1])
+        assert (t1[0], tri1[0]) == (t[k], tri[k]) and np.array_equal(bary1[0], bary[k])
+    assert bary.shape == (len(dirs), 2)
+    assert scene.intersect(origins[:0], dirs[:0])[2].shape == (0, 2)
+
+
 def test_the_fit_learns_from_the_captures_only(scene):
     user = user_view(scene)
     cov = coverage.cover(scene, BOX_V[BOX_T], [user], coverage.Region(count=2, size=16))

@@ -13,7 +13,7 @@ use vplace_core::{
 };
 
 use crate::arrays::{array, slice, Dim};
-use crate::errors::{input_error, run, to_py};
+use crate::errors::{input_error, run, to_py, InternalError};
 use crate::materials::{PyAlphaTest, PyTextureMap};
 
 fn vec3(v: [f32; 3]) -> Vec3 {
@@ -487,17 +487,8 @@ impl PyScene {
     )> {
         let (o, d) = ray_pairs(origins, directions, "directions")?;
         let scene = Arc::clone(&self.inner);
-        let hits = run(py, move || {
-            Ok(o.iter()
-                .zip(&d)
-                .map(|(&o, &d)| {
-                    let d = d.normalize_or_zero();
-                    (d != Vec3::ZERO)
-                        .then(|| scene.closest_hit(o, d, tmin, f32::INFINITY))
-                        .flatten()
-                })
-                .collect::<Vec<_>>())
-        })?;
+        let n = o.len();
+        let hits = run(py, move || Ok(scene.closest_hits(&o, &d, tmin)))?;
         let t: Vec<f32> = hits
             .iter()
             .map(|h| h.map_or(f32::INFINITY, |h| h.t))
@@ -506,15 +497,13 @@ impl PyScene {
             .iter()
             .map(|h| h.map_or(-1, |h| i64::from(h.triangle)))
             .collect();
-        let bary: Vec<Vec<f32>> = hits
+        let bary: Vec<f32> = hits
             .iter()
-            .map(|h| h.map_or(vec![0.0, 0.0], |h| h.barycentrics.to_array().to_vec()))
+            .flat_map(|h| h.map_or([0.0, 0.0], |h| h.barycentrics.to_array()))
             .collect();
-        let bary = if bary.is_empty() {
-            numpy::ndarray::Array2::zeros((0, 2)).into_pyarray(py)
-        } else {
-            PyArray2::from_vec2(py, &bary)?
-        };
+        let bary = numpy::ndarray::Array2::from_shape_vec((n, 2), bary)
+            .map_err(|e| InternalError::new_err(e.to_string()))?
+            .into_pyarray(py);
         Ok((t.into_pyarray(py), tri.into_pyarray(py), bary))
     }
 
@@ -567,12 +556,7 @@ impl PyScene {
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
         let (a, b) = ray_pairs(origins, targets, "targets")?;
         let scene = Arc::clone(&self.inner);
-        let out = run(py, move || {
-            Ok(a.iter()
-                .zip(&b)
-                .map(|(&a, &b)| scene.occluded(a, b))
-                .collect::<Vec<bool>>())
-        })?;
+        let out = run(py, move || Ok(scene.occluded_segments(&a, &b)))?;
         Ok(out.into_pyarray(py))
     }
 

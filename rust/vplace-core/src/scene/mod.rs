@@ -29,6 +29,7 @@ use obvhs::{
     triangle::Triangle,
     BvhBuildParams,
 };
+use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -543,6 +544,46 @@ impl Scene {
         })
     }
 
+    /// [`Scene::closest_hit`] of each ray `origins[i] + t * directions[i]` for `t` in
+    /// `(tmin, inf)`, the rays traced in parallel, the answers in their order. The directions
+    /// are normalized here; a zero direction (or one that does not normalize) hits nothing.
+    ///
+    /// # Panics
+    /// When `origins` and `directions` differ in length.
+    #[must_use]
+    pub fn closest_hits(
+        &self,
+        origins: &[Vec3],
+        directions: &[Vec3],
+        tmin: f32,
+    ) -> Vec<Option<Hit>> {
+        assert_eq!(origins.len(), directions.len(), "one direction per origin");
+        origins
+            .par_iter()
+            .zip(directions)
+            .map(|(&o, &d)| {
+                let d = d.normalize_or_zero();
+                (d != Vec3::ZERO)
+                    .then(|| self.closest_hit(o, d, tmin, f32::INFINITY))
+                    .flatten()
+            })
+            .collect()
+    }
+
+    /// [`Scene::occluded`] of each segment `from[i]` to `to[i]`, traced in parallel, the
+    /// answers in their order.
+    ///
+    /// # Panics
+    /// When `from` and `to` differ in length.
+    #[must_use]
+    pub fn occluded_segments(&self, from: &[Vec3], to: &[Vec3]) -> Vec<bool> {
+        assert_eq!(from.len(), to.len(), "one end per start");
+        from.par_iter()
+            .zip(to)
+            .map(|(&a, &b)| self.occluded(a, b))
+            .collect()
+    }
+
     /// True when any triangle lies on the open segment from `from` to `to` (an any-hit shadow ray),
     /// alpha-tested surfaces counting only where they are not cut.
     /// The caller offsets both ends off their surfaces.
@@ -970,6 +1011,47 @@ mod tests {
             assert_eq!(s.occluded(a, b), s.occluded_brute_force(a, b), "{a} {b}");
         }
         assert!((s.diagonal() - (4.0f32 + 4.0 + 4.0).sqrt()).abs() < 1e-5);
+    }
+
+    /// The batched, parallel queries answer each ray as the single queries do, in order; a
+    /// zero direction hits nothing.
+    #[test]
+    fn batched_queries_answer_as_single_ones() {
+        let plate = [
+            Vec3::new(-0.5, -0.5, 1.0),
+            Vec3::new(0.5, -0.5, 1.0),
+            Vec3::new(0.5, 0.5, 1.0),
+            Vec3::new(-0.5, 0.5, 1.0),
+        ];
+        let s = box_with(vec![], &[plate]);
+        let mut rng = crate::rng::Rng::new(7, 0);
+        let mut point = || {
+            Vec3::new(
+                rng.next_f32() * 1.8 - 0.9,
+                rng.next_f32() * 1.8 - 0.9,
+                rng.next_f32() * 1.8 + 0.1,
+            )
+        };
+        let n = 300;
+        let from: Vec<Vec3> = (0..n).map(|_| point()).collect();
+        let mut to: Vec<Vec3> = (0..n).map(|_| point()).collect();
+        to[5] = from[5];
+        let mut dirs: Vec<Vec3> = from.iter().zip(&to).map(|(a, b)| (*b - *a) * 3.0).collect();
+        dirs[5] = Vec3::ZERO;
+        let hits = s.closest_hits(&from, &dirs, 0.0);
+        let blocked = s.occluded_segments(&from, &to);
+        assert_eq!((hits.len(), blocked.len()), (n, n));
+        for i in 0..n {
+            let d = dirs[i].normalize_or_zero();
+            let want = (d != Vec3::ZERO)
+                .then(|| s.closest_hit(from[i], d, 0.0, f32::INFINITY))
+                .flatten();
+            assert_eq!(hits[i], want, "ray {i}");
+            assert_eq!(blocked[i], s.occluded(from[i], to[i]), "segment {i}");
+        }
+        assert!(hits[5].is_none() && hits.iter().filter(|h| h.is_some()).count() == n - 1);
+        let count = blocked.iter().filter(|&&b| b).count();
+        assert!(count > 10 && count < n - 10, "{count} of {n} blocked");
     }
 
     #[test]

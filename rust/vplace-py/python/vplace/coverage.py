@@ -315,8 +315,26 @@ def _hits(
     scene: Scene, tris: np.ndarray, pose: Pose, size: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Position, geometric normal facing the eye, triangle and barycentrics of a pose's rays."""
-    dirs, cos = pose.rays(size)
-    origins = np.ascontiguousarray(np.broadcast_to(pose.eye.astype(np.float32), dirs.shape))
+    return _hits_of(scene, tris, [pose], size)[0]
+
+
+def _hits_of(
+    scene: Scene, tris: np.ndarray, poses: Sequence[Pose], size: int
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """:func:`_hits` of each of ``poses``, their rays traced together (one parallel call)."""
+    if not poses:
+        return []
+    rays = [pose.rays(size) for pose in poses]
+    dirs = np.concatenate([d for d, _ in rays])
+    cos = np.concatenate([c for _, c in rays])
+    origins = np.ascontiguousarray(
+        np.concatenate(
+            [
+                np.broadcast_to(p.eye.astype(np.float32), d.shape)
+                for p, (d, _) in zip(poses, rays, strict=True)
+            ]
+        )
+    )
     t, tri, bary = scene.intersect(origins, dirs)
     hit = (tri >= 0) & (t * cos > NEAR)
     pos = origins + dirs * np.where(hit, t, 0.0)[:, None]
@@ -328,7 +346,12 @@ def _hits(
         facing = np.sum(n * dirs[hit], axis=1) > 0
         n[facing] *= -1.0
         normal[hit] = n
-    return hit, pos.astype(np.float32), normal.astype(np.float32), tri, bary, t * cos
+    pos, normal, depth = pos.astype(np.float32), normal.astype(np.float32), t * cos
+    step = size * size
+    return [
+        (hit[s], pos[s], normal[s], tri[s], bary[s], depth[s])
+        for s in (slice(k * step, (k + 1) * step) for k in range(len(poses)))
+    ]
 
 
 def pick(
@@ -349,8 +372,7 @@ def pick(
         covered |= _voxels(scene, v.position.reshape(-1, 3)[mask], v.normal.reshape(-1, 3)[mask])
     sets = []
     poses = _candidates(scene, eyes, radii, [inside for _, inside in regions])
-    for pose in poses:
-        hit, pos, normal, *_ = _hits(scene, triangles, pose, PROBE)
+    for hit, pos, normal, *_ in _hits_of(scene, triangles, poses, PROBE):
         sets.append(_voxels(scene, pos[hit], normal[hit]))
     universe = set().union(covered, *sets)
     seen_before = len(covered & universe) / max(len(universe), 1)
