@@ -276,7 +276,8 @@ def key_lights(
 ) -> vplace.temporal.Keyed:
     """The frames' VPLs matched into slots (``vplace.temporal.track``) and, with
     ``write_back``, written as one set of keyed lights (``writeback.keyed``) with the world's
-    sun and sky portals of each frame and the first frame's emitter lights."""
+    sun and sky portals of each frame and the first frame's emitter lights; the frames' regions
+    are drawn as one (``apply.write_region``, ``apply.union_of_regions``)."""
     scene = prepared[0].scene
     with timer.stage(f"match VPLs over {len(frames)} frames"):
         tracked = vplace.temporal.track(vpl_sets, scene.scale)
@@ -295,6 +296,8 @@ def key_lights(
                 portals=[p.stand_ins.portals for p in prepared],
                 closed=all(p.stand_ins.closed for p in prepared),
             )
+            marks = [apply.region_marks(p.scene, p.views, p.coverage) for p in prepared]
+            apply.write_region(bl_scene, apply.union_of_regions(marks))
     return tracked
 
 

@@ -477,12 +477,26 @@ def summary(
     if laid.near_field is not None:
         evaluator.near_field = dataclasses.asdict(laid.near_field)
     rendered = [vplace.coverage.is_rendered_coverage(v) for v in prepared.captured_views]
+    cov = prepared.coverage
+    metres = prepared.exported.unit_scale
+    region = (
+        vplace.job.RegionSummary(
+            len(cov.poses),
+            [r * metres for r in cov.radius],
+            cov.covered_before,
+            cov.covered_after,
+            cov.seconds,
+        )
+        if cov is not None and cov.poses
+        else None
+    )
     return vplace.job.JobSummary(
         scene=scene_label(bl_scene),
         triangles=prepared.scene.triangle_count,
         lights=prepared.scene.light_count,
         views=[c.view for c, r in zip(prepared.captures, rendered, strict=True) if not r],
         region_views=[c.view for c, r in zip(prepared.captures, rendered, strict=True) if r],
+        region=region,
         skipped_views=prepared.skipped,
         resolution=[prepared.views[0].width, prepared.views[0].height],
         samples=job.samples,
@@ -584,6 +598,8 @@ def run_main_job(
             exported=prepared.exported,
             lights=prepared.stand_ins,
             cut_lamps=prepared.cut_lamps,
+            views=prepared.views,
+            coverage=prepared.coverage,
             blend_path=out_dir / "scene.blend",
             stage=timer.stage,
             log=log,

@@ -224,6 +224,8 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
             closed=self.prepared.stand_ins.closed,
             cut_lamps=self.prepared.cut_lamps,
         )
+        p = self.prepared
+        apply.write_region(scene, apply.region_marks(p.scene, p.views, p.coverage))
         try:
             summary = pipeline.summary(scene, self.job, self.prepared, computed, self.timer)
             summary.set_match(self.matched, computed.laid.match)
@@ -309,7 +311,7 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
 
 
 class VPLACE_OT_clear_vpls(bpy.types.Operator):
-    """Remove the lights vplace wrote (the 'vplace VPLs' collection)"""
+    """Remove the lights vplace wrote ('vplace VPLs') and the region drawn for them"""
 
     bl_idname = "vplace.clear_vpls"
     bl_label = "Clear VPLs"
@@ -318,6 +320,7 @@ class VPLACE_OT_clear_vpls(bpy.types.Operator):
     def execute(self, context: bpy.types.Context) -> set[str]:
         try:
             n = apply.clear_vpls(scene=context.scene)
+            apply.clear_vpls(apply.REGION_NAME, context.scene)  # the region they were for
         except vplace.VplaceError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}

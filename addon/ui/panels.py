@@ -153,6 +153,8 @@ def _draw_report(box: bpy.types.UILayout, report: vplace.job.PanelReport) -> Non
             text=f"  EEVEE's RMSE {choice['with_match']:.4g} with it, "
             f"{choice['without']:.4g} without"
         )
+    for line in report.region.lines() if report.region is not None else []:
+        box.label(text=line)
     for line in report.eevee_lines():
         box.label(text=line)
     fit = report.fit

@@ -63,11 +63,18 @@ radius):
   the VPLs removes it. The stand-ins keep lighting them (Cycles' direct light does).
 - VPLs whose refitted power is zero are not written (a light that gives nothing still costs
   EEVEE a shadow map); each light keeps its VPL's index as ``vplace_index``.
+
+The region the lights were laid out for (issue 20: the cameras' region and the coverage views
+that stand for it, ``vplace.coverage``) is drawn in the viewport by :func:`write_region`, in a
+collection of its own (:data:`REGION_NAME`, marked and replaced as the VPL collection is):
+one sphere empty per camera (its eye, the region's radius) and one arrow empty per coverage
+view (its eye, pointing where it looked). Empties render nothing.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import bpy
@@ -585,6 +592,110 @@ def exclude_receivers(coll: bpy.types.Collection, unlit: Sequence[str]) -> None:
             obj.light_linking.receiver_collection = receivers
 
 
+#: The collection that shows the region the lights were laid out for (:func:`write_region`).
+REGION_NAME = "vplace region"
+#: The arrow of a coverage view, in radii of the region it stands in.
+REGION_ARROW = 0.25
+
+
+@dataclass(frozen=True)
+class RegionMarks:
+    """What :func:`write_region` draws: per user camera where it stands (``eyes``, world,
+    scene units; ``vplace.coverage.camera_eye``) and the radius of its region (``radii``), and
+    the coverage views chosen for the region (``poses``, ``vplace.coverage.Pose``)."""
+
+    eyes: list[np.ndarray]
+    radii: list[float]
+    poses: list[vplace.coverage.Pose]
+
+
+def region_marks(
+    scene: vplace.Scene,
+    views: Sequence[vplace.View],
+    coverage: vplace.coverage.Coverage | None,
+) -> RegionMarks | None:
+    """The region a job laid its lights out for, as :func:`write_region` draws it: each user
+    camera's eye (``vplace.coverage.camera_eye``; the views of ``views`` that are neither
+    traced nor rendered coverage views) with its region's radius, and the ``coverage`` views'
+    poses; None without coverage views."""
+    if coverage is None or not coverage.poses:
+        return None
+    users = [
+        v
+        for v in views
+        if not vplace.coverage.is_coverage(v) and not vplace.coverage.is_rendered_coverage(v)
+    ]
+    eyes = [vplace.coverage.camera_eye(scene, v.camera_position, v.world_to_clip) for v in users]
+    return RegionMarks(eyes, list(coverage.radius), list(coverage.poses))
+
+
+def union_of_regions(marks: Sequence[RegionMarks | None]) -> RegionMarks | None:
+    """One :class:`RegionMarks` for several runs' (an animated job's frames): each camera's
+    eye and radius and each coverage view once, in order (a camera that stands still over the
+    frames is one sphere); None where none has marks."""
+    eyes: list[np.ndarray] = []
+    radii: list[float] = []
+    poses: list[vplace.coverage.Pose] = []
+    for m in (m for m in marks if m is not None):
+        for eye, radius in zip(m.eyes, m.radii, strict=True):
+            seen = zip(eyes, radii, strict=True)
+            if not any(np.array_equal(eye, e) and radius == r for e, r in seen):
+                eyes.append(eye)
+                radii.append(radius)
+        for pose in m.poses:
+            if not any(
+                np.array_equal(pose.eye, p.eye) and np.array_equal(pose.forward, p.forward)
+                for p in poses
+            ):
+                poses.append(pose)
+    return RegionMarks(eyes, radii, poses) if eyes else None
+
+
+def region_arrow_matrix(pose: vplace.coverage.Pose) -> Matrix:
+    """The world matrix of an empty at ``pose``'s eye whose +Z axis (a single arrow empty's)
+    points where the view looks (and whose +Y is the view's up)."""
+    f, right, up = pose.basis()
+    rot = Matrix((-right, up, f)).transposed()  # columns: x, y, z; a rotation (det +1)
+    return Matrix.Translation(Vector(pose.eye.tolist())) @ rot.to_4x4()
+
+
+def write_region(scene: bpy.types.Scene, marks: RegionMarks | None) -> bpy.types.Collection | None:
+    """Shows the region in ``scene``'s viewport: a fresh :data:`REGION_NAME` collection (written
+    unlinked, then in place of the last run's, as :func:`write_vpls` does) holding a sphere
+    empty ``vplace region k`` per camera, at its eye with the region's radius, and an arrow
+    empty ``vplace region view k`` per coverage view. Without marks (no coverage views: the
+    lights were laid out for the cameras alone), the last run's region is removed and None
+    returned. Nothing renders: the empties are hidden from renders too."""
+    if marks is None or not marks.eyes:
+        clear_vpls(REGION_NAME, scene)
+        return None
+    find_collection(REGION_NAME, scene)  # refuses a foreign collection of that name
+    coll = new_collection(REGION_NAME, None)
+    arrow = REGION_ARROW * float(np.median(marks.radii))
+    try:
+        for k, (eye, radius) in enumerate(zip(marks.eyes, marks.radii, strict=True), start=1):
+            obj = _new_mark(coll, f"vplace region {k}", "SPHERE", float(radius))
+            obj.location = Vector(np.asarray(eye, dtype=np.float64).tolist())
+        for k, pose in enumerate(marks.poses, start=1):
+            obj = _new_mark(coll, f"vplace region view {k}", "SINGLE_ARROW", arrow)
+            obj.matrix_world = region_arrow_matrix(pose)
+    except BaseException:
+        remove_collection(coll)
+        raise
+    return replace_collection(scene, coll, REGION_NAME)
+
+
+def _new_mark(coll: bpy.types.Collection, name: str, shape: str, size: float) -> bpy.types.Object:
+    """A new empty of ``shape`` and ``size`` in ``coll``, marked as vplace's, not rendered."""
+    obj = bpy.data.objects.new(name, None)
+    obj.empty_display_type = shape
+    obj.empty_display_size = size
+    obj.hide_render = True
+    obj[VPL_MARKER] = True
+    coll.objects.link(obj)
+    return obj
+
+
 def unlit_objects(coll: bpy.types.Collection | None = None) -> list[str]:
     """The names of the objects the VPL lights of ``coll`` (default: the VPL collection, if
     vplace wrote it) do not light (:func:`exclude_receivers`)."""
@@ -661,7 +772,7 @@ def _own_names(objects: Sequence[bpy.types.Object]) -> None:
             names.add(block.name)
 
     for obj in objects:
-        for block in (obj, obj.data):
+        for block in (obj, obj.data) if obj.data is not None else (obj,):  # an empty: no data
             was = block.name
             kind = bpy.types.Object if isinstance(block, bpy.types.Object) else bpy.types.Light
             rename(block, _base_name(was), taken[kind])

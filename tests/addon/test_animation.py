@@ -199,8 +199,14 @@ def test_the_animated_job_keys_one_set_of_lights_the_same_on_a_rerun(tmp_path):
     again = _animate(tmp_path, "b")
     assert again.slots == done.slots
     assert _written_keys() == first
-    assert len([c for c in bpy.data.collections if c.get(VPL_MARKER)]) == 1
+    # One collection of lights and one of the frames' region (a camera standing still: one
+    # sphere), each replaced by the re-run.
+    marked = sorted(c.name for c in bpy.data.collections if c.get(VPL_MARKER))
+    assert marked == sorted([apply.REGION_NAME, apply.COLLECTION_NAME])
+    region = bpy.data.collections[apply.REGION_NAME].objects
+    assert [o.name for o in region if o.empty_display_type == "SPHERE"] == ["vplace region 1"]
     assert apply.clear_vpls() == done.slots
+    apply.clear_vpls(apply.REGION_NAME)
     assert len(bpy.data.actions) == actions  # the keyed lights' actions went with them
     assert diff(before, data_snapshot()) == []
     # The copy of the file opens at the user's frame, with the keyed lights.

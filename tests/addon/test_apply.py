@@ -102,6 +102,64 @@ def test_bad_vpl_sets_are_refused():
     assert bpy.data.collections.get(apply.COLLECTION_NAME) is None
 
 
+def region_marks() -> apply.RegionMarks:
+    pose = vplace.coverage.Pose(
+        np.array([0.5, -0.2, 1.0]), np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    )
+    other = vplace.coverage.Pose(
+        np.array([-0.4, 0.1, 0.8]), np.array([1.0, 1.0, -0.5]), np.array([0.0, 0.0, 1.0])
+    )
+    return apply.RegionMarks([np.array([0.0, -1.5, 1.0])], [0.9], [pose, other])
+
+
+def test_the_region_is_drawn_in_its_own_collection_and_rewritten_in_place():
+    """``write_region``: a sphere per camera and an arrow per coverage view whose +Z axis
+    points where the view looks, in the marked collection ``vplace region``, which a re-run
+    refills under the same names (keeping what the user put into it) and None removes; the
+    VPL collection is not touched, and a user's collection of that name is refused."""
+    scene = cornell()
+    apply.write_vpls(scene, some_vpls(4), scene_diagonal=3.4)
+    lights = sorted(o.name for o in apply.find_collection().objects)
+    marks = region_marks()
+    coll = apply.write_region(scene, marks)
+    assert coll.name == apply.REGION_NAME and coll.get(VPL_MARKER)
+    names = sorted(o.name for o in coll.objects)
+    assert names == ["vplace region 1", "vplace region view 1", "vplace region view 2"]
+    for obj, pose in zip(
+        (coll.objects["vplace region view 1"], coll.objects["vplace region view 2"]),
+        marks.poses,
+        strict=True,
+    ):
+        z = obj.matrix_world.to_3x3().col[2]
+        forward = pose.basis()[0]
+        assert np.allclose(list(z), forward, atol=1e-5)
+        assert np.allclose(list(obj.matrix_world.translation), pose.eye, atol=1e-6)
+        assert obj.empty_display_size == pytest.approx(apply.REGION_ARROW * 0.9)
+    mine = bpy.data.objects.new("my empty", None)
+    coll.objects.link(mine)
+    again = apply.write_region(scene, marks)
+    assert again == coll and sorted(o.name for o in again.objects) == sorted([*names, "my empty"])
+    assert len([c for c in bpy.data.collections if c.name.startswith(apply.REGION_NAME)]) == 1
+    assert sorted(o.name for o in apply.find_collection().objects) == lights
+    assert apply.write_region(scene, None) is None
+    assert apply.find_collection(apply.REGION_NAME, scene) is None
+    assert "my empty" in scene.collection.objects  # the user's object stays in the scene
+    assert sorted(o.name for o in apply.find_collection().objects) == lights
+    bpy.data.collections.new(apply.REGION_NAME)
+    with pytest.raises(apply.WriteBackError, match="not made by vplace"):
+        apply.write_region(scene, marks)
+
+
+def test_an_animated_jobs_regions_are_drawn_once_each():
+    """The frames of a camera that stands still share one sphere and their coverage views."""
+    marks = region_marks()
+    moved = apply.RegionMarks([np.array([1.0, -1.5, 1.0])], [0.7], marks.poses[:1])
+    union = apply.union_of_regions([marks, None, marks, moved])
+    assert union is not None and len(union.eyes) == 2 and union.radii == [0.9, 0.7]
+    assert len(union.poses) == 2
+    assert apply.union_of_regions([None, None]) is None
+
+
 def test_clear_operator_is_undoable_and_reports():
     """Clear removes the lights and the last run's report of them."""
     import addon

@@ -58,6 +58,40 @@ def test_apply_clear_and_reload(registered, tmp_path):
     assert apply.find_collection() is None
 
 
+def test_apply_shows_the_region_and_its_coverage_views_and_clear_removes_them(registered):
+    """Issue 20: the region the lights are laid out for is visible in the viewport and in the
+    panel's report: a sphere empty around the camera of the region's radius, an arrow empty
+    per coverage view from its eye along its view, nothing rendered; a run without coverage
+    views and "Clear VPLs" take the last run's region away."""
+    scene = small_cornell()
+    scene.vplace.coverage = 3
+    assert bpy.ops.vplace.apply() == {"FINISHED"}
+    region = report_of(scene)["region"]
+    assert region["views"] >= 1 and len(region["radius_m"]) == 1
+    assert 0 < region["covered_before"] < region["covered_after"] <= 1
+    coll = apply.find_collection(apply.REGION_NAME)
+    assert coll is not None and coll is not apply.find_collection()
+    spheres = sorted(o.name for o in coll.objects if o.empty_display_type == "SPHERE")
+    arrows = [o for o in coll.objects if o.empty_display_type == "SINGLE_ARROW"]
+    assert spheres == ["vplace region 1"] and len(arrows) == region["views"]
+    sphere = coll.objects["vplace region 1"]
+    assert sphere.empty_display_size == pytest.approx(region["radius_m"][0], rel=1e-5)
+    assert (sphere.location - scene.camera.matrix_world.translation).length < 1e-4
+    assert all(o.type == "EMPTY" and o.hide_render for o in coll.objects)
+    lines = vplace.job.PanelReport.from_json(scene.vplace.last_report).region.lines()
+    assert lines[0].startswith(f"Region: {region['views']} coverage view")
+    scene.vplace.coverage = 0
+    assert bpy.ops.vplace.apply() == {"FINISHED"}
+    assert apply.find_collection(apply.REGION_NAME) is None
+    assert "region" not in report_of(scene) or report_of(scene)["region"] is None
+    scene.vplace.coverage = 3
+    assert bpy.ops.vplace.apply() == {"FINISHED"}
+    assert apply.find_collection(apply.REGION_NAME) is not None
+    assert bpy.ops.vplace.clear_vpls() == {"FINISHED"}
+    assert apply.find_collection(apply.REGION_NAME) is None
+    assert not [o for o in bpy.data.objects if o.name.startswith("vplace region")]
+
+
 def test_failed_apply_reports_and_changes_nothing(registered):
     scene = small_cornell()
     bpy.data.objects["light"].hide_render = True  # no light: the VPLs cannot be placed
@@ -149,18 +183,30 @@ def written_lights():
     return sorted(out)
 
 
+def drawn_region():
+    """The region's empties (``apply.write_region``): name, shape, size and world matrix."""
+    coll = apply.find_collection(apply.REGION_NAME)
+    assert coll is not None and len(coll.objects) > 1
+    return sorted(
+        (o.name, o.empty_display_type, o.empty_display_size, tuple(map(tuple, o.matrix_world)))
+        for o in coll.objects
+    )
+
+
 @pytest.mark.slow
 def test_apply_twice_writes_the_same_lights_and_image(registered, tmp_path):
     from addon.capture import passes as capture
 
     scene = small_cornell()
     assert bpy.ops.vplace.apply() == {"FINISHED"}
-    first = written_lights()
+    first, region = written_lights(), drawn_region()
     image = capture.capture(scene, resolution=(24, 24), samples=8, include_vpls=True)
     # The second run captures with the first run's lights in the scene: the capture hides them,
-    # so it sees what the first saw and writes the same lights.
+    # so it sees what the first saw and writes the same lights, for the same region.
     assert bpy.ops.vplace.apply() == {"FINISHED"}
-    assert written_lights() == first
+    assert written_lights() == first and drawn_region() == region
     again = capture.capture(scene, resolution=(24, 24), samples=8, include_vpls=True)
     np.testing.assert_array_equal(again.combined, image.combined)
-    assert len([c for c in bpy.data.collections if c.get("vplace_vpl")]) == 1
+    # One collection of lights and one of their region, each replaced, not doubled.
+    marked = sorted(c.name for c in bpy.data.collections if c.get("vplace_vpl"))
+    assert marked == sorted([apply.COLLECTION_NAME, apply.REGION_NAME])

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 from vplace import job as vjob
 from vplace import markdown
 
@@ -82,6 +84,21 @@ def test_job_report_says_when_the_vpls_size_follows_the_region_the_cameras_see()
         "near-field radius 0.01 m); VPL sizes follow the region the cameras see (16.7 m), not "
         "the scene's bounds (1.41e+03 m across)\n" in text
     )
+
+
+def test_job_report_and_panel_say_what_region_the_lights_were_laid_out_for():
+    region = vjob.RegionSummary(4, [2.33, 4.02], 0.377, 0.498, 0.17)
+    assert "coverage view" not in vjob.job_report(_report())
+    text = vjob.job_report(_report(region=region))
+    assert (
+        "Region: 4 coverage views around 2 cameras (radius 2.33, 4.02 m); its surfaces seen: "
+        "38% by the cameras, 50% with the coverage views (0.17 s to choose them; the "
+        "collection 'vplace region' shows them).\n" in text
+    )
+    panel = vjob.PanelReport.from_json(json.dumps(_report(region=region).to_dict()))
+    assert panel.region == region and panel.region.lines()[1].startswith("  its surfaces")
+    one = vjob.RegionSummary(1, [0.9], 0.5, 0.6, 0.1).lines()[0]
+    assert one == "Region: 1 coverage view around 1 camera (radius 0.9 m)"
 
 
 def test_job_report_eevee_row():

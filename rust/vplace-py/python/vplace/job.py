@@ -1124,6 +1124,30 @@ class ReferenceInfo:
 
 
 @dataclass
+class RegionSummary:
+    """The region the lights were laid out for (``vplace.coverage``): the coverage views added,
+    the region's radius around each camera (metres), the share of the region's surfaces the
+    cameras' captures see and the share with the coverage views, and the seconds of the pick."""
+
+    views: int
+    radius_m: list[float]
+    covered_before: float
+    covered_after: float
+    seconds: float
+
+    def lines(self) -> list[str]:
+        """The region in lines short enough for a panel row."""
+        cameras = len(self.radius_m)
+        radii = ", ".join(f"{r:.3g}" for r in self.radius_m)
+        return [
+            f"Region: {self.views} coverage view{'s' * (self.views != 1)} around "
+            f"{cameras} camera{'s' * (cameras != 1)} (radius {radii} m)",
+            f"  its surfaces seen: {markdown.percent(self.covered_before)} by the cameras, "
+            f"{markdown.percent(self.covered_after)} with the coverage views",
+        ]
+
+
+@dataclass
 class JobSummary:
     """One run: the scene, the settings, the stage times, the evaluator and the scores. The
     main job adds the reference, the EEVEE scores, the baselines and its files."""
@@ -1165,6 +1189,8 @@ class JobSummary:
     #: The coverage views rendered by Cycles (``coverage.RENDERED_PREFIX``), fitted as captures
     #: beside :attr:`views`, the user's.
     region_views: list[str] = field(default_factory=list)
+    #: The region the lights were laid out for; None without coverage views.
+    region: RegionSummary | None = None
     fit: FitSummary | None = None
     #: "Match EEVEE's direct light": per captured view the refit made up for, the mean of
     #: :func:`eevee_deficit` over the mean of Cycles' direct light (luminance; negative where
@@ -1215,6 +1241,8 @@ class PanelReport:
     #: "Match EEVEE's direct light" (``JobSummary.eevee_matched``, ``JobSummary.eevee_match``).
     eevee_matched: dict[str, float] = field(default_factory=dict)
     eevee_match: dict[str, Any] | None = None
+    #: The region the lights were laid out for (``JobSummary.region``).
+    region: RegionSummary | None = None
 
     @classmethod
     def from_json(cls, text: str) -> PanelReport | None:
@@ -1223,6 +1251,7 @@ class PanelReport:
             return None
         data = json.loads(text)
         fit = data.get("fit")
+        region = data.get("region")
         return cls(
             n_vpls=data.get("n_vpls", 0),
             profile=data.get("profile", ""),
@@ -1232,6 +1261,7 @@ class PanelReport:
             eevee=data.get("eevee") or {},
             eevee_matched=data.get("eevee_matched") or {},
             eevee_match=data.get("eevee_match"),
+            region=RegionSummary(**region) if region else None,
         )
 
     def eevee_lines(self) -> list[str]:
@@ -1564,6 +1594,7 @@ def job_report(report: JobSummary) -> str:
             for note in eevee_matched_notes(report.eevee_matched, report.eevee_match)
             for line in (note, "")
         ],
+        *_region_lines(report.region),
         *_view_weight_lines(s.refit_view_weights),
         *_near_field_lines(s.near_field, report.unit_scale),
         f"Evaluator: {s.shadow_rays} shadow rays in {s.seconds:.3f} s "
@@ -1571,6 +1602,20 @@ def job_report(report: JobSummary) -> str:
         "",
     ]
     return "\n".join(lines)
+
+
+def _region_lines(region: RegionSummary | dict[str, Any] | None) -> list[str]:
+    """What the report says of the region the lights were laid out for (``RegionSummary``;
+    the write-back draws it in the ``vplace region`` collection)."""
+    if region is None:
+        return []
+    r = RegionSummary(**region) if isinstance(region, dict) else region
+    first, second = r.lines()
+    return [
+        f"{first}; {second.strip()} ({r.seconds:.2f} s to choose them; the collection "
+        "'vplace region' shows them).",
+        "",
+    ]
 
 
 def _view_weight_lines(weights: dict[str, float] | None) -> list[str]:
