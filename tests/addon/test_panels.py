@@ -101,6 +101,9 @@ def test_panel_shows_settings_buttons_and_last_results(scene):
     assert any(t.startswith("RMSE vs Cycles GI") for t in labels)
     assert any(t.startswith("R² ") for t in labels)
     assert any(t.startswith("capture Cornell camera (Cycles):") for t in labels)
+    # The region the lights were laid out for (issue 20; also drawn in 'vplace region').
+    assert any(t.startswith("Region: ") and "around 1 camera (radius" in t for t in labels)
+    assert any(t.startswith("  its surfaces seen: ") for t in labels)
     assert "EEVEE will not show these lights right:" not in labels
     # The box's lamp casts soft shadows without jitter: the panel says it is EEVEE's, not ours.
     assert "EEVEE's own light, not vplace's:" in labels
