@@ -296,7 +296,7 @@ def key_lights(
                 portals=[p.stand_ins.portals for p in prepared],
                 closed=all(p.stand_ins.closed for p in prepared),
             )
-            marks = [apply.region_marks(p.scene, p.views, p.coverage) for p in prepared]
+            marks = [apply.RegionMarks.of(p.coverage) for p in prepared]
             apply.write_region(bl_scene, apply.union_of_regions(marks))
     return tracked
 

@@ -598,7 +598,6 @@ def run_main_job(
             exported=prepared.exported,
             lights=prepared.stand_ins,
             cut_lamps=prepared.cut_lamps,
-            views=prepared.views,
             coverage=prepared.coverage,
             blend_path=out_dir / "scene.blend",
             stage=timer.stage,

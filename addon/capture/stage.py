@@ -206,7 +206,7 @@ def rendered_coverage(
     ``Coverage`` holds the poses (its ``views`` empty) and the seconds of the pick; the renders'
     own are the captures'."""
     start = time.perf_counter()
-    poses, before, after, radii = vplace.coverage.pick(
+    poses, before, after, radii, eyes = vplace.coverage.pick(
         scene, exported.vertices[exported.triangles], views, region
     )
     picked = time.perf_counter() - start
@@ -227,7 +227,7 @@ def rendered_coverage(
             )
         if cap.covered.any():
             rendered.append(cap)
-    return vplace.coverage.Coverage([], poses, before, after, radii, picked), rendered
+    return vplace.coverage.Coverage([], poses, before, after, radii, picked, eyes), rendered
 
 
 def reference_of(

@@ -224,8 +224,7 @@ class VPLACE_OT_apply(BackgroundOperator, bpy.types.Operator):
             closed=self.prepared.stand_ins.closed,
             cut_lamps=self.prepared.cut_lamps,
         )
-        p = self.prepared
-        apply.write_region(scene, apply.region_marks(p.scene, p.views, p.coverage))
+        apply.write_region(scene, apply.RegionMarks.of(self.prepared.coverage))
         try:
             summary = pipeline.summary(scene, self.job, self.prepared, computed, self.timer)
             summary.set_match(self.matched, computed.laid.match)

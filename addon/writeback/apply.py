@@ -608,25 +608,13 @@ class RegionMarks:
     radii: list[float]
     poses: list[vplace.coverage.Pose]
 
-
-def region_marks(
-    scene: vplace.Scene,
-    views: Sequence[vplace.View],
-    coverage: vplace.coverage.Coverage | None,
-) -> RegionMarks | None:
-    """The region a job laid its lights out for, as :func:`write_region` draws it: each user
-    camera's eye (``vplace.coverage.camera_eye``; the views of ``views`` that are neither
-    traced nor rendered coverage views) with its region's radius, and the ``coverage`` views'
-    poses; None without coverage views."""
-    if coverage is None or not coverage.poses:
-        return None
-    users = [
-        v
-        for v in views
-        if not vplace.coverage.is_coverage(v) and not vplace.coverage.is_rendered_coverage(v)
-    ]
-    eyes = [vplace.coverage.camera_eye(scene, v.camera_position, v.world_to_clip) for v in users]
-    return RegionMarks(eyes, list(coverage.radius), list(coverage.poses))
+    @classmethod
+    def of(cls, coverage: vplace.coverage.Coverage | None) -> RegionMarks | None:
+        """The region a job laid its lights out for (``Prepared.coverage``): its cameras' eyes
+        and radii and its coverage views' poses; None without coverage views."""
+        if coverage is None or not coverage.poses:
+            return None
+        return cls(list(coverage.eyes), list(coverage.radius), list(coverage.poses))
 
 
 def union_of_regions(marks: Sequence[RegionMarks | None]) -> RegionMarks | None:

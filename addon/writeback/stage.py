@@ -46,15 +46,14 @@ def write_back(
     blend_path: Path | None,
     stage: Callable[[str], AbstractContextManager[None]],
     log: Callable[[str], None],
-    views: Sequence[vplace.View] = (),
     coverage: vplace.coverage.Coverage | None = None,
 ) -> WrittenBack:
     """Writes ``vpls`` (specular factor ``specular``: ``Prepared.vpl_specular``) and the
     stand-in ``lights`` of ``exported`` (``stand_ins.stand_ins``) into the VPL collection
     (``apply.write_vpls``, with ``cut_lamps``: ``Prepared.cut_lamps``), leaves unlit by the
     VPLs the objects ``native_view.vpl_unlit`` names (with a note), shows the region the
-    lights were laid out for (``apply.write_region`` of ``apply.region_marks``: the cameras of
-    ``views`` and the ``coverage`` views; without coverage views the last run's region goes),
+    lights were laid out for (``apply.write_region`` of the job's ``coverage``: its cameras'
+    regions and its coverage views; without coverage views the last run's region goes),
     saves a copy of the file to
     ``blend_path`` when given, and logs what EEVEE will not show right and the lamp notes
     (``eevee_setup.lamp_notes``)."""
@@ -77,7 +76,7 @@ def write_back(
             closed=lights.closed,
             cut_lamps=cut_lamps,
         )
-        apply.write_region(bl_scene, apply.region_marks(scene, views, coverage))
+        apply.write_region(bl_scene, apply.RegionMarks.of(coverage))
         if blend_path is not None:
             run_operator(
                 "wm.save_as_mainfile",

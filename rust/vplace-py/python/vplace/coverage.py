@@ -180,6 +180,8 @@ class Coverage:
     covered_after: float
     radius: list[float] = field(default_factory=list)
     seconds: float = 0.0
+    #: Where each user camera stands for its region (:func:`camera_eye`), as :attr:`radius`.
+    eyes: list[np.ndarray] = field(default_factory=list)
 
     def describe(self, unit_scale: float = 1.0) -> str:
         """One line for the log and the report; ``unit_scale``: metres per scene unit."""
@@ -359,9 +361,10 @@ def pick(
     triangles: np.ndarray,
     user_views: Sequence[View],
     region: Region,
-) -> tuple[list[Pose], float, float, list[float]]:
+) -> tuple[list[Pose], float, float, list[float], list[np.ndarray]]:
     """The coverage poses for ``user_views`` (greedy set cover, see the module docs), the share
-    of the region's voxels covered before and after, and the region's radius per view.
+    of the region's voxels covered before and after, and per view the region's radius and where
+    its camera stands (:func:`camera_eye`).
     ``triangles``: (T, 3, 3) float32 corners of the scene's triangles."""
     eyes = [camera_eye(scene, v.camera_position, v.world_to_clip) for v in user_views]
     regions = [_region(scene, e, region.radius) for e in eyes]
@@ -385,7 +388,7 @@ def pick(
         chosen.append(poses[best])
         covered |= sets[best]
         del sets[best], poses[best]
-    return chosen, seen_before, len(covered & universe) / max(len(universe), 1), radii
+    return chosen, seen_before, len(covered & universe) / max(len(universe), 1), radii, eyes
 
 
 def coverage_view(
@@ -450,7 +453,7 @@ def cover(
     start = time.perf_counter()
     if region.count == 0 or not user_views:
         return Coverage([], [], 1.0, 1.0)
-    poses, before, after, radii = pick(scene, triangles, user_views, region)
+    poses, before, after, radii, eyes = pick(scene, triangles, user_views, region)
     views = []
     if poses:
         target = uniform_vpls(
@@ -467,7 +470,7 @@ def cover(
                     scene, triangles, pose, region.size, target, name=f"{PREFIX}{i + 1}", seed=seed
                 )
             )
-    return Coverage(views, poses, before, after, radii, time.perf_counter() - start)
+    return Coverage(views, poses, before, after, radii, time.perf_counter() - start, eyes)
 
 
 #: The held-out poses' distance from the camera, as fractions of the region's radius.

@@ -1604,15 +1604,14 @@ def job_report(report: JobSummary) -> str:
     return "\n".join(lines)
 
 
-def _region_lines(region: RegionSummary | dict[str, Any] | None) -> list[str]:
+def _region_lines(region: RegionSummary | None) -> list[str]:
     """What the report says of the region the lights were laid out for (``RegionSummary``;
     the write-back draws it in the ``vplace region`` collection)."""
     if region is None:
         return []
-    r = RegionSummary(**region) if isinstance(region, dict) else region
-    first, second = r.lines()
+    first, second = region.lines()
     return [
-        f"{first}; {second.strip()} ({r.seconds:.2f} s to choose them; the collection "
+        f"{first}; {second.strip()} ({region.seconds:.2f} s to choose them; the collection "
         "'vplace region' shows them).",
         "",
     ]
