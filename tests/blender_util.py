@@ -250,6 +250,38 @@ def no_vpls() -> Any:
     return vplace.VplSet(np.zeros((1, 3), np.float32), up, np.zeros((1, 3), np.float32))
 
 
+def add_mesh(
+    scene: bpy.types.Scene, name: str, verts: list[Any], faces: list[Any]
+) -> bpy.types.Object:
+    """A new mesh object of ``verts`` and ``faces`` linked to ``scene``."""
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata(verts, [], faces)
+    obj = bpy.data.objects.new(name, mesh)
+    scene.collection.objects.link(obj)
+    bpy.context.view_layer.update()
+    return obj
+
+
+def add_glowing_panel(scene: bpy.types.Scene, strength: float) -> bpy.types.Object:
+    """A 0.5 x 0.4 panel facing down just under the Cornell box's ceiling, of an Emission
+    shader of ``strength``: an emissive mesh, which EEVEE lights with through vplace's
+    stand-ins."""
+    panel = add_mesh(
+        scene,
+        "panel",
+        [(-0.25, -0.2, 1.95), (0.25, -0.2, 1.95), (0.25, 0.2, 1.95), (-0.25, 0.2, 1.95)],
+        [(0, 3, 2, 1)],  # facing down
+    )
+    mat = new_material("glow")
+    nodes = mat.node_tree.nodes
+    nodes.remove(nodes["Principled BSDF"])
+    emission = nodes.new("ShaderNodeEmission")
+    emission.inputs["Strength"].default_value = strength
+    mat.node_tree.links.new(emission.outputs[0], nodes["Material Output"].inputs["Surface"])
+    panel.data.materials.append(mat)
+    return panel
+
+
 def principled(name: str, **inputs: Any) -> tuple[bpy.types.Material, bpy.types.Node]:
     """A new material with its default Principled BSDF's ``inputs`` set; the material and the
     node."""

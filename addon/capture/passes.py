@@ -338,11 +338,7 @@ def camera_matrices(
 
 def vpl_objects(scene: bpy.types.Scene) -> list[bpy.types.Object]:
     """The light objects vplace wrote (marked, or in a collection vplace marked)."""
-    return [
-        o
-        for o in scene.objects
-        if o.get(VPL_MARKER, False) or any(c.get(VPL_MARKER, False) for c in o.users_collection)
-    ]
+    return [o for o in scene.objects if render_key.is_vplace(o)]
 
 
 def capture_key(

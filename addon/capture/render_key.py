@@ -11,8 +11,12 @@ the scene, independent of what vplace exports, at the current frame:
   use: its file path with the file's size and modification time, or a packed image's size, or a
   generated image's parameters, its colour space and alpha mode, and for an image edited in
   memory and not saved, its pixels;
-- each rendered object's world matrix and ray visibility (camera, diffuse, glossy,
-  transmission, volume, shadow), holdout and shadow-catcher flags;
+- each rendered object's name, world matrix and ray visibility (camera, diffuse, glossy,
+  transmission, volume, shadow), holdout and shadow-catcher flags; vplace's own objects (lights
+  and stand-ins it writes) by their names without Blender's ".001" suffix, which says only that
+  an older object of the name was there when they were written: the stand-ins that "Match
+  EEVEE's direct light" writes for its render took one beside the last run's written lights,
+  so the second run of a file missed the first's render and rendered again;
 - every light's settings (all of its plain properties);
 - the render settings (``scene.render``: film, motion blur...) and the engine's
   (``scene.cycles`` and the view layer's Cycles settings, or ``scene.eevee``); not what
@@ -33,6 +37,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -41,6 +46,8 @@ from typing import Any
 
 import bpy
 import numpy as np
+
+from ..scene.export import VPL_MARKER
 
 #: The most bytes a render cache directory keeps (captures and EEVEE renders together).
 CACHE_LIMIT_BYTES = 4 << 30
@@ -250,24 +257,25 @@ def meshes_unchanged() -> Iterator[None]:
         _MESH_MEMO.reset(token)
 
 
-def _data_hash(data: bpy.types.ID) -> str:
-    """:func:`data_signature`'s hash of the data itself; a mesh's is computed once within
-    :func:`meshes_unchanged`."""
+def _data_hash(data: bpy.types.ID, name: str | None = None) -> str:
+    """:func:`data_signature`'s hash of the data itself, by ``name`` (default its own); a
+    mesh's is computed once within :func:`meshes_unchanged`."""
     if not isinstance(data, bpy.types.Mesh):
-        return _hash_of(data, ())
+        return _hash_of(data, (), name)
     sizes = (len(data.vertices), len(data.loops), len(data.polygons))
     memo = _MESH_MEMO.get()
     if memo is None:
-        return _hash_of(data, sizes)
-    key = (data.session_uid, data.name_full, *sizes)
+        return _hash_of(data, sizes, name)
+    key = (data.session_uid, data.name_full, name, *sizes)
     if key not in memo:
-        memo[key] = _hash_of(data, sizes)
+        memo[key] = _hash_of(data, sizes, name)
     return memo[key]
 
 
-def _hash_of(data: bpy.types.ID, sizes: tuple[int, ...]) -> str:
+def _hash_of(data: bpy.types.ID, sizes: tuple[int, ...], name: str | None = None) -> str:
     """The hash of :func:`_data_hash` (``sizes``: a mesh's vertex, loop and face counts)."""
-    h = hashlib.sha256(repr((type(data).__name__, data.name_full)).encode())
+    name = data.name_full if name is None else name
+    h = hashlib.sha256(repr((type(data).__name__, name)).encode())
     if isinstance(data, bpy.types.Mesh):
         co = np.empty(3 * sizes[0], dtype=np.float32)
         data.vertices.foreach_get("co", co)
@@ -292,8 +300,30 @@ def data_signature(obj: bpy.types.Object, done: dict[str, str]) -> str:
         return ""
     name = data.name_full
     if name not in done:
-        done[name] = _data_hash(data)
+        done[name] = _data_hash(data, _own_name(data.name_full) if is_vplace(obj) else None)
     return done[name] + _modifiers(obj)
+
+
+#: Blender's suffix of a name taken twice: ".001", ".002", ...
+_SUFFIX = re.compile(r"\.\d{3,}$")
+
+
+def _own_name(name: str) -> str:
+    """``name`` without Blender's ".001" suffix."""
+    return _SUFFIX.sub("", name)
+
+
+def is_vplace(obj: bpy.types.Object) -> bool:
+    """Whether vplace wrote ``obj`` (marked, or in a collection vplace marked)."""
+    return bool(obj.get(VPL_MARKER, False)) or any(
+        c.get(VPL_MARKER, False) for c in obj.users_collection
+    )
+
+
+def _key_name(obj: bpy.types.Object) -> str:
+    """The name :func:`scene_signature` hashes for ``obj``: its own, or for vplace's objects
+    the name without Blender's suffix (module docs)."""
+    return _own_name(obj.name_full) if is_vplace(obj) else obj.name_full
 
 
 def _modifiers(obj: bpy.types.Object) -> str:
@@ -355,11 +385,12 @@ def scene_signature(
     materials: dict[str, bpy.types.Material] = {}
     done: dict[str, str] = {}
     depsgraph = bpy.context.evaluated_depsgraph_get()  # matrices after the latest edits
-    for obj in sorted(scene.objects, key=lambda o: o.name_full):
-        if obj.hide_render or obj.name_full in hidden:
-            continue
+    shown = [o for o in scene.objects if not (o.hide_render or o.name_full in hidden)]
+    for name, obj in sorted(
+        ((_key_name(o), o) for o in shown), key=lambda p: (p[0], p[1].name_full)
+    ):
         matrix = obj.evaluated_get(depsgraph).matrix_world
-        h.update(repr((obj.name_full, obj.type, [list(r) for r in matrix])).encode())
+        h.update(repr((name, obj.type, [list(r) for r in matrix])).encode())
         h.update(data_signature(obj, done).encode())
         h.update(repr([getattr(obj, k, None) for k in _RAY_VISIBILITY]).encode())
         linking = _linking_signature(obj)

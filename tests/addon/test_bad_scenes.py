@@ -5,9 +5,9 @@ import math
 import bpy
 import numpy as np
 import pytest
-from blender_util import addon_cornell, data_snapshot, diff
+from blender_util import add_glowing_panel, add_mesh, addon_cornell, data_snapshot, diff
 
-from addon.compat import new_material, new_world
+from addon.compat import new_world
 from addon.scene import bench_export
 from addon.writeback import apply
 
@@ -16,15 +16,6 @@ from addon.writeback import apply
 def scene():
     with addon_cornell() as sc:
         yield sc
-
-
-def add_mesh(scene, name, verts, faces):
-    mesh = bpy.data.meshes.new(name)
-    mesh.from_pydata(verts, [], faces)
-    obj = bpy.data.objects.new(name, mesh)
-    scene.collection.objects.link(obj)
-    bpy.context.view_layer.update()
-    return obj
 
 
 def fails_cleanly(message):
@@ -69,19 +60,7 @@ def light_by_world_only(scene):
 
 def light_by_emissive_mesh_only(scene):
     bpy.data.objects["light"].hide_render = True
-    panel = add_mesh(
-        scene,
-        "panel",
-        [(-0.25, -0.2, 1.95), (0.25, -0.2, 1.95), (0.25, 0.2, 1.95), (-0.25, 0.2, 1.95)],
-        [(0, 3, 2, 1)],  # facing down
-    )
-    mat = new_material("glow")
-    nodes = mat.node_tree.nodes
-    nodes.remove(nodes["Principled BSDF"])
-    emission = nodes.new("ShaderNodeEmission")
-    emission.inputs["Strength"].default_value = 20.0
-    mat.node_tree.links.new(emission.outputs[0], nodes["Material Output"].inputs["Surface"])
-    panel.data.materials.append(mat)
+    add_glowing_panel(scene, 20.0)
 
 
 @pytest.mark.parametrize("light_by", [light_by_world_only, light_by_emissive_mesh_only])

@@ -8,7 +8,7 @@ tested without EEVEE."""
 import bpy
 import numpy as np
 import pytest
-from blender_util import addon_cornell, cornell
+from blender_util import add_glowing_panel, addon_cornell, cornell
 
 from addon import job as pipeline
 from addon.errors import AddonError
@@ -150,3 +150,39 @@ def test_the_panel_says_when_auto_left_the_match_out(monkeypatch, capfd):
     assert "Match EEVEE's direct light (auto) left out: the EEVEE render did not finish" in (
         out.out + out.err
     )
+
+
+def test_the_second_run_of_a_file_finds_the_first_runs_match_render(monkeypatch):
+    """The match's EEVEE render lights the scene with stand-ins of its own, which take ".001"
+    names beside the stand-ins the last run wrote; the render is the same all the same, and
+    the second "Lay out and apply" must load it from the cache rather than render it again
+    (EEVEE on llvmpipe does not render it bit for bit again, and the lights moved: README,
+    "The second run's EEVEE render of the match")."""
+    keys = []
+
+    def render(scene, *, resolution, camera=None, samples=None, setup=None, **_kwargs):
+        camera = camera or scene.camera
+        names = sorted(
+            o.name for o in scene.objects if o.get("vplace_emitter") and not o.hide_render
+        )
+        keys.append(
+            (
+                eevee_render._key(
+                    scene, camera, resolution, samples, setup.engine, setup, 0, "stub"
+                ),
+                names,
+            )
+        )
+        return eevee_render.EeveeImage(np.zeros((resolution[1], resolution[0], 3), np.float32), 0.0)
+
+    monkeypatch.setattr(eevee_render, "render", render)
+    with addon_cornell(match_eevee="on") as scene:
+        add_glowing_panel(scene, 5.0)
+        bpy.context.view_layer.update()
+        for _ in range(2):
+            assert bpy.ops.vplace.apply() == {"FINISHED"}
+        written = [o.name for o in apply.find_collection().objects if o.get("vplace_emitter")]
+    assert written and len(keys) == 2
+    (first, first_names), (second, second_names) = keys
+    assert first_names and all(n.endswith(".001") for n in second_names)  # beside the first's
+    assert second == first

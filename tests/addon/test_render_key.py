@@ -13,6 +13,7 @@ from blender_util import cornell
 from addon.capture import passes as capture
 from addon.capture import render_key
 from addon.compat import eevee_engine
+from addon.scene.export import VPL_MARKER
 
 
 def key(scene):
@@ -106,6 +107,38 @@ def test_what_vplace_sets_itself_or_only_moves_a_node_keeps_the_key():
     assert key(scene) == before
 
 
+def _light(scene, name, *, marked):
+    data = bpy.data.lights.new(name, "AREA")
+    obj = bpy.data.objects.new(name, data)
+    if marked:
+        obj[VPL_MARKER] = True
+    scene.collection.objects.link(obj)
+    return obj
+
+
+def _signature(scene):
+    return render_key.scene_signature(scene, eevee_engine())
+
+
+def test_vplaces_objects_key_by_their_names_without_blenders_suffix():
+    """The stand-ins "Match EEVEE's direct light" writes for its render take ".001" names
+    beside the last run's written lights: a render of the same scene all the same, which the
+    second run must find in the cache (a new EEVEE render may differ: README, "The second
+    run's EEVEE render of the match"). A user's object keys by its whole name."""
+    scene = cornell()
+    ours = _light(scene, "vplace emitter 000 (lamp)", marked=True)
+    before = _signature(scene)
+    ours.name = ours.data.name = "vplace emitter 000 (lamp).001"
+    assert ours.name.endswith(".001") and _signature(scene) == before
+    ours.location.x += 0.1  # still a render of what it shows
+    assert _signature(scene) != before
+    ours.location.x -= 0.1
+    theirs = _light(scene, "lamp", marked=False)
+    mine = _signature(scene)
+    theirs.name = "lamp.001"
+    assert _signature(scene) != mine
+
+
 def test_the_key_survives_saving_and_reopening_the_file(tmp_path):
     scene = cornell()
     before = key(scene)
@@ -176,7 +209,9 @@ def test_a_job_hashes_each_mesh_once_and_the_key_is_the_same(monkeypatch):
     outside = key(scene)
     reads = []
     hash_of = render_key._hash_of
-    monkeypatch.setattr(render_key, "_hash_of", lambda d, s: reads.append(d.name) or hash_of(d, s))
+    monkeypatch.setattr(
+        render_key, "_hash_of", lambda d, *a: reads.append(d.name) or hash_of(d, *a)
+    )
     meshes = {o.data.name for o in scene.objects if o.type == "MESH" and not o.hide_render}
     with render_key.meshes_unchanged():
         first = key(scene)
