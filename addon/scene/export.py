@@ -29,6 +29,11 @@ particles. A material with true displacement keeps its undisplaced surface (with
 which is nearer to what Cycles renders than leaving the object out. Light and shadow linking
 (an object's Light Linking collections) is exported as if absent, with a warning: the captures
 follow it, the light paths do not. Warnings are collected in ``ExportedScene.warnings``.
+
+**A surface shown twice** (faces that lie one over the other, facing the same way: an object
+duplicated in place, a mirror about the object's own centre) is exported as it is, with a
+warning naming the objects (:func:`shown_twice`): Cycles renders it black, a ray leaving one
+face meeting the other at once, where EEVEE and vplace light it, so the captures call it dark.
 """
 
 from __future__ import annotations
@@ -65,6 +70,88 @@ T = TypeVar("T")
 VPL_MARKER = "vplace_vpl"
 #: Albedo of a slot without a material (Blender's default grey).
 DEFAULT_ALBEDO = (0.8, 0.8, 0.8)
+#: Corners closer than this fraction of the scene's diagonal are one point to :func:`shown_twice`.
+COINCIDE_TOLERANCE = 1e-6
+#: :func:`shown_twice`'s warning names at most this many pairs of objects.
+SHOWN_TWICE_NAMED = 3
+
+
+_MIX = np.uint64(0x9E3779B97F4A7C15)
+_TURN = np.uint64(0xC2B2AE3D27D4EB4F)
+
+
+def _mixed(keys: np.ndarray) -> np.ndarray:
+    """One 64-bit hash per row of ``keys`` (N x K, uint64), wrapping."""
+    out = np.zeros(len(keys), dtype=np.uint64)
+    for k in range(keys.shape[1]):
+        out = (out ^ keys[:, k]) * _MIX + np.uint64(2 * k + 1)
+    return out
+
+
+def _edge(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """A hash of the directed edges ``a -> b`` (uint64 corner keys): ``a -> b`` and ``b -> a``
+    differ."""
+    return ((a * _MIX) ^ b) * _TURN
+
+
+def shown_twice(
+    vertices: np.ndarray, triangles: np.ndarray, owners: np.ndarray, names: list[str]
+) -> list[tuple[str, str, int]]:
+    """Surfaces shown twice: triangles whose corners coincide (to :data:`COINCIDE_TOLERANCE`
+    of the scene's diagonal) in the same cyclic order, so facing the same way, with another's.
+    ``owners[t]`` indexes ``names`` for triangle ``t``. Per pair of object names (sorted; one
+    name twice for an object's own faces), the triangles that lie on another; most first.
+    Faces that meet back to back (two boxes side by side, a box on a floor) face opposite ways
+    and are not counted. One sort of a hash per triangle where none coincide (Sponza's 262k
+    triangles: about 20 ms)."""
+    if len(triangles) < 2:
+        return []
+    lo = vertices.min(axis=0)
+    cell = max(float(np.linalg.norm(vertices.max(axis=0) - lo)), 1e-12) * COINCIDE_TOLERANCE
+    q = np.rint((vertices - lo) / np.float32(cell)).astype(np.int64).view(np.uint64)
+    a, b, c = _mixed(q)[triangles.astype(np.int64)].T  # one key per corner
+    whole = (a != b) & (b != c) & (a != c)
+    # The sum of the three directed edges: the same from whichever corner a triangle starts,
+    # another for the triangle turned over.
+    key = (_edge(a, b) + _edge(b, c) + _edge(c, a))[whole]
+    ordered = np.sort(key)
+    if not (ordered[1:] == ordered[:-1]).any():  # the usual case
+        return []
+    _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+    ids = np.flatnonzero(whole)[counts[inverse.ravel()] > 1]
+    # Exactly, on the few left: the same three corners in the same turn.
+    corner = np.column_stack([a[ids], b[ids], c[ids]])
+    first = np.argmin(corner, axis=1)
+    cycle = corner[np.arange(len(ids))[:, None], (first[:, None] + np.arange(3)) % 3]
+    groups, group_of = np.unique(cycle, axis=0, return_inverse=True)
+    group_of = group_of.ravel()
+    pairs: dict[tuple[str, str], int] = {}
+    for g in range(len(groups)):
+        members = ids[group_of == g]
+        if len(members) < 2:
+            continue
+        who = sorted(names[o] for o in owners[members])
+        pairs[(who[0], who[1])] = pairs.get((who[0], who[1]), 0) + len(members) - 1
+    return sorted(((a, b, n) for (a, b), n in pairs.items()), key=lambda p: (-p[2], p[0], p[1]))
+
+
+def shown_twice_warning(found: list[tuple[str, str, int]]) -> str | None:
+    """The export's warning for :func:`shown_twice`'s pairs (None without)."""
+    if not found:
+        return None
+    said = [
+        f"{n} face(s) of {a!r} on its own" if a == b else f"{n} face(s) of {a!r} on {b!r}"
+        for a, b, n in found[:SHOWN_TWICE_NAMED]
+    ]
+    more = len(found) - SHOWN_TWICE_NAMED
+    if more > 0:
+        said.append(f"{more} more pair(s) of objects")
+    return (
+        f"a surface shown twice ({'; '.join(said)}; faces that lie one over the other, facing "
+        "the same way): Cycles renders it black (a ray leaving one face meets the other at "
+        "once) where EEVEE lights it, so the captures call it dark; delete the copy (or Merge "
+        "by Distance)"
+    )
 
 
 @dataclass
@@ -665,6 +752,14 @@ class _Exporter:
             return
         if obj.type not in GEOMETRY_TYPES:
             return
+        if not isinstance(obj.data, bpy.types.Mesh):
+            # A text, curve, surface or metaball: Cycles renders the mesh its evaluation makes,
+            # which the depsgraph hands on as an instance of the object's own (below); the
+            # object itself renders nothing (Cycles' geometry is mesh data). Both exported,
+            # each of its faces lay on another (stop 80).
+            return
+        # That mesh is the object itself, not an instance of something else.
+        own = inst.is_instance and inst.parent is not None and inst.parent.original == original
         if not inst.is_instance:
             self._check_particles(obj, original.name)
         if not (obj.visible_diffuse or obj.visible_shadow):
@@ -685,7 +780,7 @@ class _Exporter:
             self.names.append(original.name)
             used = np.unique(part.material_ids).tolist()
             self.object_materials.setdefault(original.name, set()).update(used)
-            if inst.is_instance:
+            if inst.is_instance and not own:
                 self.instanced.add(original.name)
 
     def _check_linking(self, obj: bpy.types.Object) -> None:
@@ -845,8 +940,13 @@ class _Exporter:
         if world is not None:
             for w in world.warnings:
                 self.warn(w)
+        vertices = np.concatenate([p.vertices for p in self.parts]).astype(np.float32, copy=False)
+        owners = np.repeat(np.arange(len(self.parts)), [len(p.triangles) for p in self.parts])
+        twice = shown_twice_warning(shown_twice(vertices, tris, owners, self.names))
+        if twice is not None:
+            self.warn(twice)
         return ExportedScene(
-            np.concatenate([p.vertices for p in self.parts]).astype(np.float32, copy=False),
+            vertices,
             tris.astype(np.uint32),
             np.concatenate([p.material_ids for p in self.parts]).astype(np.uint32),
             self.materials,
