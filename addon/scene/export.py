@@ -839,6 +839,11 @@ class _Exporter:
                 return None
         m = np.array(matrix, dtype=np.float64)
         world = co64 @ m[:3, :3].T + m[:3, 3]
+        if np.linalg.det(m[:3, :3]) < 0.0:
+            # Mirrored (a negative scale): its faces keep facing out, as Blender shows them and
+            # Cycles renders them, with their corners in the other turn.
+            tris = tris[:, ::-1]
+            uvs = uvs[:, ::-1] if uvs is not None else None
         return _Part(world.astype(np.float32), tris, mids, uvs)
 
     def _surfaces(self, name: str, mids: np.ndarray) -> np.ndarray | None:

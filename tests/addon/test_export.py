@@ -5,7 +5,7 @@ import math
 import bpy
 import numpy as np
 import pytest
-from blender_util import CORNELL_OBJ, cornell, empty_file
+from blender_util import CORNELL_OBJ, add_glowing_panel, cornell, empty_file
 
 from addon.native import vplace
 from addon.scene import export
@@ -274,3 +274,19 @@ def test_shown_twice_counts_the_same_corners_in_the_same_turn():
     assert export.shown_twice(v, np.vstack([one, flipped]), owners, ["a", "b"]) == []
     moved = v + np.array([[0, 0, 0]] * 3 + [[0, 0, 1e-3]] * 3, np.float32)
     assert export.shown_twice(moved, np.vstack([one, turned]), owners, ["a", "b"]) == []
+
+
+def test_a_mirrored_object_faces_out_as_blender_shows_it():
+    """A negative scale turns an object's corners round; Blender still shows its faces facing
+    out, and Cycles renders them so. The export turns them back: a closed emitter's inside
+    (``EmissionRay::trapped``) and the same-facing test of a surface shown twice read it."""
+    scene = cornell()
+    panel = add_glowing_panel(scene, 5.0)  # facing down
+    for sx in (1.0, -1.0):
+        panel.scale.x = sx
+        bpy.context.view_layer.update()
+        ex = export.export_scene(scene)
+        glow = [i for i, m in enumerate(ex.materials) if m.name == "glow"]
+        v = ex.vertices.astype(np.float64)[ex.triangles[np.isin(ex.material_ids, glow)]]
+        n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+        assert len(n) == 2 and (n[:, 2] < 0).all(), sx
