@@ -97,12 +97,15 @@ def measured_frame(g: SettingsGuard, scene: Any, camera: Any | None = None) -> N
     """What a measured render (a capture, a truth, a scored EEVEE frame) sets so that its pixels
     line up with the captures' G-buffer: square pixels (the size keeps the render's shape with
     its pixel aspect, ``capture.views.capture_resolution``; Blender cannot write a multilayer
-    EXR of non-square pixels), one view (no stereo pair) and, for ``camera``, no depth of
-    field (a G-buffer of blurred positions and normals belongs to no surface)."""
+    EXR of non-square pixels), one view (no stereo pair), no motion blur and, for ``camera``,
+    no depth of field: a G-buffer of blurred positions and normals belongs to no surface (a
+    camera moving 1 m a frame with the render's motion blur on: 54 % of the studio capture's
+    normals shorter than 0.9, against 6 % at the edges without; stop 80)."""
     r = scene.render
     g.set(r, "pixel_aspect_x", 1.0)
     g.set(r, "pixel_aspect_y", 1.0)
     g.set(r, "use_multiview", False)
+    g.set(r, "use_motion_blur", False)
     if camera is not None:
         sharp(g, camera)
 

@@ -209,6 +209,7 @@ _OVERRIDDEN = {
             "pixel_aspect_x",
             "pixel_aspect_y",
             "use_multiview",
+            "use_motion_blur",
             "use_persistent_data",
             "file_extension",  # the output format's, which vplace's renders set
         }

@@ -183,6 +183,24 @@ def test_a_capture_frames_what_the_camera_frames_whatever_its_pixels_views_scale
     np.testing.assert_array_equal(again.combined, plain.combined)
 
 
+def test_a_capture_of_a_moving_camera_is_sharp_whatever_the_motion_blur():
+    """The render's motion blur would blur the G-buffer of a moving camera as depth of field
+    does (positions and normals averaged over the shutter): the capture renders the frame
+    sharp, and the user's setting comes back."""
+    scene = cornell()
+    cam = scene.camera
+    for frame, dx in ((1, 0.0), (3, 0.6)):
+        cam.location.x += dx
+        cam.keyframe_insert("location", frame=frame)
+    scene.frame_set(2)
+    sharp = capture.capture(scene, resolution=(24, 20), samples=2)
+    scene.render.use_motion_blur = True
+    blurred = capture.capture(scene, resolution=(24, 20), samples=2)
+    assert scene.render.use_motion_blur
+    np.testing.assert_array_equal(blurred.normal, sharp.normal)
+    np.testing.assert_array_equal(blurred.combined, sharp.combined)
+
+
 def test_a_capture_renders_the_view_layer_that_renders():
     """The window's view layer turned off for rendering: the capture renders the one that is on
     (as F12 does); none on is a one-line error."""

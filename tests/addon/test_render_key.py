@@ -104,6 +104,7 @@ def test_what_vplace_sets_itself_or_only_moves_a_node_keeps_the_key():
     scene.render.filepath = "/tmp/elsewhere"
     scene.view_settings.view_transform = "AgX"  # measured renders use the Standard view
     scene.view_layers[0].use_pass_mist = True
+    scene.render.use_motion_blur = True  # measured renders are sharp (settings.measured_frame)
     assert key(scene) == before
 
 
