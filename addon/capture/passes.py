@@ -27,7 +27,7 @@ import OpenEXR
 from ..compat import PASS_NAMES
 from ..errors import CaptureError, run_operator
 from ..native import vplace
-from ..scene.export import VPL_MARKER, render_view_layer
+from ..scene.export import VPL_MARKER, is_vplace, render_view_layer
 from ..scene.materials import LUMINANCE
 from ..settings import SettingsGuard, at_frame, measured_frame, override, standard_view
 from . import render_key
@@ -338,7 +338,7 @@ def camera_matrices(
 
 def vpl_objects(scene: bpy.types.Scene) -> list[bpy.types.Object]:
     """The light objects vplace wrote (marked, or in a collection vplace marked)."""
-    return [o for o in scene.objects if render_key.is_vplace(o)]
+    return [o for o in scene.objects if is_vplace(o)]
 
 
 def capture_key(

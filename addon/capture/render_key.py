@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import re
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -47,7 +46,7 @@ from typing import Any
 import bpy
 import numpy as np
 
-from ..scene.export import VPL_MARKER
+from ..scene.export import base_name, is_vplace
 
 #: The most bytes a render cache directory keeps (captures and EEVEE renders together).
 CACHE_LIMIT_BYTES = 4 << 30
@@ -292,39 +291,18 @@ def _hash_of(data: bpy.types.ID, sizes: tuple[int, ...], name: str | None = None
     return h.hexdigest()
 
 
-def data_signature(obj: bpy.types.Object, done: dict[str, str]) -> str:
+def data_signature(obj: bpy.types.Object, done: dict[str, str], ours: bool = False) -> str:
     """A hash of an object's data as the render evaluates it: a mesh's vertex positions and
     faces, other data's plain settings, and the object's modifiers (``done`` memoizes data
-    shared by several objects)."""
+    shared by several objects); ``ours``: vplace wrote ``obj``, whose data is named without
+    Blender's suffix (module docs)."""
     data = obj.data
     if data is None:
         return ""
     name = data.name_full
     if name not in done:
-        done[name] = _data_hash(data, _own_name(data.name_full) if is_vplace(obj) else None)
+        done[name] = _data_hash(data, base_name(name) if ours else None)
     return done[name] + _modifiers(obj)
-
-
-#: Blender's suffix of a name taken twice: ".001", ".002", ...
-_SUFFIX = re.compile(r"\.\d{3,}$")
-
-
-def _own_name(name: str) -> str:
-    """``name`` without Blender's ".001" suffix."""
-    return _SUFFIX.sub("", name)
-
-
-def is_vplace(obj: bpy.types.Object) -> bool:
-    """Whether vplace wrote ``obj`` (marked, or in a collection vplace marked)."""
-    return bool(obj.get(VPL_MARKER, False)) or any(
-        c.get(VPL_MARKER, False) for c in obj.users_collection
-    )
-
-
-def _key_name(obj: bpy.types.Object) -> str:
-    """The name :func:`scene_signature` hashes for ``obj``: its own, or for vplace's objects
-    the name without Blender's suffix (module docs)."""
-    return _own_name(obj.name_full) if is_vplace(obj) else obj.name_full
 
 
 def _modifiers(obj: bpy.types.Object) -> str:
@@ -386,13 +364,15 @@ def scene_signature(
     materials: dict[str, bpy.types.Material] = {}
     done: dict[str, str] = {}
     depsgraph = bpy.context.evaluated_depsgraph_get()  # matrices after the latest edits
-    shown = [o for o in scene.objects if not (o.hide_render or o.name_full in hidden)]
-    for name, obj in sorted(
-        ((_key_name(o), o) for o in shown), key=lambda p: (p[0], p[1].name_full)
-    ):
+    shown = []  # (the name hashed, vplace's, the object)
+    for o in scene.objects:
+        if not (o.hide_render or o.name_full in hidden):
+            ours = is_vplace(o)  # named without Blender's suffix (module docs)
+            shown.append((base_name(o.name_full) if ours else o.name_full, ours, o))
+    for name, ours, obj in sorted(shown, key=lambda p: (p[0], p[2].name_full)):
         matrix = obj.evaluated_get(depsgraph).matrix_world
         h.update(repr((name, obj.type, [list(r) for r in matrix])).encode())
-        h.update(data_signature(obj, done).encode())
+        h.update(data_signature(obj, done, ours).encode())
         h.update(repr([getattr(obj, k, None) for k in _RAY_VISIBILITY]).encode())
         linking = _linking_signature(obj)
         if any(linking):  # (objects without keep the keys they had before it was hashed)

@@ -574,8 +574,19 @@ def _is_vpl(obj: bpy.types.Object) -> bool:
     return bool(original.get(VPL_MARKER, False))
 
 
-#: Object types exported as triangles (through ``to_mesh``).
-GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
+def is_vplace(obj: bpy.types.Object) -> bool:
+    """Whether vplace wrote ``obj`` (marked, or in a collection vplace marked)."""
+    return bool(obj.get(VPL_MARKER, False)) or any(
+        c.get(VPL_MARKER, False) for c in obj.users_collection
+    )
+
+
+def base_name(name: str) -> str:
+    """``name`` without the ``.001`` Blender adds to a name already taken."""
+    base, dot, tail = name.rpartition(".")
+    return base if dot and len(tail) == 3 and tail.isdigit() and base else name
+
+
 #: Object types Cycles renders that vplace cannot turn into triangles.
 UNSUPPORTED_TYPES = {"VOLUME": "a volume", "CURVES": "hair curves", "POINTCLOUD": "a point cloud"}
 
@@ -750,13 +761,11 @@ class _Exporter:
                 "cannot export: it is left out"
             )
             return
-        if obj.type not in GEOMETRY_TYPES:
-            return
-        if not isinstance(obj.data, bpy.types.Mesh):
+        if obj.type != "MESH":
             # A text, curve, surface or metaball: Cycles renders the mesh its evaluation makes,
             # which the depsgraph hands on as an instance of the object's own (below); the
             # object itself renders nothing (Cycles' geometry is mesh data). Both exported,
-            # each of its faces lay on another (stop 80).
+            # each of its faces lay on another (stop 80). Other types render nothing.
             return
         # That mesh is the object itself, not an instance of something else.
         own = inst.is_instance and inst.parent is not None and inst.parent.original == original

@@ -83,7 +83,7 @@ from mathutils import Matrix, Quaternion, Vector
 
 from ..errors import WriteBackError
 from ..native import vplace
-from ..scene.export import VPL_MARKER
+from ..scene.export import VPL_MARKER, base_name
 from .stand_ins import EmitterLight, SunLight
 
 if TYPE_CHECKING:
@@ -188,13 +188,7 @@ def _role(coll: bpy.types.Collection) -> str:
     """The name a vplace collection was written under (:data:`ROLE_KEY`; a collection written
     before it was kept: its name without Blender's ``.001``)."""
     role = coll.get(ROLE_KEY)
-    return str(role) if role is not None else _base_name(coll.name)
-
-
-def _base_name(name: str) -> str:
-    """``name`` without the ``.001`` Blender adds to a name already taken."""
-    base, dot, tail = name.rpartition(".")
-    return base if dot and len(tail) == 3 and tail.isdigit() and base else name
+    return str(role) if role is not None else base_name(coll.name)
 
 
 def scene_collection(
@@ -763,7 +757,7 @@ def _own_names(objects: Sequence[bpy.types.Object]) -> None:
         for block in (obj, obj.data) if obj.data is not None else (obj,):  # an empty: no data
             was = block.name
             kind = bpy.types.Object if isinstance(block, bpy.types.Object) else bpy.types.Light
-            rename(block, _base_name(was), taken[kind])
+            rename(block, base_name(was), taken[kind])
             action = _vpl_action(block)
             if action is not None and action.name.startswith(was):
                 rename(action, block.name + action.name[len(was) :], taken[bpy.types.Action])
