@@ -219,5 +219,6 @@ def view_of(
         diffuse_indirect=None if held_out else diffuse_indirect,
         indirect=indirect,
         specular=cap.glossy_color,
+        diffuse_color=cap.diffuse_color,
         **_geometry(cap),
     )

@@ -9,8 +9,9 @@ import blender_util
 import bpy
 import numpy as np
 import pytest
-from blender_util import empty_file
+from blender_util import addon_cornell, empty_file
 
+from addon import job as pipeline
 from addon.capture import passes
 from addon.capture.native_view import gloss_mask, view_of, vpl_specular, vpl_unlit
 from addon.capture.passes import Capture
@@ -374,3 +375,37 @@ def test_a_lamps_mirror_image_counts_as_seen_light_and_a_lit_surface_does_not():
     assert seen[0, 5:].max() == 0.0  # nor the uncovered pixel, however bright
     found = vplace.job.seen_directly(cap.seen_light, cap.direct)
     assert np.flatnonzero(found).tolist() == [2, 3]
+
+
+def test_a_sharp_glossy_floor_still_counts_the_light_its_diffuse_layer_receives():
+    """The layout's pixel flux factor (``Layout.pixel_flux_scale``) compares the direct light
+    the captured surfaces receive, by their pixels (``DiffDir``) and by the light paths' hits,
+    on surfaces with a diffuse layer. The Cornell box's floor given a lacquer (a Mix of 0.4
+    white diffuse and 0.6 Glossy at roughness 0.2: its Glossy Color above its Diffuse Color,
+    a sharp layer the reflectance leaves to EEVEE) still has one. Read as the reflectance less
+    the Glossy Color it had none: its pixels dropped out, its hits did not, and the factor rose
+    from 1.06 to 1.21 (my gallery's sunlit oak floor: 11.5, every pixel VPL that much too
+    bright before the refit)."""
+    with addon_cornell(cell_px=8, capture_size=48, samples=8, vpl_budget=64) as sc:
+        scales = []
+        for finish in (False, True):
+            if finish:
+                lacquer = mixed(
+                    "lacquer",
+                    ("ShaderNodeBsdfDiffuse", {"Color": (0.6, 0.6, 0.6, 1.0)}),
+                    ("ShaderNodeBsdfGlossy", {"Roughness": 0.2}),
+                    fac=0.6,
+                )
+                sc.objects["floor"].data.materials[0] = lacquer
+            job = pipeline.Job.from_settings(sc.vplace)
+            job.method = "vplace"
+            prep = pipeline.prepare(sc, job, pipeline.quiet_timer())
+            cap = prep.captures[0]
+            if finish:
+                floor = cap.covered & (cap.position[..., 2] < 1e-3)
+                glossy, diffuse = cap.glossy_color[floor] @ LUMA, cap.diffuse_color[floor] @ LUMA
+                assert np.median(glossy) > np.median(diffuse)
+                mask = gloss_mask(prep.scene, prep.exported, cap)
+                assert floor.sum() > 100 and (mask is None or not mask[floor].any())
+            scales.append(pipeline.lay_out(prep, job).layout.pixel_flux_scale)
+        assert scales[1] == pytest.approx(scales[0], abs=0.05)

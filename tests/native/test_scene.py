@@ -145,6 +145,8 @@ def test_view_checks_its_passes_once():
     g = floor_gbuffer()
     with pytest.raises(vplace.InputError, match=r"normal must have shape \(8, 8, 3\)"):
         view(g, normal=g["normal"][:4])
+    with pytest.raises(vplace.InputError, match=r"diffuse_color must have shape \(8, 8, 3\)"):
+        view(g, diffuse_color=g["albedo"][:, :4])
     with pytest.raises(vplace.InputError, match="covered must have dtype bool"):
         vplace.View(
             **{k: g[k] for k in ("position", "normal", "albedo")},

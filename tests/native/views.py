@@ -32,6 +32,7 @@ def view(d: dict[str, Any], name: str = "view", **override: Any) -> vplace.View:
         diffuse_indirect=f32(d.get("diffuse_indirect")),
         indirect=f32(d.get("indirect")),
         specular=f32(d.get("specular")),
+        diffuse_color=f32(d.get("diffuse_color")),
         camera_position=list(np.asarray(d.get("camera_position", [0.0, 0.0, 10.0]), float)),
         world_to_clip=np.asarray(d.get("world_to_clip", ANY_CAMERA), dtype=np.float64).tolist(),
         name=name,

@@ -314,6 +314,21 @@ impl FloorView {
     /// The view with the indirect image `indirect` (`w x w x 3`), or without one.
     #[must_use]
     pub fn view_with(&self, indirect: Option<&[f32]>) -> View {
+        self.view_of(&self.gbuffer.albedo, indirect, None, None)
+    }
+
+    /// The view with `albedo` in place of the G-buffer's (the receivers' reflectance), the
+    /// indirect image `indirect`, the Glossy Color `specular` and the Diffuse Color
+    /// `diffuse_color`, each `w x w x 3` or none. The direct image is the G-buffer's albedo
+    /// times `DiffDir`.
+    #[must_use]
+    pub fn view_of(
+        &self,
+        albedo: &[f32],
+        indirect: Option<&[f32]>,
+        specular: Option<&[f32]>,
+        diffuse_color: Option<&[f32]>,
+    ) -> View {
         let g = &self.gbuffer;
         let direct: Vec<f32> = self
             .diffuse_direct
@@ -324,13 +339,17 @@ impl FloorView {
         let depth = vec![self.camera.z; g.width * g.height];
         View::new(&ViewInput {
             name: "floor",
-            gbuffer: g.gbuffer(),
+            gbuffer: GBuffer {
+                albedo,
+                ..g.gbuffer()
+            },
             depth: &depth,
             direct: &direct,
             diffuse_direct: &self.diffuse_direct,
             diffuse_indirect: None,
             indirect,
-            specular: None,
+            specular,
+            diffuse_color,
             camera: Camera {
                 position: self.camera,
                 world_to_clip: self.world_to_clip,

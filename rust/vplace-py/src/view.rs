@@ -37,7 +37,7 @@ impl PyView {
     #[new]
     #[pyo3(signature = (*, position, normal, albedo, covered, depth, direct, diffuse_direct,
         camera_position, world_to_clip, diffuse_indirect = None, indirect = None,
-        specular = None, name = "view"))]
+        specular = None, diffuse_color = None, name = "view"))]
     #[allow(clippy::too_many_arguments)]
     fn new<'py>(
         py: Python<'py>,
@@ -53,6 +53,7 @@ impl PyView {
         diffuse_indirect: Option<&Bound<'py, PyAny>>,
         indirect: Option<&Bound<'py, PyAny>>,
         specular: Option<&Bound<'py, PyAny>>,
+        diffuse_color: Option<&Bound<'py, PyAny>>,
         name: &str,
     ) -> PyResult<Self> {
         let pos = array::<f32>(
@@ -77,6 +78,7 @@ impl PyView {
         let di = optional(diffuse_indirect, "diffuse_indirect")?;
         let ind = optional(indirect, "indirect")?;
         let spec = optional(specular, "specular")?;
+        let diff = optional(diffuse_color, "diffuse_color")?;
         let input = ViewInput {
             name,
             gbuffer: GBuffer {
@@ -96,6 +98,10 @@ impl PyView {
                 .transpose()?,
             indirect: ind.as_ref().map(|a| slice(a, "indirect")).transpose()?,
             specular: spec.as_ref().map(|a| slice(a, "specular")).transpose()?,
+            diffuse_color: diff
+                .as_ref()
+                .map(|a| slice(a, "diffuse_color"))
+                .transpose()?,
             camera: Camera {
                 position: Vec3::from_array(camera_position),
                 // Rows as numpy and Blender write them.

@@ -120,7 +120,8 @@ pub const FEATURES: [FeatureDef; FEATURE_COUNT] = [
     },
     FeatureDef {
         name: "reflectance",
-        doc: "mean luminance of diffuse + specular colour (DiffCol + GlossCol)",
+        doc: "mean luminance of the albedo + specular colour (DiffCol + GlossCol, the glossy \
+              colour twice where the albedo adds the glossy layer vplace models)",
         origin: Origin::Paper,
         surface: true,
     },
@@ -438,6 +439,10 @@ fn segment(acc: &mut Acc, row: &Row<'_>, s: usize, e: usize, light: Option<Stron
             continue;
         }
         let alb_l = lum(alb);
+        // The albedo is the receivers' reflectance: where vplace models a glossy layer it holds
+        // GlossCol already, which this then counts twice. DiffCol + GlossCol there instead (the
+        // view's `diffuse_color`) was measured at stop 81 and not kept: Sponza, 32 seeds, lost
+        // on most views (Balcony -.010, made views -.010 and -.009; the rooms within .0004).
         let refl = sp.map_or(0.0, |s| alb_l + lum(s));
         let nv = Vec3::from_slice(nrm);
         let cosine = match light {

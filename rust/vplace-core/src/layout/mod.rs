@@ -471,6 +471,55 @@ mod tests {
         assert!((off(&s) - off(&right)).length() < 1e-4 * off(&right).length());
     }
 
+    /// A pixel counts the light it receives by its diffuse layer's share of its whole
+    /// reflectance, as a light path's hit does, whether or not its reflectance (the view's
+    /// albedo) adds the glossy layer. The floor's grey half given a Glossy Color of 0.6 over
+    /// its diffuse 0.5 (a sharp finish, left out of the reflectance): read as the reflectance
+    /// less the Glossy Color, that half had no diffuse layer, the pixels received half the
+    /// hits' light and the factor read 2.6.
+    #[test]
+    fn a_glossy_finish_over_a_diffuse_layer_counts_the_light_it_receives() {
+        let (scene, fv) = setup();
+        let params = LayoutParams {
+            cell_px: 8,
+            light_rays: 4000,
+            bounces: 1,
+            ..LayoutParams::DEFAULT
+        };
+        let g = &fv.gbuffer;
+        let n = g.width * g.height;
+        let grey = |p: usize| g.position[3 * p] >= 0.0;
+        let gloss: Vec<f32> = (0..n)
+            .flat_map(|p| [if grey(p) { 0.6 } else { 0.0 }; 3])
+            .collect();
+        // The same floor with the glossy layer in its reflectance, and its DiffCol given.
+        let with_gloss: Vec<f32> = g.albedo.iter().zip(&gloss).map(|(a, s)| a + s).collect();
+        let view = |albedo: &[f32], diffuse_color: Option<&[f32]>| {
+            fv.view_of(albedo, None, Some(&gloss), diffuse_color)
+        };
+        let plain = build_strata(&scene, &[&fv.view()], None, &params).unwrap();
+        assert_eq!(plain.pixel_flux_scale, 1.0);
+        for v in [view(&g.albedo, None), view(&with_gloss, Some(&g.albedo))] {
+            let s = build_strata(&scene, &[&v], None, &params).unwrap();
+            assert!(s.light_hits_on_screen > 500, "{}", s.light_hits_on_screen);
+            assert_eq!(s.pixel_flux_scale, 1.0);
+        }
+        // A metal's pixels (a diffuse layer of 0.02 under 0.6) still count nothing, as its
+        // hits do not: the factor then reads the hits on the red half against that half.
+        let metal: Vec<f32> = (0..n)
+            .flat_map(|p| {
+                let a = &g.albedo[3 * p..3 * p + 3];
+                if grey(p) {
+                    [0.02; 3]
+                } else {
+                    [a[0], a[1], a[2]]
+                }
+            })
+            .collect();
+        let s = build_strata(&scene, &[&view(&metal, None)], None, &params).unwrap();
+        assert!(s.pixel_flux_scale > 1.5, "{}", s.pixel_flux_scale);
+    }
+
     /// Drawn along the curve, a bin's VPLs fall in each part of the scene as its flux lies on
     /// every seed: 1,000 emitters of equal flux in one bin, a tenth of them in a small room
     /// apart from the rest, their ranks of view efficiency mixed (as light paths give them).

@@ -266,11 +266,13 @@ pub(super) fn pixel_emitters(
                     // The direct light a diffuse surface receives counts whatever it reflects
                     // (a black pixel too), as the light paths' first hits count it.
                     let lum_received = f64::from(luminance(received));
+                    // The diffuse layer's share of the surface's whole reflectance, as a light
+                    // path's hit reads its material's (`DiffCol` against `DiffCol + GlossCol`).
                     let glossy = view.specular.as_deref().map_or(Vec3::ZERO, |g| vec3(g, p));
-                    let diffuse = (reflectance - glossy).max(Vec3::ZERO);
+                    let diffuse = view.diffuse_color_at(p).max(Vec3::ZERO);
                     let receives = lum_received.is_finite()
                         && lum_received > 0.0
-                        && diffuse_share(diffuse, reflectance) >= DIFFUSE_SHARE;
+                        && diffuse_share(diffuse, diffuse + glossy) >= DIFFUSE_SHARE;
                     if !emits && !receives {
                         continue;
                     }
@@ -553,8 +555,12 @@ fn diffuse_share(diffuse: Vec3, reflectance: Vec3) -> f32 {
 /// count in [`pixel_flux_scale`] (the add-on's `capture.passes.DIFFUSE_SHARE`): Cycles' diffuse
 /// passes measure the light a surface receives only where it has a diffuse layer, and glass,
 /// metal and lamps have none; the light paths' hits there are left out with the pixels. A
-/// pixel's share reads its reflectance less its Glossy Color (the layer the reflectance adds
-/// where it models it).
+/// pixel's share reads its diffuse layer ([`View::diffuse_color_at`]: Cycles `DiffCol`) against
+/// that plus its Glossy Color, whether or not its reflectance models the glossy layer: before,
+/// it read the reflectance less the Glossy Color, which is the diffuse layer only where the
+/// reflectance adds the glossy one, and a sunlit floor of a sharp glossy finish (Glossy Color
+/// 0.41 over a diffuse 0.22, the layer left to EEVEE) counted as no diffuse surface: its light
+/// paths' hits still counted, and the factor read 11.5.
 pub const DIFFUSE_SHARE: f32 = 0.1;
 
 /// How many standard errors of the light-path hits' sum the pixel emitters' flux must differ

@@ -417,6 +417,7 @@ mod tests {
             diffuse_indirect: None,
             indirect: None,
             specular: None,
+            diffuse_color: None,
             camera: Camera {
                 position: fv.camera,
                 world_to_clip: fv.world_to_clip,

@@ -72,6 +72,11 @@ pub struct ViewInput<'a> {
     pub indirect: Option<&'a [f32]>,
     /// Cycles `GlossCol` (`H x W x 3`), or `None`.
     pub specular: Option<&'a [f32]>,
+    /// Cycles `DiffCol` (`H x W x 3`) where `gbuffer.albedo` is more than it: a receiver's
+    /// reflectance that adds the glossy layers the VPLs light (the add-on's
+    /// `Capture.reflectance`); `None`: the albedo is `DiffCol`. What the surface's diffuse layer
+    /// reflects ([`View::diffuse_color_at`]).
+    pub diffuse_color: Option<&'a [f32]>,
     /// The camera.
     pub camera: Camera,
 }
@@ -106,6 +111,9 @@ pub struct View {
     pub indirect: Option<Vec<f32>>,
     /// Specular colour (`H x W x 3`), when given.
     pub specular: Option<Vec<f32>>,
+    /// The diffuse layer's colour (`H x W x 3`) where `albedo` is more than it, when given
+    /// ([`ViewInput::diffuse_color`]).
+    pub diffuse_color: Option<Vec<f32>>,
     /// The camera.
     pub camera: Camera,
     /// Covered pixels the caller gave that were masked for a non-finite lighting pass.
@@ -132,6 +140,7 @@ impl View {
             ("diffuse_indirect", input.diffuse_indirect),
             ("indirect", input.indirect),
             ("specular", input.specular),
+            ("diffuse_color", input.diffuse_color),
         ];
         for (what, arr) in rgb {
             if let Some(a) = arr {
@@ -190,6 +199,7 @@ impl View {
             diffuse_indirect: input.diffuse_indirect.map(<[f32]>::to_vec),
             indirect: input.indirect.map(<[f32]>::to_vec),
             specular: input.specular.map(<[f32]>::to_vec),
+            diffuse_color: input.diffuse_color.map(<[f32]>::to_vec),
             camera: input.camera,
             masked_pixels: masked,
         })
@@ -248,6 +258,15 @@ impl View {
     #[must_use]
     pub fn covered_count(&self) -> usize {
         self.covered.iter().filter(|&&c| c).count()
+    }
+
+    /// The colour of the diffuse layer of pixel `p`'s surface (Cycles `DiffCol`): the
+    /// `diffuse_color` where given, else the albedo.
+    #[inline]
+    #[must_use]
+    pub fn diffuse_color_at(&self, p: usize) -> Vec3 {
+        let a = self.diffuse_color.as_deref().unwrap_or(&self.albedo);
+        Vec3::from_slice(&a[3 * p..3 * p + 3])
     }
 
     /// World position of pixel `p`.
@@ -313,6 +332,7 @@ mod tests {
             diffuse_indirect: Some(lit),
             indirect: None,
             specular: None,
+            diffuse_color: None,
             camera: Camera {
                 position: Vec3::new(0.0, 0.0, 2.0),
                 world_to_clip: looking_down(Vec3::new(0.0, 0.0, 2.0)),

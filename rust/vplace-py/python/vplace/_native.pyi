@@ -211,6 +211,7 @@ class View:
         diffuse_indirect: _F32 | None = None,
         indirect: _F32 | None = None,
         specular: _F32 | None = None,
+        diffuse_color: _F32 | None = None,
         name: str = "view",
     ) -> View: ...
     def without_indirect(self) -> View: ...
