@@ -219,6 +219,7 @@ def view_of(
         diffuse_indirect=None if held_out else diffuse_indirect,
         indirect=indirect,
         specular=cap.glossy_color,
-        diffuse_color=cap.diffuse_color,
+        # The Diffuse Color where the reflectance adds a glossy layer to it; else it is the albedo.
+        diffuse_color=None if gloss is None else cap.diffuse_color,
         **_geometry(cap),
     )

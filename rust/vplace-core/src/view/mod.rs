@@ -8,9 +8,9 @@
 //!   non-finite value there is an error naming the pass and the pixel (a renderer's G-buffer is
 //!   never NaN, so it is a bug upstream);
 //! - a covered pixel whose *lighting* passes (`direct`, `diffuse_direct`, `diffuse_indirect`,
-//!   `indirect`, `specular`, `diffuse_color`) hold NaN or inf is *masked*: it becomes uncovered and is counted in
-//!   [`View::masked_pixels`] (a path tracer's rare firefly should not abort a run, and the count
-//!   is reported so that it cannot go unnoticed);
+//!   `indirect`, `specular`, `diffuse_color`) hold NaN or inf is *masked*: it becomes uncovered
+//!   and is counted in [`View::masked_pixels`] (a path tracer's rare firefly should not abort a
+//!   run, and the count is reported so that it cannot go unnoticed);
 //! - the camera is finite and its matrix invertible.
 
 use glam::{Mat4, Vec3};
